@@ -1,0 +1,162 @@
+"""Thermal network engine: checks 2 and 3 of physics.md, stiffness, energy, errors."""
+
+import numpy as np
+import pytest
+import scipy.integrate
+import scipy.linalg
+
+from wet_eha_thermal.model.network import NetworkError, ThermalNetwork
+
+
+def advected_chain(n_cells, ntu, capacity=0.0):
+    """Plug flow past a wall at 0 K: n cells, inlet at 1 K, total NTU = hA / (m_dot c_p)."""
+    net = ThermalNetwork()
+    net.add_boundary('inlet')
+    net.add_boundary('wall')
+    cells = [net.add_node(f'oil.s{i + 1}', capacity) for i in range(n_cells)]
+    adv = [net.add_advection(u, d) for u, d in zip(['inlet'] + cells[:-1], cells)]
+    links = [net.add_conductance(c, 'wall', ntu / n_cells) for c in cells]
+    net.set_advection_rates(adv, np.ones(n_cells))   # m_dot c_p = 1 W/K
+    return net, cells, links
+
+
+@pytest.mark.parametrize('ntu', [0.1, 1.0, 3.0])
+def test_one_cell_gives_one_over_one_plus_ntu(ntu):
+    net, cells, _ = advected_chain(1, ntu)
+    T = net.steady_state([1.0, 0.0], [])
+    assert T[net.index(cells[-1])] == pytest.approx(1.0 / (1.0 + ntu), rel=1e-12)
+
+
+@pytest.mark.parametrize('ntu', [0.5, 2.0])
+def test_cells_converge_to_plug_flow_exp_minus_ntu(ntu):
+    outlet = {}
+    for n in (1, 2, 5, 10, 40, 200):
+        net, cells, _ = advected_chain(n, ntu)
+        outlet[n] = net.steady_state([1.0, 0.0], [])[net.index(cells[-1])]
+        # each chain is exactly the upwind formula (1 + NTU/n)^-n
+        assert outlet[n] == pytest.approx((1.0 + ntu / n) ** -n, rel=1e-12)
+    errors = [abs(outlet[n] - np.exp(-ntu)) for n in (1, 2, 5, 10, 40, 200)]
+    assert all(b < a for a, b in zip(errors, errors[1:]))
+    # upwind error is first order: about NTU^2 exp(-NTU) / (2 n)
+    assert errors[-1] < ntu ** 2 * np.exp(-ntu) / (2 * 200) * 1.05
+
+
+@pytest.mark.parametrize('dt', [1e-4, 1e-2, 0.37, 1.0])
+def test_first_order_node_follows_the_exponential_at_any_step(dt):
+    C, R, P, T_amb = 80.0, 0.4, 25.0, 293.15
+    net = ThermalNetwork()
+    net.add_boundary('ambient')
+    net.add_node('m', C)
+    net.add_resistance('m', 'ambient', R)
+    net.add_source('m')
+    x = np.array([T_amb])
+    steps = int(round(3.0 / dt)) if dt < 0.1 else 40
+    for k in range(1, steps + 1):
+        x = net.step(x, dt, [T_amb], [P])
+    t = steps * dt
+    exact = T_amb + P * R * (1 - np.exp(-t / (R * C)))
+    # exact discretisation: only round-off accumulates over the steps
+    assert x[0] == pytest.approx(exact, abs=1e-9 * steps + 1e-10)
+
+
+def stiff_network():
+    """Return a thin oil film (ms) next to a heavy housing (hours): stiffness ratio ~1e7."""
+    net = ThermalNetwork()
+    net.add_boundary('ambient')
+    net.add_node('film', 0.01)
+    net.add_node('housing', 2000.0)
+    net.add_node('surface')                       # algebraic junction
+    net.add_conductance('film', 'surface', 20.0)
+    net.add_conductance('surface', 'housing', 50.0)
+    net.add_conductance('housing', 'ambient', 0.5)
+    net.add_source('film')
+    return net
+
+
+@pytest.mark.parametrize('dt', [1e-4, 1e-3, 0.1, 1.0])
+def test_stiff_network_matches_an_independent_ode_solver(dt):
+    net = stiff_network()
+    A, B = net.state_space()
+    assert np.linalg.cond(A) > 1e5   # really stiff
+    w = np.array([293.15, 30.0])
+    x0 = np.array([293.15, 293.15])
+    horizon = 2.0
+    sol = scipy.integrate.solve_ivp(lambda t, x: A @ x + B @ w, (0, horizon), x0,
+                                    method='Radau', rtol=1e-10, atol=1e-10)
+    x = x0.copy()
+    for _ in range(int(round(horizon / dt))):
+        x = net.step(x, dt, w[:1], w[1:])
+    assert np.allclose(x, sol.y[:, -1], atol=1e-6)
+
+
+def test_step_mean_gives_exact_energy_balance():
+    net = stiff_network()
+    x = np.array([293.15, 293.15])
+    dt, P = 0.5, 30.0
+    C = net.freeze().capacity[net.dynamic]
+    stored0 = C @ x
+    to_amb = 0.0
+    link = 2   # housing -> ambient
+    for _ in range(50):
+        x_new, x_mean = net.step(x, dt, [293.15], [P], mean=True)
+        T_mean = net.temperatures(x_mean, [293.15], [P])
+        to_amb += net.link_heat_flows(T_mean, [293.15])[link] * dt
+        x = x_new
+    stored = C @ x - stored0
+    assert stored + to_amb == pytest.approx(P * dt * 50, rel=1e-9)
+
+
+def test_mean_over_a_step_matches_quadrature():
+    net = stiff_network()
+    A, B = net.state_space()
+    w = np.array([300.0, 12.0])
+    x0 = np.array([350.0, 310.0])
+    dt = 0.3
+    _, mean = net.step(x0, dt, w[:1], w[1:], mean=True)
+    ref = scipy.integrate.quad_vec(
+        lambda t: scipy.linalg.expm(A * t) @ x0
+        + scipy.integrate.quad_vec(lambda s: scipy.linalg.expm(A * s) @ B @ w, 0, t)[0],
+        0, dt)[0] / dt
+    assert np.allclose(mean, ref, rtol=1e-9)
+
+
+def test_negative_conductances_are_accepted():
+    net = ThermalNetwork()
+    net.add_boundary('b')
+    net.add_node('m', 1.0)
+    net.add_node('j')
+    net.add_resistance('j', 'm', -0.1)
+    net.add_resistance('j', 'b', 0.3)
+    net.add_source('m')
+    # series resistance 0.2 K/W: 10 W gives 2 K
+    assert net.steady_state([0.0], [10.0])[net.index('m')] == pytest.approx(2.0, rel=1e-12)
+
+
+def test_names_are_looked_up_and_bad_builds_are_refused():
+    net = ThermalNetwork()
+    net.add_boundary('ambient')
+    net.add_node('a.s1', 1.0)
+    with pytest.raises(NetworkError, match='twice'):
+        net.add_node('a.s1')
+    with pytest.raises(NetworkError, match='unknown'):
+        net.add_conductance('a.s1', 'nowhere', 1.0)
+    with pytest.raises(NetworkError, match='>= 0'):
+        net.add_node('neg', -1.0)
+    net.add_conductance('a.s1', 'ambient', 1.0)
+    net.freeze()
+    with pytest.raises(KeyError, match='a.s1'):
+        net.index('a.s9')
+    with pytest.raises(NetworkError, match='fixed'):
+        net.add_node('late')
+
+
+def test_isolated_algebraic_group_is_reported():
+    net = ThermalNetwork()
+    net.add_boundary('ambient')
+    net.add_node('m', 1.0)
+    net.add_conductance('m', 'ambient', 1.0)
+    net.add_node('p')
+    net.add_node('q')
+    net.add_conductance('p', 'q', 1.0)
+    with pytest.raises(NetworkError, match='no path'):
+        net.discretise(0.1)

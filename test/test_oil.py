@@ -1,0 +1,174 @@
+"""Tests of the hydraulic oil properties (wet_eha_thermal.model.oil)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from wet_eha_thermal.model.oil import (
+    get_oil, isenthalpic_throttle_temperature_rise, OIL_GRADES, walther_fit)
+from wet_eha_thermal.model.validity import ValidityLog
+
+T0 = 273.15
+GRADES = sorted(OIL_GRADES)
+
+
+@pytest.mark.parametrize('name', GRADES)
+def test_walther_fit_reproduces_anchor_points(name):
+    """The piecewise Walther fit returns the three viscosity data (round-off only)."""
+    oil = get_oil(name)
+    g = oil.grade
+    for t_k, nu_cst in ((g.T_cold_K, g.nu_cold_cSt), (T0 + 40.0, g.nu_40_cSt),
+                        (T0 + 100.0, g.nu_100_cSt)):
+        assert oil.kinematic_viscosity(t_k) == pytest.approx(nu_cst * 1e-6, rel=1e-9)
+
+
+@pytest.mark.parametrize('name', GRADES)
+def test_viscosity_monotonic_and_between_anchors(name):
+    """Viscosity falls monotonically with T and stays between the anchor values."""
+    oil = get_oil(name)
+    g = oil.grade
+    t_cold = np.linspace(g.T_cold_K, T0 + 40.0, 200)
+    t_hot = np.linspace(T0 + 40.0, T0 + 100.0, 200)
+    nu_cold = oil.kinematic_viscosity(t_cold) * 1e6
+    nu_hot = oil.kinematic_viscosity(t_hot) * 1e6
+    assert np.all(np.diff(nu_cold) < 0.0) and np.all(np.diff(nu_hot) < 0.0)
+    tol = 1e-9
+    assert np.all(nu_cold <= g.nu_cold_cSt * (1 + tol))
+    assert np.all(nu_cold >= g.nu_40_cSt * (1 - tol))
+    assert np.all(nu_hot <= g.nu_40_cSt * (1 + tol))
+    assert np.all(nu_hot >= g.nu_100_cSt * (1 - tol))
+
+
+@pytest.mark.parametrize('name', GRADES)
+def test_viscosity_continuous_at_40C(name):
+    """The cold and hot Walther lines meet at 40 degC (both pass through the datum)."""
+    oil = get_oil(name)
+    below = oil.kinematic_viscosity(T0 + 40.0 - 1e-9)
+    at = oil.kinematic_viscosity(T0 + 40.0)
+    assert below == pytest.approx(at, rel=1e-8)
+
+
+def test_walther_fit_two_points_and_cold_start_need():
+    """
+    walther_fit passes through its two points; one line misses 5606 at -40 degC.
+
+    The single 40/100 degC line of MIL-PRF-5606 predicts about 200 cSt at
+    -40 degC against 495 cSt measured (VI improver): the reason for the
+    piecewise fit (physics.md section 4).
+    """
+    a, b = walther_fit(T0 + 40.0, 13.5, T0 + 100.0, 5.1)
+    for t_k, nu in ((T0 + 40.0, 13.5), (T0 + 100.0, 5.1)):
+        assert 10 ** 10 ** (a - b * math.log10(t_k)) - 0.7 == pytest.approx(nu, rel=1e-12)
+    single_line_m40 = 10 ** 10 ** (a - b * math.log10(T0 - 40.0)) - 0.7
+    assert single_line_m40 < 0.5 * 495.0
+
+
+@pytest.mark.parametrize('name', GRADES)
+def test_density_reference_and_pressure(name):
+    """rho(15 degC, 0 Pa) = rho15; pressure raises rho by p/K; T lowers it by alpha_p."""
+    oil = get_oil(name)
+    g = oil.grade
+    assert oil.density(T0 + 15.0, 0.0) == pytest.approx(g.rho15_kg_m3, rel=1e-14)
+    for p in (1e6, 21e6, 35e6):
+        ratio = oil.density(T0 + 60.0, p) / oil.density(T0 + 60.0, 0.0)
+        assert ratio - 1.0 == pytest.approx(p / oil.bulk_modulus, rel=1e-9)
+    slope = (oil.density(T0 + 80.0) - oil.density(T0 + 20.0)) / 60.0
+    assert slope == pytest.approx(-g.rho15_kg_m3 * oil.alpha_p, rel=1e-9)
+
+
+@pytest.mark.parametrize('name', GRADES)
+def test_barus_factor_and_dynamic_viscosity(name):
+    """nu(p) = nu(0) exp(a_p p) and mu = rho nu, Pr = mu c_p / k."""
+    oil = get_oil(name)
+    t_k, p = T0 + 50.0, 20e6
+    ratio = oil.kinematic_viscosity(t_k, p) / oil.kinematic_viscosity(t_k)
+    assert ratio == pytest.approx(math.exp(oil.grade.barus_1_Pa * p), rel=1e-12)
+    mu = oil.dynamic_viscosity(t_k, p)
+    assert mu == pytest.approx(oil.kinematic_viscosity(t_k, p) * oil.density(t_k, p), rel=1e-14)
+    pr = mu * oil.specific_heat(t_k) / oil.conductivity(t_k)
+    assert oil.prandtl(t_k, p) == pytest.approx(pr, rel=1e-14)
+
+
+def test_5606_cp_and_k_in_physics_md_range():
+    """
+    Cragoe c_p and k of 5606 at 40 degC: 1.9-2.1 kJ/(kg K), 0.12-0.14 W/(m K).
+
+    Also compared against Cragoe's formulas evaluated here independently from
+    the oil's specific gravity (rho_15 / 999.1).
+    """
+    oil = get_oil('MIL-PRF-5606')
+    t_k = T0 + 40.0
+    cp = oil.specific_heat(t_k)
+    k = oil.conductivity(t_k)
+    assert 1900.0 <= cp <= 2100.0
+    assert 0.12 <= k <= 0.14
+    s = oil.grade.rho15_kg_m3 / 999.1
+    assert cp == pytest.approx(1000.0 * (1.685 + 0.003391 * 40.0) / math.sqrt(s), rel=1e-12)
+    assert k == pytest.approx(0.1172 * (1.0 - 0.00054 * 40.0) / s, rel=1e-12)
+
+
+def test_throttle_temperature_rise():
+    """Throttle heating about 0.45 K/MPa for 5606 at 40 degC and equal to the formula."""
+    oil = get_oil('MIL-PRF-5606')
+    t_k = T0 + 40.0
+    rise = isenthalpic_throttle_temperature_rise(1e6, t_k, oil)
+    assert rise == pytest.approx(0.45, rel=0.10)
+    expected = ((1.0 - oil.alpha_p * t_k) * 1e6
+                / (oil.density(t_k) * oil.specific_heat(t_k)))
+    assert rise == pytest.approx(expected, rel=1e-14)
+    # Isenthalpic: c_p dT + (1 - alpha_p T) dp / rho = 0 with dp = -1 MPa.
+    dh = oil.specific_heat(t_k) * rise + (1.0 - oil.alpha_p * t_k) * (-1e6) / oil.density(t_k)
+    assert abs(dh) < 1e-9 * oil.specific_heat(t_k) * rise
+
+
+def test_unknown_grade_raises_value_error_naming_it():
+    """An unknown grade raises ValueError naming it and listing the known grades."""
+    with pytest.raises(ValueError) as err:
+        get_oil('Skydrol LD-4')
+    message = str(err.value)
+    assert 'Skydrol LD-4' in message
+    for name in GRADES:
+        assert name in message
+
+
+def test_default_grade_is_5606():
+    """get_oil() without a name gives MIL-PRF-5606."""
+    assert get_oil().name == 'MIL-PRF-5606'
+
+
+def test_validity_flags_temperature_and_pressure():
+    """Out-of-range T and p are flagged (not raised), in-range inputs are not."""
+    oil = get_oil('MIL-PRF-5606')
+    log = ValidityLog()
+    oil.density(T0 + 40.0, 21e6, log=log)
+    oil.kinematic_viscosity(T0 + 40.0, 21e6, log=log)
+    oil.specific_heat(T0 + 40.0, log=log)
+    assert len(log) == 0
+    nu = oil.kinematic_viscosity(T0 - 60.0, 50e6, log=log)
+    assert np.isfinite(nu) and nu > 0.0
+    quantities = {flag.quantity for flag in log}
+    assert quantities == {'T_K', 'p_Pa'}
+    t_flag = next(flag for flag in log if flag.quantity == 'T_K')
+    assert t_flag.min_seen == pytest.approx(T0 - 60.0)
+
+
+@pytest.mark.parametrize('name', GRADES)
+def test_arrays_and_scalars_agree(name):
+    """Vectorised evaluation equals element-by-element scalar evaluation."""
+    oil = get_oil(name)
+    t = np.array([T0 - 40.0, T0 + 0.0, T0 + 39.999, T0 + 40.0, T0 + 90.0, T0 + 130.0])
+    p = np.array([0.0, 1e6, 5e6, 10e6, 21e6, 35e6])
+    for method in (oil.density, oil.kinematic_viscosity, oil.dynamic_viscosity, oil.prandtl):
+        vec = method(t, p)
+        assert vec.shape == t.shape
+        for i in range(t.size):
+            scalar = method(float(t[i]), float(p[i]))
+            assert np.ndim(scalar) == 0
+            assert scalar == vec[i]
+    for method in (oil.specific_heat, oil.conductivity):
+        vec = method(t)
+        assert [method(float(x)) for x in t] == list(vec)
+    rise = isenthalpic_throttle_temperature_rise(p, t, oil)
+    assert [isenthalpic_throttle_temperature_rise(float(a), float(b), oil)
+            for a, b in zip(p, t)] == list(rise)

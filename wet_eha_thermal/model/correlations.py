@@ -1,0 +1,610 @@
+"""
+Heat-transfer and friction correlations of the wet-EHA thermal model.
+
+SI units throughout: temperatures in K, lengths in m, angular speed in rad/s,
+volume flow in m^3/s, dynamic viscosity in Pa s, kinematic viscosity in
+m^2/s, conductivity in W/(m K), heat-transfer coefficients in W/(m^2 K),
+power in W. Every function accepts floats or numpy arrays (broadcast
+together) and is vectorised (regimes by ``np.where``/``np.clip``, no Python
+loops), so it can be evaluated per axial section in the time loop.
+
+Every correlation takes an optional ``log``
+(:class:`~wet_eha_thermal.model.validity.ValidityLog`) and flags the inputs
+that fall outside the range its source validates; out-of-range inputs are
+still evaluated (the correlation is extrapolated), never rejected.
+
+Airgap notation: ``r_rotor`` = r1 (outer radius of the rotor, sleeve
+included), ``r_bore`` = r2 (stator bore radius), gap delta = r2 - r1,
+mean radius R_m = (r1 + r2) / 2.
+"""
+
+from typing import NamedTuple, Optional
+
+import numpy as np
+from scipy.constants import g as _GRAVITY
+from scipy.constants import Stefan_Boltzmann as _SIGMA
+
+from .validity import check, ValidityLog
+
+#: Specific gas constant of dry air, J/(kg K).
+R_AIR = 287.05
+
+#: Bilgen-Boulos: range of gap ratio delta/r1 flagged as outside the data
+#: their correlation was fitted to. See :func:`bilgen_boulos_torque_coefficient`.
+BILGEN_BOULOS_GAP_RATIO = (0.0068, 0.114)
+#: Bilgen-Boulos: highest Couette Reynolds number Re_d of the data.
+BILGEN_BOULOS_RE_MAX = 1.0e5
+#: Reynolds number range of the reference paper's (Jiao et al. 2022) airgap
+#: axial-flow correlation.
+REFERENCE_AXIAL_RE = (380.0, 4220.0)
+
+#: Laminar fully developed Nusselt numbers (Shah and London 1978).
+NU_PARALLEL_PLATES_T = 7.54
+NU_PIPE_T = 3.66
+NU_PIPE_Q = 4.36
+
+_RE_LAMINAR = 2300.0
+_RE_TURBULENT = 4000.0
+
+
+def _scalar(x):
+    """Return a 0-d array as a numpy scalar, anything else unchanged."""
+    return x[()] if isinstance(x, np.ndarray) else x
+
+
+def _positive_or_nan(x):
+    """Return ``x`` with its non-positive entries replaced by NaN (never flagged)."""
+    return np.where(np.greater(x, 0.0), x, np.nan)
+
+
+# --------------------------------------------------------------------------- air
+
+
+class AirProperties(NamedTuple):
+    """
+    Properties of dry air (SI units).
+
+    :ivar rho: density, kg/m^3.
+    :ivar mu: dynamic viscosity, Pa s.
+    :ivar k: thermal conductivity, W/(m K).
+    :ivar cp: isobaric specific heat, J/(kg K).
+    :ivar Pr: Prandtl number mu cp / k.
+    :ivar beta: isobaric expansion coefficient (ideal gas 1/T), 1/K.
+
+    """
+
+    rho: object
+    mu: object
+    k: object
+    cp: object
+    Pr: object
+    beta: object
+
+
+def air_properties(T_K, p_Pa=101325.0, log: Optional[ValidityLog] = None) -> AirProperties:
+    """
+    Return the properties of dry air near atmospheric pressure.
+
+    - rho: ideal gas p / (R T), R = 287.05 J/(kg K).
+    - mu: Sutherland's law, mu = 1.716e-5 (T/273)^1.5 (273 + 111)/(T + 111)
+      Pa s (White, Viscous Fluid Flow, 3rd ed., table 1-2; +-2 % over
+      170-1900 K).
+    - k: Sutherland form, k = 0.0241 (T/273)^1.5 (273 + 194)/(T + 194)
+      W/(m K) (White, table 1-3; +-2 % over 160-2000 K).
+    - cp: quadratic fit cp = 1029.1 - 0.18584 T + 3.723e-4 T^2 J/(kg K) to
+      Incropera's table A.4 (200-600 K), within 0.1 %.
+    - beta = 1/T (ideal gas).
+
+    Validity flagged: 200 K <= T <= 600 K (the cp fit's range) and
+    50 kPa <= p <= 200 kPa (mu, k, cp taken pressure independent).
+
+    :param T_K: temperature (K).
+    :param p_Pa: absolute pressure (Pa).
+    :param log: optional validity log.
+
+    :return: :class:`AirProperties`.
+
+    """
+    if log is not None:
+        check(log, 'air properties', 'T_K', T_K, 200.0, 600.0,
+              'cp fit and property laws checked over 200-600 K only; extrapolated')
+        check(log, 'air properties', 'p_Pa', p_Pa, 5.0e4, 2.0e5,
+              'mu, k, cp taken at about 1 atm; ideal-gas density still applies')
+    T = np.asarray(T_K, dtype=float)
+    t_ratio = T / 273.0
+    t_pow = t_ratio * np.sqrt(t_ratio)
+    rho = np.divide(p_Pa, R_AIR * T)
+    mu = 1.716e-5 * t_pow * (273.0 + 111.0) / (T + 111.0)
+    k = 0.0241 * t_pow * (273.0 + 194.0) / (T + 194.0)
+    cp = 1029.1 + T * (-0.18584 + 3.723e-4 * T)
+    return AirProperties(_scalar(rho), _scalar(mu), _scalar(k), _scalar(cp),
+                         _scalar(mu * cp / k), _scalar(1.0 / T))
+
+
+# ------------------------------------------------------------ airgap friction
+
+
+def couette_torque(mu, omega, L, r_rotor, r_bore):
+    """
+    Return the exact laminar Couette torque on the rotor, N m.
+
+    Circular Couette flow between a rotating inner cylinder (radius r1,
+    speed omega) and a fixed outer one (r2), length L, end effects
+    neglected: M = 4 pi mu omega L r1^2 r2^2 / (r2^2 - r1^2) (e.g. Bird,
+    Stewart and Lightfoot, Transport Phenomena, ex. 3.6-3). Valid while the
+    flow is laminar and free of Taylor vortices (Ta below about 1700). The
+    sign follows omega (the fluid resists the rotation).
+
+    :param mu: dynamic viscosity (Pa s).
+    :param omega: rotor angular speed (rad/s).
+    :param L: wetted length (m).
+    :param r_rotor: rotor outer radius r1 (m).
+    :param r_bore: bore radius r2 > r1 (m).
+
+    """
+    r1s = np.square(r_rotor)
+    r2s = np.square(r_bore)
+    return 4.0 * np.pi * np.multiply(mu, omega) * np.multiply(L, r1s * r2s / (r2s - r1s))
+
+
+def bilgen_boulos_torque_coefficient(Re_d, gap_ratio, log: Optional[ValidityLog] = None):
+    """
+    Return the Bilgen-Boulos torque coefficient C_M and its regime (1-4).
+
+    Source: Bilgen, E. and Boulos, R., "Functional dependence of torque
+    coefficient of coaxial cylinders on gap width and Reynolds number",
+    J. Fluids Eng. 95(1), 1973, 122-126. With C_M = 2 M / (pi rho omega^2
+    r1^4 L), Re_d = rho omega r1 delta / mu and g = delta / r1:
+
+    ======  ===================  ==============================
+    regime  Re_d                 C_M
+    ======  ===================  ==============================
+    1       Re_d < 64            10 g^0.3 / Re_d
+    2       64 <= Re_d < 500     2 g^0.3 / Re_d^0.6
+    3       500 <= Re_d < 1e4    1.03 g^0.3 / Re_d^0.5
+    4       Re_d >= 1e4          0.065 g^0.3 / Re_d^0.2
+    ======  ===================  ==============================
+
+    The published constants are only approximately continuous: C_M jumps by
+    +5.6 % at Re_d = 64, -4.1 % at 500 and +0.02 % at 1e4.
+
+    Validity flagged: Re_d <= 1e5 and 0.0068 <= g <= 0.114. The gap-ratio
+    range is the one usually quoted for the data Bilgen and Boulos fitted
+    (their own cylinders and the literature data they pooled); it could not
+    be checked against the paper itself (abstract only), so treat it as the
+    chosen flagging range. The reference rig has g = 0.5/18 = 0.028.
+
+    :param Re_d: Couette Reynolds number rho omega r1 delta / mu (>= 0).
+    :param gap_ratio: delta / r1.
+    :param log: optional validity log.
+
+    :return: ``(C_M, regime)``; C_M is inf at Re_d = 0.
+
+    """
+    if log is not None:
+        check(log, 'Bilgen-Boulos airgap friction', 'Re_d', Re_d, 0.0, BILGEN_BOULOS_RE_MAX,
+              'Couette Reynolds number above the data of Bilgen and Boulos (1973)')
+        check(log, 'Bilgen-Boulos airgap friction', 'delta/r1', gap_ratio,
+              *BILGEN_BOULOS_GAP_RATIO, 'gap ratio outside the data of Bilgen and Boulos (1973)')
+    re = np.asarray(Re_d, dtype=float)
+    coef, expo, regime = _bilgen_boulos_constants(re)
+    with np.errstate(divide='ignore'):
+        cm = coef * np.power(gap_ratio, 0.3) * np.power(re, -expo)
+    return _scalar(cm), _scalar(regime)
+
+
+def _bilgen_boulos_constants(re):
+    """Return the regime constants ``(c, n, regime)`` of C_M = c g^0.3 Re^-n."""
+    regime = (1 + np.greater_equal(re, 64.0).astype(int) + np.greater_equal(re, 500.0)
+              + np.greater_equal(re, 1.0e4))
+    coef = np.choose(regime - 1, (10.0, 2.0, 1.03, 0.065))
+    expo = np.choose(regime - 1, (1.0, 0.6, 0.5, 0.2))
+    return coef, expo, regime
+
+
+def airgap_friction(rho, mu, omega, r_rotor, r_bore, L, log: Optional[ValidityLog] = None):
+    """
+    Return the viscous friction power of a flooded airgap and its regime.
+
+    physics.md section 2. The torque coefficient is
+    C_M = max(C_M,Couette, C_M,Bilgen-Boulos), with C_M,Couette that of the
+    exact laminar Couette torque (:func:`couette_torque`) and C_M,BB from
+    :func:`bilgen_boulos_torque_coefficient`. Taylor vortices and turbulence
+    only ever add torque to the laminar value, so the low-Re limit is the
+    exact Couette torque and the switch between the two is continuous
+    (the Bilgen-Boulos curve keeps its own small jumps at 64, 500, 1e4).
+    Power P = 0.5 C_M pi rho |omega|^3 r1^4 L (= M |omega|). The pump is
+    bidirectional, so |omega| is used; omega = 0 gives 0 W.
+
+    :param rho: oil density (kg/m^3).
+    :param mu: oil dynamic viscosity (Pa s).
+    :param omega: rotor speed (rad/s), either sign.
+    :param r_rotor: rotor outer radius r1 (m).
+    :param r_bore: stator bore radius r2 (m).
+    :param L: wetted length of the section (m).
+    :param log: optional validity log (Re_d and delta/r1 of Bilgen-Boulos;
+        only evaluations where Bilgen-Boulos sets the torque are flagged
+        for Re_d).
+
+    :return: ``(power_W, regime)``: power in W (>= 0) and an int regime: 0 =
+        laminar Couette (exact torque), 1-4 = the Bilgen-Boulos regime that
+        set the torque (1: Re_d < 64, 2: 64-500, 3: 500-1e4, 4: > 1e4).
+
+    """
+    w = np.abs(omega)
+    delta = np.subtract(r_bore, r_rotor)
+    r1s = np.square(r_rotor)
+    r2s = np.square(r_bore)
+    p_couette = 4.0 * np.pi * np.multiply(mu, w * w) * np.multiply(L, r1s * r2s / (r2s - r1s))
+    # Re_d = w * re_per_w; write w^3 Re^-n = w^(3-n) re_per_w^-n (no 0 ** negative).
+    re_per_w = np.multiply(rho, np.multiply(r_rotor, delta)) / np.asarray(mu, dtype=float)
+    re = w * re_per_w
+    gap_ratio = delta / np.asarray(r_rotor, dtype=float)
+    coef, expo, bb_regime = _bilgen_boulos_constants(re)
+    p_bb = (0.5 * np.pi * coef * np.power(gap_ratio, 0.3) * np.power(re_per_w, -expo)
+            * np.power(w, 3.0 - expo) * np.multiply(rho, np.multiply(np.square(r1s), L)))
+    couette = p_couette >= p_bb
+    power = np.where(couette, p_couette, p_bb)
+    regime = np.where(couette, 0, bb_regime)
+    if log is not None:
+        check(log, 'Bilgen-Boulos airgap friction', 'Re_d', np.where(couette, np.nan, re),
+              0.0, BILGEN_BOULOS_RE_MAX,
+              'Couette Reynolds number above the data of Bilgen and Boulos (1973)')
+        check(log, 'Bilgen-Boulos airgap friction', 'delta/r1', gap_ratio,
+              *BILGEN_BOULOS_GAP_RATIO, 'gap ratio outside the data of Bilgen and Boulos (1973)')
+    return _scalar(power), _scalar(regime)
+
+
+# ------------------------------------------------------ airgap heat transfer
+
+
+def becker_kaye_geometric_factor(r_rotor, r_bore):
+    """
+    Return the Becker-Kaye geometric factor F_g of an annulus (dimensionless).
+
+    Source: Becker, K. M. and Kaye, J., "Measurements of diabatic flow in an
+    annulus with an inner rotating cylinder", J. Heat Transfer 84, 1962,
+    97-105 (after Taylor's stability analysis):
+    F_g = pi^4 / [1697 P (1 - delta / (2 R_m))], P = 0.0571 X + 0.00056 / X,
+    X = 1 - 0.652 (delta/r1) / (1 - delta/r1). As delta -> 0, X -> 1 and
+    F_g -> pi^4 / (1697 * 0.05766) = 0.9955. Meant for narrow gaps
+    (delta/r1 well below 1).
+
+    :param r_rotor: rotor outer radius r1 (m).
+    :param r_bore: bore radius r2 (m).
+
+    """
+    r1 = np.asarray(r_rotor, dtype=float)
+    delta = np.subtract(r_bore, r1)
+    g = delta / r1
+    x = 1.0 - 0.652 * g / (1.0 - g)
+    p = 0.0571 * x + 0.00056 / x
+    r_mean = 0.5 * (r1 + r_bore)
+    return _scalar(np.pi ** 4 / (1697.0 * p * (1.0 - delta / (2.0 * r_mean))))
+
+
+def taylor_number(omega, r_rotor, r_bore, nu):
+    """
+    Return the Taylor number Ta = omega^2 R_m delta^3 / nu^2 (dimensionless).
+
+    Definition of Becker and Kaye (1962); R_m the mean radius, delta the gap,
+    nu the kinematic viscosity (m^2/s), omega in rad/s (either sign).
+    """
+    delta = np.subtract(r_bore, r_rotor)
+    r_mean = 0.5 * np.add(r_rotor, r_bore)
+    return np.square(omega) * r_mean * delta ** 3 / np.square(nu)
+
+
+def modified_taylor_number(omega, r_rotor, r_bore, nu):
+    """
+    Return the modified Taylor number Ta_m = Ta / F_g (dimensionless).
+
+    :func:`taylor_number` divided by :func:`becker_kaye_geometric_factor`;
+    Taylor vortices appear at Ta_m of about 1700.
+    """
+    return _scalar(taylor_number(omega, r_rotor, r_bore, nu)
+                   / becker_kaye_geometric_factor(r_rotor, r_bore))
+
+
+def taylor_couette_nusselt(Ta_m, log: Optional[ValidityLog] = None):
+    """
+    Return the wall-to-wall Nusselt number of a rotating annulus.
+
+    Source: Becker and Kaye (1962), Nu = h 2 delta / k, h the coefficient
+    between the two walls (rotor and stator) of the annulus:
+
+    - Ta_m < 1700: Nu = 2 (laminar, pure conduction across the gap);
+    - 1700 <= Ta_m < 1e4: Nu = 0.128 Ta_m^0.367 (vortices);
+    - 1e4 <= Ta_m <= 1e7: Nu = 0.409 Ta_m^0.241 (turbulent vortices).
+
+    The vortex law gives 1.96 at Ta_m = 1700 (1.9 % below conduction); it is
+    clipped to 2 so that the vortices never lower the conductive value and
+    the curve is continuous there. At 1e4 the two laws agree within 0.1 %.
+    Validity flagged: Ta_m > 1e7.
+
+    :param Ta_m: modified Taylor number (:func:`modified_taylor_number`).
+    :param log: optional validity log.
+
+    """
+    if log is not None:
+        check(log, 'Becker-Kaye Taylor-Couette Nusselt', 'Ta_m', Ta_m, 0.0, 1.0e7,
+              'modified Taylor number above the Becker-Kaye data; extrapolated')
+    ta = np.asarray(Ta_m, dtype=float)
+    nu = np.where(ta < 1.0e4, np.maximum(2.0, 0.128 * np.power(ta, 0.367)),
+                  0.409 * np.power(ta, 0.241))
+    return _scalar(np.where(ta < 1700.0, 2.0, nu))
+
+
+def _laminar_turbulent_nusselt(Re, Pr, nu_laminar, correlation, log):
+    """
+    Return the laminar value / Gnielinski Nusselt number, blended in 2300-4000.
+
+    Gnielinski, V., Int. Chem. Eng. 16, 1976, 359-368, with the Petukhov
+    friction factor f = (0.790 ln Re - 1.64)^-2:
+    Nu = (f/8)(Re - 1000) Pr / [1 + 12.7 (f/8)^0.5 (Pr^(2/3) - 1)], for
+    3000 <= Re <= 5e6 and 0.5 <= Pr <= 2000. Below Re = 2300 the laminar
+    fully developed value ``nu_laminar`` is used; between 2300 and 4000 the
+    Nusselt number is interpolated linearly in Re from ``nu_laminar`` to
+    Gnielinski's value at Re = 4000 (transition; no correlation is accurate
+    there). Flags Re > 5e6, and Pr outside 0.5-2000 where Re > 2300.
+    """
+    re = np.asarray(Re, dtype=float)
+    re_t = np.maximum(re, _RE_TURBULENT)
+    f8 = 0.125 / np.square(0.790 * np.log(re_t) - 1.64)
+    denominator = 1.0 + 12.7 * np.sqrt(f8) * (np.power(Pr, 2.0 / 3.0) - 1.0)
+    nu_gn = f8 * (re_t - 1000.0) * Pr / denominator
+    weight = np.clip((re - _RE_LAMINAR) / (_RE_TURBULENT - _RE_LAMINAR), 0.0, 1.0)
+    if log is not None:
+        check(log, correlation, 'Re', re, 0.0, 5.0e6,
+              'Reynolds number above the Gnielinski range; extrapolated')
+        check(log, correlation, 'Pr', np.where(re > _RE_LAMINAR, Pr, np.nan), 0.5, 2000.0,
+              'Prandtl number outside the Gnielinski range; extrapolated')
+    return _scalar(nu_laminar + weight * (nu_gn - nu_laminar))
+
+
+def annulus_axial_nusselt(Re, Pr, log: Optional[ValidityLog] = None):
+    """
+    Return the Nusselt number of axial flow in a narrow annulus (plates).
+
+    Hydraulic diameter 2 delta (Nu = h 2 delta / k, Re = rho u 2 delta / mu).
+    Laminar fully developed flow between parallel plates at uniform wall
+    temperature: Nu = 7.54 (Shah and London 1978) for Re <= 2300; Gnielinski
+    with the Petukhov friction factor for Re >= 4000; linear blend between
+    (see :func:`pipe_internal_nusselt`). Entrance effects are neglected (a
+    conservative, lower value). Validity flagged: Re > 5e6; Pr outside
+    0.5-2000 in the transitional and turbulent range.
+
+    :param Re: axial Reynolds number on 2 delta.
+    :param Pr: Prandtl number.
+    :param log: optional validity log.
+
+    """
+    return _laminar_turbulent_nusselt(Re, Pr, NU_PARALLEL_PLATES_T,
+                                      'annulus axial flow (plates / Gnielinski)', log)
+
+
+def pipe_internal_nusselt(Re, Pr, thermal_bc='T', log: Optional[ValidityLog] = None):
+    """
+    Return the Nusselt number of fully developed flow in a round pipe.
+
+    Laminar (Re <= 2300): 3.66 at uniform wall temperature (``thermal_bc``
+    ``'T'``) or 4.36 at uniform heat flux (``'q'``) (Shah and London 1978).
+    Turbulent (Re >= 4000): Gnielinski (1976) with the Petukhov friction
+    factor, valid 3000 <= Re <= 5e6 and 0.5 <= Pr <= 2000. Between 2300 and
+    4000 the value is interpolated linearly in Re (physics.md section 4).
+    Entrance effects are neglected. Validity flagged: Re > 5e6; Pr outside
+    0.5-2000 in the transitional and turbulent range.
+
+    :param Re: Reynolds number on the pipe diameter.
+    :param Pr: Prandtl number.
+    :param thermal_bc: ``'T'`` (uniform wall temperature) or ``'q'`` (uniform
+        heat flux).
+    :param log: optional validity log.
+
+    :raises ValueError: ``thermal_bc`` is neither ``'T'`` nor ``'q'``.
+
+    """
+    if thermal_bc == 'T':
+        nu_lam = NU_PIPE_T
+    elif thermal_bc == 'q':
+        nu_lam = NU_PIPE_Q
+    else:
+        raise ValueError(f"thermal_bc must be 'T' or 'q', not {thermal_bc!r}")
+    return _laminar_turbulent_nusselt(Re, Pr, nu_lam, 'pipe flow (laminar / Gnielinski)', log)
+
+
+class AirgapHTC(NamedTuple):
+    """
+    Wall-to-bulk heat transfer of an airgap section and its diagnostics.
+
+    :ivar h: wall-to-bulk heat-transfer coefficient, W/(m^2 K) (same for rotor
+        and stator wall).
+    :ivar Ta_m: modified Taylor number.
+    :ivar Re_axial: axial Reynolds number on 2 delta.
+    :ivar Nu: wall-to-bulk Nusselt number h 2 delta / k.
+
+    """
+
+    h: object
+    Ta_m: object
+    Re_axial: object
+    Nu: object
+
+
+def airgap_wall_to_bulk_htc(omega, r_rotor, r_bore, axial_flow_m3_s, rho, mu, k, cp,
+                            log: Optional[ValidityLog] = None) -> AirgapHTC:
+    """
+    Return the wall-to-bulk heat-transfer coefficient of a flooded airgap section.
+
+    The model has one well-mixed oil node per section between rotor and
+    stator, so what is needed is h between either wall and that bulk node.
+    physics.md section 3 combines a rotational (Taylor vortex) part and an
+    axial-flow part; conduction must be counted once:
+
+    - Becker-Kaye's Nu_TC (:func:`taylor_couette_nusselt`) is wall-to-wall,
+      h_ww = Nu_TC k / (2 delta). With the bulk node halfway, the wall-to-wall
+      resistance is two equal wall-to-bulk resistances in series, so
+      h_wb = 2 h_ww, i.e. Nu_wb,rot = 2 Nu_TC >= 4, the pure-conduction
+      value (conduction from a wall to the mid-plane, h = k / (delta/2)).
+    - The laminar plate value Nu_axial = 7.54 (:func:`annulus_axial_nusselt`)
+      is already a wall-to-bulk value that contains that conduction (4); only
+      its excess over conduction is added.
+
+    Hence Nu_wb = 2 Nu_TC + max(Nu_axial - 4, 0) and h = Nu_wb k / (2 delta):
+    Nu_wb = 4 for a stagnant, still gap; 7.54 with laminar axial flow and no
+    rotation. With exactly zero axial flow there is no axial part (the bulk
+    node is then the mid-gap fluid, not a mixed-mean stream), so Nu_wb steps
+    from 4 to 7.54 as soon as any flow exists: the fully developed laminar
+    value does not depend on the flow rate. The addition of the two
+    enhancements is the approximation of physics.md (no interaction term);
+    7.54 is the symmetric-wall value, used although rotor and stator run at
+    different temperatures, and thermal-entrance effects (which raise Nu in
+    short, slow sections) are neglected.
+
+    Validity: Ta_m > 1e7 flagged by Becker-Kaye; Gnielinski limits; and the
+    axial Reynolds number is flagged against the reference paper's axial
+    correlation range 380-4220 (zero flow is not flagged): wet-motor leakage
+    flows are usually laminar far below it, where the laminar plate value is
+    used instead of extrapolating that correlation.
+
+    :param omega: rotor speed (rad/s), either sign.
+    :param r_rotor: rotor outer radius r1 (m).
+    :param r_bore: stator bore radius r2 (m).
+    :param axial_flow_m3_s: axial volume flow through the gap (m^3/s), either sign.
+    :param rho: oil density (kg/m^3).
+    :param mu: oil dynamic viscosity (Pa s).
+    :param k: oil conductivity (W/(m K)).
+    :param cp: oil specific heat (J/(kg K)).
+    :param log: optional validity log.
+
+    :return: :class:`AirgapHTC` ``(h, Ta_m, Re_axial, Nu)``.
+
+    """
+    delta = np.subtract(r_bore, r_rotor)
+    ta_m = modified_taylor_number(omega, r_rotor, r_bore, np.divide(mu, rho))
+    nu_tc = taylor_couette_nusselt(ta_m, log)
+    area = np.pi * (np.square(r_bore) - np.square(r_rotor))
+    re_ax = np.multiply(rho, np.abs(axial_flow_m3_s)) * 2.0 * delta / np.multiply(mu, area)
+    nu_ax = annulus_axial_nusselt(re_ax, np.multiply(mu, cp) / k, log)
+    if log is not None:
+        check(log, 'airgap axial flow (reference paper correlation)', 'Re_axial',
+              _positive_or_nan(re_ax), *REFERENCE_AXIAL_RE,
+              "outside the reference paper's axial correlation range (Re 380-4220): "
+              'wet-motor leakage flows are laminar here; laminar parallel-plate value '
+              'used (Gnielinski above 4000)')
+    nu_wb = 2.0 * nu_tc + np.where(re_ax > 0.0, np.maximum(nu_ax - 4.0, 0.0), 0.0)
+    h = nu_wb * np.asarray(k) / (2.0 * delta)
+    return AirgapHTC(_scalar(h), ta_m, _scalar(re_ax), _scalar(nu_wb))
+
+
+# ------------------------------------------------------------- outer surfaces
+
+
+def churchill_chu_horizontal_cylinder(Ra, Pr, log: Optional[ValidityLog] = None):
+    """
+    Return the mean Nusselt number of free convection from a horizontal cylinder.
+
+    Source: Churchill, S. W. and Chu, H. H. S., "Correlating equations for
+    laminar and turbulent free convection from a horizontal cylinder",
+    Int. J. Heat Mass Transfer 18, 1975, 1049-1053 (Incropera eq. 9.34):
+    Nu_D = {0.60 + 0.387 Ra_D^(1/6) / [1 + (0.559/Pr)^(9/16)]^(8/27)}^2,
+    isothermal cylinder, all Pr, 1e-5 <= Ra_D <= 1e12 (flagged; Ra = 0, the
+    equal-temperature limit Nu = 0.36, is not flagged). Ra uses |dT|.
+
+    :param Ra: Rayleigh number on the diameter.
+    :param Pr: Prandtl number.
+    :param log: optional validity log.
+
+    """
+    if log is not None:
+        check(log, 'Churchill-Chu horizontal cylinder', 'Ra', _positive_or_nan(Ra),
+              1.0e-5, 1.0e12, 'Rayleigh number outside the correlated range')
+    shape = np.power(1.0 + np.power(np.divide(0.559, Pr), 9.0 / 16.0), 8.0 / 27.0)
+    return np.square(0.60 + 0.387 * np.power(np.abs(Ra), 1.0 / 6.0) / shape)
+
+
+def churchill_chu_vertical_plate(Ra, Pr, log: Optional[ValidityLog] = None):
+    """
+    Return the mean Nusselt number of free convection on a vertical plate.
+
+    Source: Churchill, S. W. and Chu, H. H. S., "Correlating equations for
+    laminar and turbulent free convection from a vertical plate", Int. J.
+    Heat Mass Transfer 18, 1975, 1323-1329 (Incropera eq. 9.26):
+    Nu_L = {0.825 + 0.387 Ra_L^(1/6) / [1 + (0.492/Pr)^(9/16)]^(8/27)}^2,
+    isothermal plate (also vertical cylinders whose diameter is not small
+    against the height), all Pr, 0.1 <= Ra_L <= 1e12 (flagged; Ra = 0 is not
+    flagged and gives 0.68).
+
+    :param Ra: Rayleigh number on the height.
+    :param Pr: Prandtl number.
+    :param log: optional validity log.
+
+    """
+    if log is not None:
+        check(log, 'Churchill-Chu vertical plate', 'Ra', _positive_or_nan(Ra),
+              0.1, 1.0e12, 'Rayleigh number outside the correlated range')
+    shape = np.power(1.0 + np.power(np.divide(0.492, Pr), 9.0 / 16.0), 8.0 / 27.0)
+    return np.square(0.825 + 0.387 * np.power(np.abs(Ra), 1.0 / 6.0) / shape)
+
+
+def _rayleigh_air(T_surface_K, T_ambient_K, length_m, log):
+    """Return ``(Ra, air)`` of air at the film temperature for a length scale."""
+    t_film = 0.5 * np.add(T_surface_K, T_ambient_K)
+    air = air_properties(t_film, log=log)
+    # Ra = g beta |dT| L^3 / (nu alpha), nu alpha = mu k / (rho^2 cp).
+    ra = (_GRAVITY * air.beta * np.abs(np.subtract(T_surface_K, T_ambient_K))
+          * np.power(length_m, 3) * air.rho * air.rho * air.cp / (air.mu * air.k))
+    return ra, air
+
+
+def natural_convection_htc_horizontal_cylinder(T_surface_K, T_ambient_K, D_m,
+                                               log: Optional[ValidityLog] = None):
+    """
+    Return h (W/(m^2 K)) of free convection in air from a horizontal cylinder.
+
+    :func:`churchill_chu_horizontal_cylinder` with dry-air properties at the
+    film temperature (T_s + T_inf)/2 and beta = 1/T_film (ideal gas), 1 atm.
+    T_s == T_inf gives the Ra -> 0 limit h = 0.36 k / D (no division by
+    zero).
+
+    :param T_surface_K: surface temperature (K).
+    :param T_ambient_K: ambient air temperature (K).
+    :param D_m: outer diameter (m).
+    :param log: optional validity log.
+
+    """
+    ra, air = _rayleigh_air(T_surface_K, T_ambient_K, D_m, log)
+    return churchill_chu_horizontal_cylinder(ra, air.Pr, log) * air.k / D_m
+
+
+def natural_convection_htc_vertical_plate(T_surface_K, T_ambient_K, height_m,
+                                          log: Optional[ValidityLog] = None):
+    """
+    Return h (W/(m^2 K)) of free convection in air on a vertical plate.
+
+    :func:`churchill_chu_vertical_plate` with dry-air properties at the film
+    temperature and beta = 1/T_film, 1 atm. T_s == T_inf gives the Ra -> 0
+    limit h = 0.68 k / H.
+
+    :param T_surface_K: surface temperature (K).
+    :param T_ambient_K: ambient air temperature (K).
+    :param height_m: plate height (m).
+    :param log: optional validity log.
+
+    """
+    ra, air = _rayleigh_air(T_surface_K, T_ambient_K, height_m, log)
+    return churchill_chu_vertical_plate(ra, air.Pr, log) * air.k / height_m
+
+
+def radiation_htc(T_surface_K, T_ambient_K, emissivity):
+    """
+    Return the linearised radiation coefficient h_r (W/(m^2 K)).
+
+    Small grey surface in large isothermal surroundings (Incropera eq.
+    1.9): q = eps sigma (T_s^4 - T_sur^4) = h_r (T_s - T_sur) with
+    h_r = eps sigma (T_s^2 + T_sur^2)(T_s + T_sur), exact for any pair of
+    temperatures (K). sigma from scipy.constants.
+    """
+    ts = np.asarray(T_surface_K, dtype=float)
+    return _scalar(np.multiply(emissivity, _SIGMA) * (ts * ts + np.square(T_ambient_K))
+                   * (ts + T_ambient_K))

@@ -1,0 +1,444 @@
+"""
+Thermal network of the wet PMSM: Mellor blocks, advected airgap oil, losses.
+
+Layout (front = oil-inlet side, rear = outlet side; stack slices 1..n):
+
+- stack parts, one Mellor slice per axial section: ``frame``, ``yoke``,
+  ``teeth`` (iron share of the tooth annulus), ``winding`` (slot share),
+  ``sleeve``, ``magnet``, ``rotor_core``, ``shaft``; airgap oil ``gap_oil.s1..``;
+- each end: ``frame_end_<side>``, ``end_cap_<side>``, ``end_winding_<side>``,
+  ``shaft_end_<side>`` and the end-space oil ``end_oil_<side>``;
+- boundaries ``ambient`` and ``oil_inlet``.
+
+Oil path: oil_inlet -> end_oil_front -> gap_oil.s1 .. s<n> -> end_oil_rear
+(the motor outlet). Heat leaves by the oil and by the frame and end caps to
+ambient (natural convection and radiation, or a fan coefficient).
+"""
+
+from dataclasses import dataclass
+from typing import Dict, Optional
+
+import numpy as np
+
+from . import correlations as corr
+from .losses import copper_resistance, electrical_frequency, steinmetz_loss_density
+from .mellor import add_cylinder
+from .network import ThermalNetwork
+from .oil import Oil
+from .validity import ValidityLog
+from ..config import Motor
+
+C_TO_K = 273.15
+
+
+@dataclass
+class MotorInputs:
+    """Operating point of the motor over one step (SI units, temperatures in K)."""
+
+    current_sq_mean_A2: float  # mean of I_rms^2 over the step (never the square of a sample)
+    speed_rad_s: float
+    oil_inlet_K: float
+    oil_flow_m3_s: float
+    ambient_K: float
+    case_pressure_Pa: float = 0.0
+
+
+class WetMotor:
+    """
+    Lumped-parameter thermal model of the wet motor, built from :class:`config.Motor`.
+
+    States are the temperatures (K) of the nodes with heat capacity; any node
+    temperature is available by name. ``steady_state`` solves the nonlinear
+    steady state; ``step`` advances in time with the exact zero-order-hold
+    solution of the network linearised at the start of the step.
+
+    Temperature-dependent coefficients move slowly next to a step, so they are
+    re-evaluated every ``coefficient_period_s`` of sample time, or at once
+    when speed or flow move by more than 1 %, an inlet or ambient temperature
+    by more than 0.2/0.5 K, or the case pressure by more than 0.1 MPa.
+    """
+
+    def __init__(self, cfg: Motor, oil: Oil, log: Optional[ValidityLog] = None,
+                 coefficient_period_s: float = 0.5) -> None:
+        self.cfg = cfg
+        self.oil = oil
+        self.log = log if log is not None else ValidityLog()
+        self.net = ThermalNetwork()
+        self._build()
+        self.net.freeze()
+        self.x: Optional[np.ndarray] = None
+        self.T: Optional[np.ndarray] = None
+        self.power_W = np.zeros(self.net.ns)
+        self._refreshed_at: Optional[tuple] = None
+        self._age_s = 0.0
+        self.coefficient_period_s = coefficient_period_s
+        # coefficients that moved less than this (relative) keep the cached discretisation
+        self.net.refresh_rtol = 1e-3
+
+    # ------------------------------------------------------------------ build
+    def _build(self) -> None:
+        c, net = self.cfg, self.net
+        n = c.slices
+        dz = self.dz = c.stack_length_m / n
+        stack = [dz] * n
+        fr, st, wd, ro, es = c.frame, c.stator, c.winding, c.rotor, c.end_spaces
+        self.amb = net.add_boundary('ambient')
+        self.inlet = net.add_boundary('oil_inlet')
+        L_fend = 0.5 * (fr.length_m - c.stack_length_m)
+        L_send = 0.5 * (ro.shaft_length_m - c.stack_length_m)
+        r_tip = st.bore_radius_m + st.tooth_tip_depth_m
+        slot_frac = 1.0 - st.tooth_fraction
+        r_mag_out = ro.outer_radius_m - ro.sleeve_thickness_m
+        r_mag_in = r_mag_out - ro.magnet_thickness_m
+        r_shaft = ro.core_inner_radius_m
+
+        def cyl(name, r1, r2, lengths, mat, frac=1.0, **kw):
+            return add_cylinder(net, name, r1, r2, lengths, mat.k_radial_W_mK,
+                                mat.k_axial_W_mK, mat.rho_c_J_m3K, frac, **kw)
+
+        frame = cyl('frame', fr.outer_radius_m, fr.inner_radius_m, stack, fr.material)
+        yoke = cyl('yoke', st.outer_radius_m, st.yoke_inner_radius_m, stack, st.material)
+        teeth = cyl('teeth', st.yoke_inner_radius_m, st.bore_radius_m, stack, st.material,
+                    st.tooth_fraction, outer=yoke.inner)
+        # slot winding: copper + insulation mixture
+        rc_wind = (wd.copper_fill * wd.copper_density_kg_m3 * wd.copper_specific_heat_J_kgK
+                   + (1 - wd.copper_fill) * wd.insulation_density_kg_m3
+                   * wd.insulation_specific_heat_J_kgK)
+        winding = add_cylinder(net, 'winding', st.yoke_inner_radius_m, r_tip, stack,
+                               wd.k_radial_W_mK, wd.k_axial_W_mK, rc_wind, slot_frac)
+        sleeve = cyl('sleeve', ro.outer_radius_m, r_mag_out, stack, ro.sleeve)
+        magnet = cyl('magnet', r_mag_out, r_mag_in, stack, ro.magnet)
+        core = cyl('rotor_core', r_mag_in, r_shaft, stack, ro.core)
+        shaft = cyl('shaft', r_shaft, 0.0, stack, ro.shaft)
+        self.parts = {'frame': frame, 'yoke': yoke, 'teeth': teeth, 'winding': winding,
+                      'sleeve': sleeve, 'magnet': magnet, 'rotor_core': core, 'shaft': shaft}
+
+        # airgap oil: n well-mixed sections between the end spaces
+        oil_rc = self._oil_rho_cp(C_TO_K + 40.0, 0.0)
+        gap_vol = np.pi * (st.bore_radius_m ** 2 - ro.outer_radius_m ** 2) * dz
+        self.gap = [net.add_node(f'gap_oil.s{i + 1}', oil_rc * gap_vol) for i in range(n)]
+        self.end_oil = {s: net.add_node(f'end_oil_{s}', oil_rc * es.oil_volume_m3)
+                        for s in ('front', 'rear')}
+        self.oil_nodes = [self.end_oil['front']] + self.gap + [self.end_oil['rear']]
+        self.oil_volumes = np.array([es.oil_volume_m3] + [gap_vol] * n + [es.oil_volume_m3])
+        self.adv = [net.add_advection(u, d) for u, d in
+                    zip([self.inlet] + self.oil_nodes[:-1], self.oil_nodes)]
+
+        ring = 2 * np.pi * dz  # lateral area per unit radius of one slice
+        self.ambient_links, self.ambient_areas = [], []
+        self.cap_links, self.cap_areas = [], []
+        self.end_links, self.end_areas = [], []
+        self.gap_links_stator, self.gap_links_rotor = [], []
+
+        def to_ambient(node, area):
+            self.ambient_links.append(net.add_conductance(node, self.amb))
+            self.ambient_areas.append(area)
+
+        def to_end_oil(node, side, area):
+            self.end_links.append(net.add_conductance(node, self.end_oil[side]))
+            self.end_areas.append(area)
+
+        liner_h = wd.liner_conductivity_W_mK / wd.liner_thickness_m
+        gap_h = st.contact_gap_conductivity_W_mK / st.frame_contact_gap_m
+        tooth_pitch = 2 * np.pi * 0.5 * (st.yoke_inner_radius_m + r_tip) / c.slots
+        slot_depth = st.yoke_inner_radius_m - r_tip
+        for i in range(n):
+            to_ambient(frame.outer[i], fr.outer_radius_m * ring)
+            net.add_conductance(frame.inner[i], yoke.outer[i],
+                                gap_h * fr.inner_radius_m * ring)
+            net.add_conductance(winding.outer[i], yoke.inner[i],
+                                liner_h * slot_frac * st.yoke_inner_radius_m * ring)
+            net.add_conductance(winding.inner[i], teeth.inner[i],
+                                liner_h * slot_frac * r_tip * ring)
+            # slot sides to the teeth: liner in series with the mean-to-wall
+            # resistance of a slab with uniform generation (w / (6 k A_walls))
+            walls = 2 * c.slots * slot_depth * dz
+            r_lat = (1 / (liner_h * walls)
+                     + slot_frac * tooth_pitch / (6 * wd.k_radial_W_mK * walls)
+                     + st.tooth_fraction * tooth_pitch / (6 * st.material.k_radial_W_mK
+                                                          * walls))
+            net.add_resistance(winding.mean[i], teeth.mean[i], r_lat)
+            self.gap_links_stator.append(net.add_conductance(teeth.inner[i], self.gap[i]))
+            self.gap_links_rotor.append(net.add_conductance(sleeve.outer[i], self.gap[i]))
+            net.add_conductance(sleeve.inner[i], magnet.outer[i],
+                                ro.sleeve_magnet_htc_W_m2K * r_mag_out * ring)
+            net.add_conductance(magnet.inner[i], core.outer[i],
+                                ro.magnet_core_htc_W_m2K * r_mag_in * ring)
+            net.add_conductance(core.inner[i], shaft.outer[i],
+                                ro.core_shaft_htc_W_m2K * r_shaft * ring)
+
+        # end windings: the slot conductors continue out of the stack; per side the
+        # end turns hold copper volume fill * A_slots * l_end_turn / 2
+        a_slots = slot_frac * np.pi * (st.yoke_inner_radius_m ** 2 - r_tip ** 2)
+        v_block = a_slots * wd.end_overhang_m
+        v_cu = wd.copper_fill * a_slots * wd.end_turn_length_m / 2
+        if v_cu > v_block:
+            v_cu = v_block  # tightly packed end turns: the block is all copper
+        rc_end = (v_cu * wd.copper_density_kg_m3 * wd.copper_specific_heat_J_kgK
+                  + (v_block - v_cu) * wd.insulation_density_kg_m3
+                  * wd.insulation_specific_heat_J_kgK) / v_block
+        self.end_winding = {}
+        for side, stack_face in (('front', 0), ('rear', n)):
+            outward = 0 if side == 'front' else 1   # index of the face away from the stack
+            kw = ({'rear_face': winding.faces[0]} if side == 'front'
+                  else {'front_face': winding.faces[n]})
+            ew = add_cylinder(net, f'end_winding_{side}', st.yoke_inner_radius_m, r_tip,
+                              [wd.end_overhang_m], wd.k_radial_W_mK, wd.k_axial_W_mK, rc_end,
+                              slot_frac, **kw)
+            self.end_winding[side] = ew
+            to_end_oil(ew.faces[outward], side, a_slots)
+            to_end_oil(ew.outer[0], side, 2 * np.pi * st.yoke_inner_radius_m * slot_frac
+                       * wd.end_overhang_m)
+            to_end_oil(ew.inner[0], side, 2 * np.pi * r_tip * slot_frac * wd.end_overhang_m)
+            # stack faces open to the end space
+            to_end_oil(yoke.faces[stack_face], side,
+                       np.pi * (st.outer_radius_m ** 2 - st.yoke_inner_radius_m ** 2))
+            to_end_oil(teeth.faces[stack_face], side, st.tooth_fraction * np.pi
+                       * (st.yoke_inner_radius_m ** 2 - st.bore_radius_m ** 2))
+            for part, r1, r2 in ((sleeve, ro.outer_radius_m, r_mag_out),
+                                 (magnet, r_mag_out, r_mag_in), (core, r_mag_in, r_shaft)):
+                to_end_oil(part.faces[stack_face], side, np.pi * (r1 ** 2 - r2 ** 2))
+            # frame end segment, end cap, shaft end, bearing
+            fkw = ({'rear_face': frame.faces[0]} if side == 'front'
+                   else {'front_face': frame.faces[n]})
+            fe = cyl(f'frame_end_{side}', fr.outer_radius_m, fr.inner_radius_m, [L_fend],
+                     fr.material, **fkw)
+            to_ambient(fe.outer[0], 2 * np.pi * fr.outer_radius_m * L_fend)
+            to_end_oil(fe.inner[0], side, 2 * np.pi * fr.inner_radius_m * L_fend)
+            cap = cyl(f'end_cap_{side}', fr.outer_radius_m, es.bearing_radius_m,
+                      [es.cap_thickness_m], es.cap_material)
+            net.add_conductance(cap.outer[0], fe.faces[outward], es.cap_frame_htc_W_m2K * np.pi
+                                * (fr.outer_radius_m ** 2 - fr.inner_radius_m ** 2))
+            self.cap_links.append(net.add_conductance(cap.faces[outward], self.amb))
+            self.cap_areas.append(np.pi * (fr.outer_radius_m ** 2 - es.bearing_radius_m ** 2))
+            to_end_oil(cap.faces[1 - outward], side,
+                       np.pi * (fr.inner_radius_m ** 2 - es.bearing_radius_m ** 2))
+            skw = ({'rear_face': shaft.faces[0]} if side == 'front'
+                   else {'front_face': shaft.faces[n]})
+            se = cyl(f'shaft_end_{side}', r_shaft, 0.0, [L_send], ro.shaft, **skw)
+            to_end_oil(se.outer[0], side, 2 * np.pi * r_shaft * min(L_send, L_fend))
+            net.add_conductance(se.outer[0], cap.inner[0], es.bearing_conductance_W_K)
+            self.parts.update({f'end_winding_{side}': ew, f'frame_end_{side}': fe,
+                               f'end_cap_{side}': cap, f'shaft_end_{side}': se})
+
+        # heat sources, one per heated node
+        ends = [self.end_winding['front'].mean[0], self.end_winding['rear'].mean[0]]
+        self.copper_nodes = winding.mean + ends
+        turn = c.stack_length_m + wd.end_turn_length_m   # half a turn's conductor length
+        self.copper_share = np.array([dz / turn] * n + [wd.end_turn_length_m / (2 * turn)] * 2)
+        self.src_copper = [net.add_source(m) for m in self.copper_nodes]
+        self.src_yoke = [net.add_source(m) for m in yoke.mean]
+        self.src_teeth = [net.add_source(m) for m in teeth.mean]
+        self.src_gap = [net.add_source(m) for m in self.gap]
+        rho_fe = st.material.density_kg_m3
+        self.yoke_mass = rho_fe * np.array(yoke.volume_m3)
+        self.teeth_mass = rho_fe * np.array(teeth.volume_m3)
+        self.ambient_areas = np.array(self.ambient_areas)
+        self.cap_areas = np.array(self.cap_areas)
+        self.end_areas = np.array(self.end_areas)
+        self.idx_copper = np.array([net.index(m) for m in self.copper_nodes])
+        self.idx_gap = np.array([net.index(m) for m in self.gap])
+        self.idx_oil = np.array([net.index(m) for m in self.oil_nodes])
+        self.idx_frame_outer = np.array([net.index(m) for m in frame.outer])
+        self.idx_cap_outer = np.array([net.index(self.parts[f'end_cap_{s}'].faces[o])
+                                       for s, o in (('front', 0), ('rear', 1))])
+        self.idx_magnet = np.array([net.index(m) for m in magnet.mean])
+        self.idx_frame = np.array([net.index(m) for m in frame.mean])
+        self.frame_volumes = np.array(frame.volume_m3)
+
+    # ------------------------------------------------------------ coefficients
+    def _oil_rho_cp(self, T_K, p_Pa):
+        return self.oil.density(T_K, p_Pa) * self.oil.specific_heat(T_K)
+
+    def refresh(self, T: np.ndarray, u: MotorInputs) -> None:
+        """
+        Set every temperature- and speed-dependent coefficient at temperatures ``T`` (K).
+
+        Conductances (airgap and end-space convection, frame and end caps to
+        ambient), oil heat capacities and enthalpy flow go to the network; the
+        copper-loss factor R(T) and the airgap oil properties are kept for
+        :meth:`losses`.
+        """
+        c, net, log = self.cfg, self.net, self.log
+        st, ro = c.stator, c.rotor
+        w = abs(u.speed_rad_s)
+        p = u.case_pressure_Pa
+        T_gap = T[self.idx_gap]
+        self._rho_gap = self.oil.density(T_gap, p)
+        self._mu_gap = self.oil.dynamic_viscosity(T_gap, p)
+        gap_h = corr.airgap_wall_to_bulk_htc(
+            w, ro.outer_radius_m, st.bore_radius_m, u.oil_flow_m3_s, self._rho_gap,
+            self._mu_gap, self.oil.conductivity(T_gap), self.oil.specific_heat(T_gap), log=log)
+        self.gap_state = gap_h
+        h = np.broadcast_to(gap_h.h, T_gap.shape)
+        net.set_conductances(self.gap_links_stator, h * 2 * np.pi * st.bore_radius_m * self.dz)
+        net.set_conductances(self.gap_links_rotor, h * 2 * np.pi * ro.outer_radius_m * self.dz)
+        es = c.end_spaces
+        h_end = es.htc_still_W_m2K + es.htc_speed_coeff * (w * ro.outer_radius_m) ** 0.8
+        net.set_conductances(self.end_links, h_end * self.end_areas)
+        Ts_frame = float(np.mean(T[self.idx_frame_outer]))
+        net.set_conductances(self.ambient_links, self.ambient_areas * self._to_ambient_htc(
+            Ts_frame, u.ambient_K, corr.natural_convection_htc_horizontal_cylinder))
+        net.set_conductances(self.cap_links, self.cap_areas * self._to_ambient_htc(
+            T[self.idx_cap_outer], u.ambient_K, corr.natural_convection_htc_vertical_plate))
+        net.set_capacities(self.idx_oil, self._oil_rho_cp(T[self.idx_oil], p) * self.oil_volumes)
+        # enthalpy flow: one c_p for the whole chain (the inlet's) keeps it conservative
+        m_cp = u.oil_flow_m3_s * self._oil_rho_cp(u.oil_inlet_K, p)
+        net.set_advection_rates(self.adv, np.full(len(self.adv), m_cp))
+        wd = c.winding
+        self._copper_W_A2 = wd.phases * self.copper_share * copper_resistance(
+            wd.phase_resistance_20C_ohm, wd.copper_tempco_1_K, T[self.idx_copper])
+        self._refreshed_at = (w, u.oil_flow_m3_s, u.oil_inlet_K, u.ambient_K,
+                              u.case_pressure_Pa)
+        self._age_s = 0.0
+
+    def _to_ambient_htc(self, Ts_K, T_amb_K, natural_convection) -> np.ndarray:
+        """Return the surface-to-ambient h (W/(m^2 K)): fan or natural convection, + radiation."""
+        fr = self.cfg.frame
+        h_rad = corr.radiation_htc(Ts_K, T_amb_K, fr.emissivity)
+        if fr.forced_air_htc_W_m2K is not None:
+            return fr.forced_air_htc_W_m2K + h_rad
+        return natural_convection(Ts_K, T_amb_K, 2 * fr.outer_radius_m, log=self.log) + h_rad
+
+    def _refresh_due(self, u: MotorInputs) -> bool:
+        """Tell whether the coefficients are older than their period or an input moved too far."""
+        if self._refreshed_at is None or self._age_s >= self.coefficient_period_s:
+            return True
+        w0, q0, tin0, tamb0, p0 = self._refreshed_at
+        return (abs(abs(u.speed_rad_s) - w0) > 0.01 * max(w0, 5.0)
+                or abs(u.oil_flow_m3_s - q0) > 0.01 * max(q0, 1e-8)
+                or abs(u.oil_inlet_K - tin0) > 0.2 or abs(u.ambient_K - tamb0) > 0.5
+                or abs(u.case_pressure_Pa - p0) > 1e5)
+
+    def losses(self, u: MotorInputs) -> np.ndarray:
+        """
+        Source powers (W) over a step: copper (R at the last refresh), core, oil friction.
+
+        Order: copper (slot slices, end windings), yoke slices, teeth slices,
+        airgap sections. Friction uses the oil properties of the last refresh
+        at the step's own speed.
+        """
+        c, st, ro = self.cfg, self.cfg.stator, self.cfg.rotor
+        w = abs(u.speed_rad_s)
+        p_cu = u.current_sq_mean_A2 * self._copper_W_A2
+        f = electrical_frequency(w, c.pole_pairs)
+        core = [mass * steinmetz_loss_density(f, b, st.hysteresis_coeff_W_kgHzT,
+                                              st.steinmetz_exponent, st.eddy_coeff_W_kgHz2T2)
+                for mass, b in ((self.yoke_mass, st.yoke_flux_density_T),
+                                (self.teeth_mass, st.teeth_flux_density_T))]
+        p_fric, _ = corr.airgap_friction(self._rho_gap, self._mu_gap, w, ro.outer_radius_m,
+                                         st.bore_radius_m, self.dz, log=self.log)
+        return np.concatenate([p_cu, core[0], core[1],
+                               np.broadcast_to(p_fric, self.idx_gap.shape)])
+
+    @property
+    def losses_W(self) -> Dict[str, float]:
+        """Loss split (W) of the last step or steady state."""
+        n, P = self.cfg.slices, self.power_W
+        return {'copper_slot': float(P[:n].sum()), 'copper_end': float(P[n:n + 2].sum()),
+                'core_yoke': float(P[n + 2:2 * n + 2].sum()),
+                'core_teeth': float(P[2 * n + 2:3 * n + 2].sum()),
+                'oil_friction': float(P[3 * n + 2:].sum())}
+
+    def boundaries(self, u: MotorInputs) -> np.ndarray:
+        """Boundary temperatures (K) in network order: ambient, oil inlet."""
+        return np.array([u.ambient_K, u.oil_inlet_K])
+
+    # ----------------------------------------------------------------- solve
+    def steady_state(self, u: MotorInputs, tol_K: float = 1e-6,
+                     max_iter: int = 200) -> np.ndarray:
+        """
+        Solve the nonlinear steady state by fixed-point iteration; return all node temperatures.
+
+        Raises RuntimeError when the coefficients do not settle (for example a
+        thermal runaway where copper loss grows faster than the cooling).
+        """
+        T = np.full(self.net.n, u.oil_inlet_K) if self.T is None else self.T.copy()
+        Tb = self.boundaries(u)
+        for it in range(max_iter):
+            self.refresh(T, u)
+            T_new = self.net.steady_state(Tb, self.losses(u))
+            change = float(np.max(np.abs(T_new - T)))
+            T = T_new
+            if change < tol_K:
+                break
+        else:
+            raise RuntimeError(f'steady state did not converge in {max_iter} iterations '
+                               f'(last change {change:.3g} K)')
+        self.iterations = it + 1
+        self.refresh(T, u)
+        self.power_W = self.losses(u)
+        self.T = T
+        self.x = self.net.initial_state(T)
+        return T
+
+    def initialise(self, T_K: float) -> None:
+        """Set every node to one temperature (K), e.g. a cold start at ambient."""
+        self.T = np.full(self.net.n, float(T_K))
+        self.x = self.net.initial_state(self.T)
+
+    def step(self, dt_s: float, u: MotorInputs) -> np.ndarray:
+        """
+        Advance by ``dt_s`` with inputs ``u`` held over the step; return all node temperatures.
+
+        Coefficients are refreshed at the start-of-step temperatures when due
+        (see ``coefficient_period_s``), losses are evaluated for every step, and
+        the linear network is then integrated exactly over the step.
+        """
+        if self.x is None:
+            raise RuntimeError('set an initial state first (initialise or steady_state)')
+        if self._refresh_due(u):
+            self.refresh(self.T, u)
+        self._age_s += dt_s
+        self.power_W = self.losses(u)
+        Tb = self.boundaries(u)
+        self.x = self.net.step(self.x, dt_s, Tb, self.power_W)
+        self.T = self.net.temperatures(self.x, Tb, self.power_W)
+        return self.T
+
+    # --------------------------------------------------------------- outputs
+    def temperature(self, name: str, T: Optional[np.ndarray] = None) -> float:
+        """Return one node's temperature in K by name, e.g. winding slice 3 is 'winding.s3'."""
+        T = self.T if T is None else T
+        return float(T[self.net.index(name)])
+
+    def outputs(self, T: Optional[np.ndarray] = None) -> Dict[str, float]:
+        """
+        Named temperatures (K) a user asks for.
+
+        winding_mean is the conductor-length weighted mean (what a resistance
+        measurement sees); winding_hotspot the hottest winding node (slot
+        slices and end windings; the peak inside a block is not resolved);
+        frame the volume mean of the frame over the stack; magnet the hottest
+        magnet slice; airgap_oil_outlet the last airgap section; motor_oil_outlet
+        the rear end space, where the oil leaves the motor.
+        """
+        T = self.T if T is None else T
+        Tw = T[self.idx_copper]
+        return {
+            'winding_mean': float(np.dot(self.copper_share, Tw) / self.copper_share.sum()),
+            'winding_hotspot': float(Tw.max()),
+            'frame': float(np.dot(self.frame_volumes, T[self.idx_frame])
+                           / self.frame_volumes.sum()),
+            'magnet': float(T[self.idx_magnet].max()),
+            'airgap_oil_outlet': float(T[self.idx_gap[-1]]),
+            'motor_oil_outlet': float(T[self.idx_oil[-1]]),
+        }
+
+    def heat_balance(self, T: np.ndarray, u: MotorInputs) -> Dict[str, float]:
+        """Heat flows (W) at temperatures ``T``: losses in, to ambient, carried out by the oil."""
+        flows = self.net.link_heat_flows(T, self.boundaries(u))
+        to_amb = float(flows[self.ambient_links].sum() + flows[self.cap_links].sum())
+        m_cp = self.net.advection_rate[self.adv[0]]
+        to_oil = float(m_cp * (T[self.idx_oil[-1]] - u.oil_inlet_K))
+        return {'losses': float(np.sum(self.power_W)), 'to_ambient': to_amb, 'to_oil': to_oil}
+
+    @property
+    def node_count(self) -> int:
+        """Count the network nodes (capacitive and algebraic, boundaries excluded)."""
+        return self.net.n
+
+    @property
+    def state_count(self) -> int:
+        """Count the states (nodes with heat capacity)."""
+        return int(self.net.dynamic.size)

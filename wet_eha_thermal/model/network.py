@@ -1,0 +1,420 @@
+"""
+Lumped-parameter thermal network with named nodes.
+
+A network is built once (nodes, boundaries, links, heat sources), then driven:
+coefficient values (conductances, advective capacity rates, heat capacities)
+may change between steps, the topology may not.
+
+- Node: a temperature with a heat capacity C (J/K). ``C = 0`` makes it an
+  algebraic node (a surface or a junction of a Mellor block); it is eliminated
+  exactly (Kron reduction) so that only capacitive nodes are states.
+- Boundary: a temperature imposed from outside (ambient, an oil inlet).
+- Conductance link: heat flow G (T_a - T_b), G in W/K, negative values allowed
+  (the Mellor T-equivalent has negative resistances that make the mean
+  temperature exact).
+- Advective link: a mass flow carrying enthalpy from an upstream node (or
+  boundary) into a downstream node, upwind: the downstream node receives
+  ``m_dot c_p (T_up - T_down)``. Chain links to model plug flow.
+- Source: a heat input P (W) into one node.
+
+With T the node temperatures (K), T_b the boundary temperatures and P the
+source powers, the network reads ``C dT/dt = -K T + G_b T_b + E P``. After
+eliminating the algebraic nodes the states x = T_d obey ``dx/dt = A x + B w``
+with ``w = [T_b; P]``. A transient step is the exact zero-order-hold solution
+(inputs held over the step), computed with one augmented matrix exponential
+(Van Loan), so it is stable and exact for the linear network at any step; the
+same exponential gives the time integral of the state over the step, which
+makes step-averaged heat flows (and so energy balances) exact as well.
+"""
+
+from dataclasses import dataclass
+from typing import Dict, List, Optional, Sequence, Tuple, Union
+import warnings
+
+import numpy as np
+import scipy.linalg
+
+Ref = Union[str, int]
+
+
+class NetworkError(ValueError):
+    """A network that cannot be built or solved, with the reason."""
+
+
+@dataclass
+class Discretisation:
+    """Exact zero-order-hold matrices of the reduced network for one step ``dt_s``."""
+
+    dt_s: float
+    Ad: np.ndarray  # x(t + dt) = Ad x + Bd w
+    Bd: np.ndarray
+    Mx: np.ndarray  # mean of x over the step = Mx x + Mw w
+    Mw: np.ndarray
+
+
+class ThermalNetwork:
+    """Named thermal network: build it, then solve steady states or step it in time."""
+
+    def __init__(self) -> None:
+        self.node_names: List[str] = []
+        self.boundary_names: List[str] = []
+        self._kind: Dict[str, Tuple[str, int]] = {}
+        self._capacity: List[float] = []
+        self._links: List[Tuple[str, str]] = []
+        self._link_g: List[float] = []
+        self._advections: List[Tuple[str, str]] = []
+        self._source_nodes: List[str] = []
+        self.link_names: List[Optional[str]] = []
+        self._frozen = False
+        self.refresh_rtol = 0.0
+
+    # ----------------------------------------------------------------- build
+    def add_node(self, name: str, capacity_J_K: float = 0.0) -> str:
+        """Add a node; ``capacity_J_K = 0`` makes it algebraic (no thermal mass)."""
+        self._check_new(name)
+        if not capacity_J_K >= 0.0:
+            raise NetworkError(f'node {name!r}: heat capacity {capacity_J_K} J/K must be >= 0')
+        self._kind[name] = ('n', len(self.node_names))
+        self.node_names.append(name)
+        self._capacity.append(float(capacity_J_K))
+        return name
+
+    def add_boundary(self, name: str) -> str:
+        """Add a fixed-temperature boundary (an input of the network)."""
+        self._check_new(name)
+        self._kind[name] = ('b', len(self.boundary_names))
+        self.boundary_names.append(name)
+        return name
+
+    def add_conductance(self, a: str, b: str, conductance_W_K: float = 0.0,
+                        name: Optional[str] = None) -> int:
+        """Link ``a`` and ``b`` by a conductance (W/K, may be negative); return its id."""
+        self._check_open()
+        self._require(a)
+        self._require(b)
+        if a == b:
+            raise NetworkError(f'conductance from {a!r} to itself')
+        if self._kind[a][0] == 'b' and self._kind[b][0] == 'b':
+            raise NetworkError(f'conductance between two boundaries {a!r} and {b!r}')
+        if not np.isfinite(conductance_W_K):
+            raise NetworkError(f'conductance {a!r}-{b!r}: {conductance_W_K} W/K is not finite')
+        self._links.append((a, b))
+        self._link_g.append(float(conductance_W_K))
+        self.link_names.append(name)
+        return len(self._links) - 1
+
+    def add_resistance(self, a: str, b: str, resistance_K_W: float,
+                       name: Optional[str] = None) -> int:
+        """Link ``a`` and ``b`` by a thermal resistance (K/W, may be negative, not zero)."""
+        if resistance_K_W == 0.0:
+            raise NetworkError(f'resistance {a!r}-{b!r} is zero: merge the two nodes instead')
+        return self.add_conductance(a, b, 1.0 / resistance_K_W, name)
+
+    def add_advection(self, upstream: str, downstream: str) -> int:
+        """Carry enthalpy from ``upstream`` into node ``downstream``; return the link id."""
+        self._check_open()
+        self._require(upstream)
+        self._require(downstream)
+        if self._kind[downstream][0] != 'n':
+            raise NetworkError(f'advection into boundary {downstream!r}: the outlet of a '
+                               'chain needs no link')
+        self._advections.append((upstream, downstream))
+        return len(self._advections) - 1
+
+    def add_source(self, node: str) -> int:
+        """Declare a heat input into ``node``; return its index in the power vector."""
+        self._check_open()
+        self._require(node)
+        if self._kind[node][0] != 'n':
+            raise NetworkError(f'heat source on boundary {node!r}')
+        self._source_nodes.append(node)
+        return len(self._source_nodes) - 1
+
+    def _check_new(self, name: str) -> None:
+        self._check_open()
+        if name in self._kind:
+            raise NetworkError(f'name {name!r} is used twice')
+
+    def _check_open(self) -> None:
+        if self._frozen:
+            raise NetworkError('the network topology is fixed once it has been solved')
+
+    def _require(self, name: str) -> None:
+        if name not in self._kind:
+            raise NetworkError(f'unknown node or boundary {name!r}')
+
+    # --------------------------------------------------------------- compile
+    def freeze(self) -> 'ThermalNetwork':
+        """Fix the topology and precompute index arrays (done on first use)."""
+        if self._frozen:
+            return self
+        self._frozen = True
+        n = len(self.node_names)
+        self.n = n
+        self.nb = len(self.boundary_names)
+        self.ns = len(self._source_nodes)
+        self.capacity = np.array(self._capacity)
+        self.conductance = np.array(self._link_g)
+        self.advection_rate = np.zeros(len(self._advections))
+        # link endpoints: node-node pairs and node-boundary pairs
+        nn, nb_ = [], []
+        for k, (a, b) in enumerate(self._links):
+            ka, ia = self._kind[a]
+            kb, ib = self._kind[b]
+            if ka == 'n' and kb == 'n':
+                nn.append((k, ia, ib))
+            else:
+                node, bnd = (ia, ib) if ka == 'n' else (ib, ia)
+                nb_.append((k, node, bnd))
+        self._nn = np.array(nn, dtype=int).reshape(-1, 3)
+        self._nbl = np.array(nb_, dtype=int).reshape(-1, 3)
+        adv_n, adv_b = [], []
+        for k, (u, d) in enumerate(self._advections):
+            ku, iu = self._kind[u]
+            idn = self._kind[d][1]
+            (adv_n if ku == 'n' else adv_b).append((k, iu, idn))
+        self._adv_n = np.array(adv_n, dtype=int).reshape(-1, 3)
+        self._adv_b = np.array(adv_b, dtype=int).reshape(-1, 3)
+        self._src = np.array([self._kind[s][1] for s in self._source_nodes], dtype=int)
+        # flat scatter indices for K (n x n) and G_b (n x nb)
+        i, j = self._nn[:, 1], self._nn[:, 2]
+        self._k_idx_links = np.concatenate([i * n + i, j * n + j, i * n + j, j * n + i])
+        bi = self._nbl[:, 1]
+        self._k_idx_blinks = bi * n + bi
+        self._gb_idx_blinks = bi * max(self.nb, 1) + self._nbl[:, 2]
+        au, ad = self._adv_n[:, 1], self._adv_n[:, 2]
+        self._k_idx_adv = np.concatenate([ad * n + ad, ad * n + au])
+        bd = self._adv_b[:, 2]
+        self._k_idx_badv = bd * n + bd
+        self._gb_idx_badv = bd * max(self.nb, 1) + self._adv_b[:, 1]
+        # link ends in the vector [T; T_b], for heat flows
+        flat = {nm: (i if k == 'n' else n + i) for nm, (k, i) in self._kind.items()}
+        self._ends = np.array([[flat[a], flat[b]] for a, b in self._links],
+                              dtype=int).reshape(-1, 2)
+        self._disc: Optional[Discretisation] = None
+        self._reduced: Optional[tuple] = None
+        self._used = None
+        return self
+
+    def index(self, name: str) -> int:
+        """Return the index of node ``name`` in the full temperature vector."""
+        kind = self._kind.get(name)
+        if kind is None or kind[0] != 'n':
+            close = [s for s in self.node_names if s.startswith(name.split('.')[0])][:8]
+            raise KeyError(f'no node named {name!r}' + (f'; nodes like it: {close}' if close
+                                                        else ''))
+        return kind[1]
+
+    def link_id(self, a: str, b: str) -> int:
+        """Return the id of the conductance link joining ``a`` and ``b`` (either order)."""
+        for k, ends in enumerate(self._links):
+            if ends in ((a, b), (b, a)):
+                return k
+        raise KeyError(f'no conductance link between {a!r} and {b!r}')
+
+    def boundary_index(self, name: str) -> int:
+        """Return the index of boundary ``name`` in the boundary-temperature vector."""
+        kind = self._kind.get(name)
+        if kind is None or kind[0] != 'b':
+            raise KeyError(f'no boundary named {name!r}; boundaries: {self.boundary_names}')
+        return kind[1]
+
+    @property
+    def dynamic(self) -> np.ndarray:
+        """Return the indices of the nodes with heat capacity (the states), in state order."""
+        return np.flatnonzero(self.freeze().capacity > 0.0)
+
+    @property
+    def state_names(self) -> List[str]:
+        """Return the names of the states, in state order."""
+        return [self.node_names[i] for i in self.dynamic]
+
+    # ---------------------------------------------------------- coefficients
+    def set_conductances(self, ids, values_W_K) -> None:
+        """Set conductance values (W/K) of links ``ids``."""
+        self.freeze()
+        self.conductance[ids] = values_W_K
+        self._mark_changed()
+
+    def set_advection_rates(self, ids, rates_W_K) -> None:
+        """Set the capacity rates ``m_dot c_p`` (W/K, >= 0) of advective links ``ids``."""
+        self.freeze()
+        rates = np.asarray(rates_W_K, dtype=float)
+        if np.any(rates < 0.0):
+            raise NetworkError('advective capacity rate must be >= 0: reverse the link to '
+                               'reverse the flow')
+        self.advection_rate[ids] = rates
+        self._mark_changed()
+
+    def set_capacities(self, names_or_idx: Sequence[Ref], capacities_J_K) -> None:
+        """Change heat capacities of capacitive nodes (must stay > 0)."""
+        self.freeze()
+        idx = [self.index(r) if isinstance(r, str) else r for r in names_or_idx]
+        c = np.asarray(capacities_J_K, dtype=float)
+        if np.any(c <= 0.0) or np.any(self.capacity[idx] <= 0.0):
+            raise NetworkError('only capacitive nodes may change capacity, and it stays > 0')
+        self.capacity[idx] = c
+        self._mark_changed()
+
+    def _mark_changed(self) -> None:
+        """Drop cached matrices when a coefficient moved by more than ``refresh_rtol``."""
+        if self._used is None:
+            return
+        if self.refresh_rtol > 0.0:
+            moved = False
+            for now, then in zip((self.conductance, self.advection_rate, self.capacity),
+                                 self._used):
+                if np.any(np.abs(now - then) > self.refresh_rtol * np.abs(then)):
+                    moved = True
+                    break
+            if not moved:
+                return
+        self._used = None
+        self._reduced = None
+        self._disc = None
+
+    # -------------------------------------------------------------- matrices
+    def matrices(self) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Assemble K (n x n), G_b (n x nb), E (n x ns) of ``C dT/dt = -K T + G_b T_b + E P``."""
+        self.freeze()
+        n, nb = self.n, max(self.nb, 1)
+        g, c = self.conductance, self.advection_rate
+        g_nn = g[self._nn[:, 0]]
+        g_nb = g[self._nbl[:, 0]]
+        c_n = c[self._adv_n[:, 0]]
+        c_b = c[self._adv_b[:, 0]]
+        k_idx = np.concatenate([self._k_idx_links, self._k_idx_blinks, self._k_idx_adv,
+                                self._k_idx_badv])
+        k_val = np.concatenate([g_nn, g_nn, -g_nn, -g_nn, g_nb, c_n, -c_n, c_b])
+        K = np.bincount(k_idx, weights=k_val, minlength=n * n).reshape(n, n)
+        gb_idx = np.concatenate([self._gb_idx_blinks, self._gb_idx_badv])
+        Gb = np.bincount(gb_idx, weights=np.concatenate([g_nb, c_b]),
+                         minlength=n * nb).reshape(n, nb)[:, :self.nb]
+        E = np.zeros((n, self.ns))
+        E[self._src, np.arange(self.ns)] = 1.0
+        return K, Gb, E
+
+    def _reduce(self) -> tuple:
+        """Eliminate algebraic nodes: return A, B and the algebraic-node output maps."""
+        self.freeze()
+        if self._reduced is not None:
+            return self._reduced
+        K, Gb, E = self.matrices()
+        W = np.hstack([Gb, E])  # input map of w = [T_b; P]
+        d = np.flatnonzero(self.capacity > 0.0)
+        a = np.flatnonzero(self.capacity == 0.0)
+        if a.size:
+            try:
+                with warnings.catch_warnings():   # a singular block is reported below
+                    warnings.simplefilter('ignore', scipy.linalg.LinAlgWarning)
+                    lu = scipy.linalg.lu_factor(K[np.ix_(a, a)], check_finite=True)
+            except (ValueError, scipy.linalg.LinAlgError) as exc:
+                raise NetworkError(f'algebraic nodes cannot be eliminated: {exc}') from exc
+            if np.any(np.abs(np.diag(lu[0])) < 1e-14 * np.abs(K[np.ix_(a, a)]).max()):
+                raise NetworkError('algebraic nodes form a group with no path to a capacity '
+                                   'or a boundary: their temperature is undefined')
+            rhs = np.hstack([K[np.ix_(a, d)], W[a]])
+            sol = scipy.linalg.lu_solve(lu, rhs)
+            out_x = -sol[:, :d.size]   # T_a = out_x x + out_w w
+            out_w = sol[:, d.size:]
+            K_red = K[np.ix_(d, d)] - K[np.ix_(d, a)] @ sol[:, :d.size]
+            W_red = W[d] - K[np.ix_(d, a)] @ out_w
+        else:
+            out_x = np.zeros((0, d.size))
+            out_w = np.zeros((0, W.shape[1]))
+            K_red, W_red = K[np.ix_(d, d)], W[d]
+        cap = self.capacity[d][:, None]
+        A = -K_red / cap
+        B = W_red / cap
+        self._used = (self.conductance.copy(), self.advection_rate.copy(), self.capacity.copy())
+        self._reduced = (A, B, d, a, out_x, out_w)
+        return self._reduced
+
+    def state_space(self) -> Tuple[np.ndarray, np.ndarray]:
+        """Return (A, B) of the reduced network ``dx/dt = A x + B [T_b; P]``."""
+        A, B = self._reduce()[:2]
+        return A, B
+
+    def discretise(self, dt_s: float) -> Discretisation:
+        """Return the exact zero-order-hold matrices of a step, cached while coefficients hold."""
+        if not dt_s > 0.0:
+            raise NetworkError(f'time step {dt_s} s must be > 0')
+        A, B = self._reduce()[:2]
+        if self._disc is not None and self._disc.dt_s == dt_s:
+            return self._disc
+        m = A.shape[0]
+        # Van Loan: expm([[A, I, 0], [0, 0, I], [0, 0, 0]] dt) holds
+        # Ad = e^{A dt}, F1 = int_0^dt e^{As} ds, F2 = int_0^dt (dt - s) e^{As} ds.
+        M = np.zeros((3 * m, 3 * m))
+        M[:m, :m] = A * dt_s
+        M[:m, m:2 * m] = np.eye(m) * dt_s
+        M[m:2 * m, 2 * m:] = np.eye(m) * dt_s
+        F = scipy.linalg.expm(M)
+        Ad, F1, F2 = F[:m, :m], F[:m, m:2 * m], F[:m, 2 * m:]
+        self._disc = Discretisation(dt_s, Ad, F1 @ B, F1 / dt_s, (F2 @ B) / dt_s)
+        return self._disc
+
+    # ---------------------------------------------------------------- solve
+    def inputs(self, boundary_K, power_W) -> np.ndarray:
+        """Stack boundary temperatures (K) and source powers (W) into the input vector w."""
+        self.freeze()
+        tb = np.asarray(boundary_K, dtype=float).reshape(-1)
+        p = np.asarray(power_W, dtype=float).reshape(-1)
+        if tb.size != self.nb or p.size != self.ns:
+            raise NetworkError(f'expected {self.nb} boundary temperatures and {self.ns} '
+                               f'source powers, got {tb.size} and {p.size}')
+        return np.concatenate([tb, p])
+
+    def steady_state(self, boundary_K, power_W) -> np.ndarray:
+        """Return the full steady-state temperature vector (K) for fixed inputs."""
+        w = self.inputs(boundary_K, power_W)
+        K, Gb, E = self.matrices()
+        rhs = np.hstack([Gb, E]) @ w
+        try:
+            T = scipy.linalg.solve(K, rhs, check_finite=True)
+        except (ValueError, scipy.linalg.LinAlgError) as exc:
+            raise NetworkError(f'no steady state: {exc} (is every node connected to a '
+                               'boundary?)') from exc
+        return T
+
+    def step(self, x: np.ndarray, dt_s: float, boundary_K, power_W,
+             mean: bool = False):
+        """
+        Advance the states ``x`` (K) by ``dt_s`` with inputs held over the step.
+
+        Returns the new states, and with ``mean=True`` also the mean of the
+        states over the step (for exact step-averaged heat flows).
+        """
+        disc = self.discretise(dt_s)
+        w = self.inputs(boundary_K, power_W)
+        x_new = disc.Ad @ x + disc.Bd @ w
+        if mean:
+            return x_new, disc.Mx @ x + disc.Mw @ w
+        return x_new
+
+    def temperatures(self, x: np.ndarray, boundary_K, power_W) -> np.ndarray:
+        """Return the full node-temperature vector (K) from states and inputs."""
+        w = self.inputs(boundary_K, power_W)
+        _, _, d, a, out_x, out_w = self._reduce()
+        T = np.empty(self.n)
+        T[d] = x
+        if a.size:
+            T[a] = out_x @ x + out_w @ w
+        return T
+
+    def initial_state(self, T_full: np.ndarray) -> np.ndarray:
+        """Pick the states out of a full temperature vector."""
+        return np.asarray(T_full, dtype=float)[self.dynamic].copy()
+
+    def link_heat_flows(self, T_full: np.ndarray, boundary_K) -> np.ndarray:
+        """Return the heat flow (W) through each conductance link, positive from end 1 to end 2."""
+        self.freeze()
+        tb = np.asarray(boundary_K, dtype=float).reshape(-1)
+        values = np.concatenate([T_full, tb])
+        return self.conductance * (values[self._ends[:, 0]] - values[self._ends[:, 1]])
+
+    def heat_flow(self, T_full: np.ndarray, boundary_K, a: str, b: str) -> float:
+        """Return the heat flow (W) from ``a`` to ``b`` through the link joining them."""
+        k = self.link_id(a, b)
+        flow = float(self.link_heat_flows(T_full, boundary_K)[k])
+        return flow if self._links[k][0] == a else -flow

@@ -1,0 +1,383 @@
+"""
+Hydraulic oil properties versus temperature and pressure.
+
+Units are SI throughout: temperature ``T_K`` in kelvin, pressure ``p_Pa`` in
+pascal *gauge* (above atmospheric; the property data are quoted at
+atmospheric pressure), density in kg/m^3, kinematic viscosity in m^2/s,
+dynamic viscosity in Pa s, specific heat in J/(kg K), conductivity in
+W/(m K). Every function accepts floats or numpy arrays (broadcast together).
+
+Models (physics.md section 4):
+
+- density: rho = rho_15 [1 - alpha_p (T - 288.15 K)] (1 + p / K), with K the
+  isothermal *secant* bulk modulus (the one that gives the density change
+  from 0 to p in one step; the isentropic tangent modulus is about 10 %
+  higher and belongs in wave-speed calculations, not here).
+- kinematic viscosity: ASTM D341 (Walther),
+  log10 log10(nu_cSt + 0.7) = A - B log10(T_K), one line through the 40 and
+  100 degC data for T >= 40 degC and a second line through the cold datum
+  (-40 degC) and 40 degC below; the VI improver of a MIL-PRF-5606 fluid makes
+  a single line miss the -40 degC value by a factor of about 2.5 (200 cSt
+  instead of 495 cSt). Pressure: Barus, nu(p) = nu(0) exp(a_p p).
+- specific heat and conductivity: linear laws in the Celsius temperature.
+  For the petroleum grade they are Cragoe's petroleum-oil correlations
+  (Cragoe, C. S., "Thermal properties of petroleum products", US Bureau of
+  Standards Misc. Publ. 97, 1929; as reproduced in most heat-transfer data
+  books): c_p = (1.685 + 0.003391 t_C) / sqrt(s) kJ/(kg K),
+  k = 0.1172 (1 - 0.00054 t_C) / s W/(m K), s the specific gravity at
+  15 degC (rho_15 / 999.1).
+
+Values marked (est.) are engineering estimates, not measured data of a
+particular batch; replace them with the data sheet of the fluid on the rig.
+"""
+
+from dataclasses import dataclass
+import math
+from typing import Dict, Optional, Tuple
+
+import numpy as np
+
+from .validity import check, ValidityLog
+
+#: 0 degC in kelvin.
+T0_K = 273.15
+#: Reference temperature of the density data (15 degC) in kelvin.
+T15_K = 288.15
+#: Density of water at 15 degC (kg/m^3), the reference of the specific gravity.
+RHO_WATER_15 = 999.1
+#: Pressure range over which the linear density law and the Barus factor are
+#: accepted (gauge Pa): 0..35 MPa, the working range of aircraft hydraulics.
+P_MIN_PA = 0.0
+P_MAX_PA = 35.0e6
+
+
+def walther_fit(T1_K: float, nu1_cSt: float, T2_K: float,
+                nu2_cSt: float) -> Tuple[float, float]:
+    """
+    Fit the ASTM D341 (Walther) line through two viscosity data points.
+
+    Source: ASTM D341, "Standard practice for viscosity-temperature
+    equations and charts of liquid petroleum products":
+    log10 log10(nu_cSt + 0.7) = A - B log10(T_K). The 0.7 offset is the
+    D341 constant for nu >= 2 cSt (the correlation's validity range).
+
+    :param T1_K: temperature of the first datum (K).
+    :param nu1_cSt: kinematic viscosity at ``T1_K`` (cSt = mm^2/s).
+    :param T2_K: temperature of the second datum (K), different from ``T1_K``.
+    :param nu2_cSt: kinematic viscosity at ``T2_K`` (cSt).
+
+    :return: ``(A, B)``, dimensionless, for ``log10 log10(nu_cSt + 0.7) = A - B log10(T_K)``.
+
+    """
+    z1 = math.log10(math.log10(nu1_cSt + 0.7))
+    z2 = math.log10(math.log10(nu2_cSt + 0.7))
+    b = (z1 - z2) / (math.log10(T2_K) - math.log10(T1_K))
+    return z1 + b * math.log10(T1_K), b
+
+
+def cragoe_laws(specific_gravity_15: float) -> Tuple[Tuple[float, float], Tuple[float, float]]:
+    """
+    Return Cragoe's linear c_p and k laws of a petroleum oil.
+
+    Source: Cragoe (1929), US Bureau of Standards Misc. Publ. 97, converted
+    to SI: c_p = (1.685 + 0.003391 t_C) / sqrt(s) kJ/(kg K) and
+    k = 0.1172 (1 - 0.00054 t_C) / s W/(m K), with s the specific gravity at
+    15 degC (60 degF). Stated for petroleum oils (s about 0.75-0.96) from
+    about 0 to 400 degC (c_p) and 0 to 200 degC (k); accuracy a few percent.
+
+    :param specific_gravity_15: specific gravity at 15 degC (rho_15 / 999.1).
+
+    :return: ``((c0, c1), (k0, k1))`` with c_p = c0 + c1 t_C in J/(kg K) and
+        k = k0 + k1 t_C in W/(m K), t_C the temperature in degC.
+
+    """
+    root_s = math.sqrt(specific_gravity_15)
+    cp = (1685.0 / root_s, 3.391 / root_s)
+    k = (0.1172 / specific_gravity_15, -0.1172 * 0.00054 / specific_gravity_15)
+    return cp, k
+
+
+@dataclass(frozen=True)
+class OilGrade:
+    """
+    Data of one hydraulic oil grade (all SI unless the name says otherwise).
+
+    :ivar name: grade name, e.g. ``'MIL-PRF-5606'``.
+    :ivar rho15_kg_m3: density at 15 degC and atmospheric pressure (kg/m^3).
+    :ivar alpha_p_1_K: isobaric volumetric expansion coefficient (1/K).
+    :ivar bulk_modulus_Pa: isothermal secant bulk modulus (Pa) over 0..35 MPa.
+    :ivar nu_cold_cSt: kinematic viscosity at ``T_cold_K`` (cSt).
+    :ivar nu_40_cSt: kinematic viscosity at 40 degC (cSt).
+    :ivar nu_100_cSt: kinematic viscosity at 100 degC (cSt).
+    :ivar T_cold_K: temperature of the cold viscosity datum (K), -40 degC.
+    :ivar barus_1_Pa: pressure-viscosity (Barus) coefficient a_p (1/Pa).
+    :ivar cp_J_kgK: ``(c0, c1)``: c_p = c0 + c1 t_C (J/(kg K), t_C in degC).
+    :ivar k_W_mK: ``(k0, k1)``: k = k0 + k1 t_C (W/(m K), t_C in degC).
+    :ivar T_min_K: lowest temperature the data are valid for (K).
+    :ivar T_max_K: highest temperature the data are valid for (K).
+    :ivar source_notes: where each value comes from; (est.) marks estimates.
+
+    """
+
+    name: str
+    rho15_kg_m3: float
+    alpha_p_1_K: float
+    bulk_modulus_Pa: float
+    nu_cold_cSt: float
+    nu_40_cSt: float
+    nu_100_cSt: float
+    T_cold_K: float
+    barus_1_Pa: float
+    cp_J_kgK: Tuple[float, float]
+    k_W_mK: Tuple[float, float]
+    T_min_K: float
+    T_max_K: float
+    source_notes: str = ''
+
+    @property
+    def specific_gravity_15(self) -> float:
+        """Return the specific gravity at 15 degC (rho_15 / rho_water,15)."""
+        return self.rho15_kg_m3 / RHO_WATER_15
+
+    @property
+    def walther_hot(self) -> Tuple[float, float]:
+        """Return the Walther ``(A, B)`` through 40 and 100 degC (used for T >= 40 degC)."""
+        return walther_fit(T0_K + 40.0, self.nu_40_cSt, T0_K + 100.0, self.nu_100_cSt)
+
+    @property
+    def walther_cold(self) -> Tuple[float, float]:
+        """Return the Walther ``(A, B)`` through the cold datum and 40 degC (T < 40 degC)."""
+        return walther_fit(self.T_cold_K, self.nu_cold_cSt, T0_K + 40.0, self.nu_40_cSt)
+
+
+class Oil:
+    """
+    Temperature- and pressure-dependent properties of one oil grade.
+
+    Every method takes ``T_K`` (K) and, where pressure matters, ``p_Pa``
+    (gauge Pa), as floats or numpy arrays, plus an optional
+    :class:`~wet_eha_thermal.model.validity.ValidityLog` that records
+    temperatures outside the grade's range and pressures outside 0..35 MPa.
+    Out-of-range inputs are evaluated (extrapolated) and flagged, never
+    rejected.
+    """
+
+    def __init__(self, grade: OilGrade) -> None:
+        """Precompute the property laws of ``grade`` (Walther lines, constants)."""
+        self.grade = grade
+        self._rho15 = grade.rho15_kg_m3
+        self._alpha = grade.alpha_p_1_K
+        self._inv_k = 1.0 / grade.bulk_modulus_Pa
+        self._a_hot, self._b_hot = grade.walther_hot
+        self._a_cold, self._b_cold = grade.walther_cold
+        self._barus = grade.barus_1_Pa
+        self._c0, self._c1 = grade.cp_J_kgK
+        self._k0, self._k1 = grade.k_W_mK
+        self._t_lo = grade.T_min_K
+        self._t_hi = grade.T_max_K
+        self._t_note = (f'{grade.name} property data valid for '
+                        f'{grade.T_min_K - T0_K:.0f}..{grade.T_max_K - T0_K:.0f} degC; '
+                        'value extrapolated')
+        self._p_note = ('linear density law and Barus viscosity factor accepted over '
+                        '0..35 MPa gauge; value extrapolated')
+
+    def __repr__(self) -> str:
+        """Return a short description naming the grade."""
+        return f'Oil({self.grade.name!r})'
+
+    @property
+    def name(self) -> str:
+        """Return the grade name."""
+        return self.grade.name
+
+    @property
+    def alpha_p(self) -> float:
+        """Return the isobaric volumetric expansion coefficient (1/K)."""
+        return self._alpha
+
+    @property
+    def bulk_modulus(self) -> float:
+        """Return the isothermal secant bulk modulus K (Pa)."""
+        return self.grade.bulk_modulus_Pa
+
+    def _check_T(self, log: Optional[ValidityLog], what: str, T_K) -> None:
+        check(log, f'{self.grade.name} {what}', 'T_K', T_K, self._t_lo, self._t_hi,
+              self._t_note)
+
+    def _check_p(self, log: Optional[ValidityLog], what: str, p_Pa) -> None:
+        check(log, f'{self.grade.name} {what}', 'p_Pa', p_Pa, P_MIN_PA, P_MAX_PA,
+              self._p_note)
+
+    def density(self, T_K, p_Pa=0.0, log: Optional[ValidityLog] = None):
+        """
+        Return the density rho(T, p) in kg/m^3.
+
+        rho = rho_15 [1 - alpha_p (T - 288.15 K)] (1 + p / K), physics.md
+        section 4; alpha_p and K constant (first-order expansion about
+        15 degC and 0 Pa gauge). Validity: the grade's temperature range and
+        0..35 MPa.
+        """
+        if log is not None:
+            self._check_T(log, 'density', T_K)
+            self._check_p(log, 'density', p_Pa)
+        return (self._rho15 * (1.0 - self._alpha * (np.subtract(T_K, T15_K)))
+                * (1.0 + np.multiply(p_Pa, self._inv_k)))
+
+    def kinematic_viscosity(self, T_K, p_Pa=0.0, log: Optional[ValidityLog] = None):
+        """
+        Return the kinematic viscosity nu(T, p) in m^2/s.
+
+        ASTM D341 (Walther): log10 log10(nu_cSt + 0.7) = A - B log10(T_K),
+        piecewise: the line through the 40 and 100 degC data for
+        T >= 40 degC, the line through the cold (-40 degC) and 40 degC data
+        below (continuous at 40 degC). Pressure by Barus:
+        nu(p) = nu(0) exp(a_p p) (density change under pressure neglected in
+        nu, i.e. the Barus factor is applied to nu; it is an estimate anyway).
+        Validity: the grade's temperature range (below the cold datum the
+        cold line is extrapolated) and 0..35 MPa.
+        """
+        if log is not None:
+            self._check_T(log, 'viscosity', T_K)
+            self._check_p(log, 'viscosity', p_Pa)
+        log_t = np.log10(T_K)
+        z = np.where(np.greater_equal(T_K, T0_K + 40.0),
+                     self._a_hot - self._b_hot * log_t,
+                     self._a_cold - self._b_cold * log_t)
+        nu_cst = np.power(10.0, np.power(10.0, z)) - 0.7
+        return 1.0e-6 * nu_cst * np.exp(np.multiply(self._barus, p_Pa))
+
+    def dynamic_viscosity(self, T_K, p_Pa=0.0, log: Optional[ValidityLog] = None):
+        """Return the dynamic viscosity mu = rho nu in Pa s (same models and validity)."""
+        return self.kinematic_viscosity(T_K, p_Pa, log) * self.density(T_K, p_Pa, log)
+
+    def specific_heat(self, T_K, log: Optional[ValidityLog] = None):
+        """
+        Return the isobaric specific heat c_p(T) in J/(kg K).
+
+        Linear law c_p = c0 + c1 t_C of the grade (Cragoe for the petroleum
+        grade, see :func:`cragoe_laws`). Validity: the grade's temperature
+        range.
+        """
+        if log is not None:
+            self._check_T(log, 'specific heat', T_K)
+        return self._c0 + self._c1 * np.subtract(T_K, T0_K)
+
+    def conductivity(self, T_K, log: Optional[ValidityLog] = None):
+        """
+        Return the thermal conductivity k(T) in W/(m K).
+
+        Linear law k = k0 + k1 t_C of the grade (Cragoe for the petroleum
+        grade). Validity: the grade's temperature range.
+        """
+        if log is not None:
+            self._check_T(log, 'conductivity', T_K)
+        return self._k0 + self._k1 * np.subtract(T_K, T0_K)
+
+    def prandtl(self, T_K, p_Pa=0.0, log: Optional[ValidityLog] = None):
+        """Return the Prandtl number Pr = mu c_p / k (dimensionless)."""
+        return (self.dynamic_viscosity(T_K, p_Pa, log) * self.specific_heat(T_K, log)
+                / self.conductivity(T_K, log))
+
+
+def _grade_5606() -> OilGrade:
+    rho15 = 865.0
+    cp, k = cragoe_laws(rho15 / RHO_WATER_15)
+    return OilGrade(
+        name='MIL-PRF-5606',
+        rho15_kg_m3=rho15,
+        alpha_p_1_K=8.0e-4,
+        bulk_modulus_Pa=1.4e9,
+        nu_cold_cSt=495.0,
+        nu_40_cSt=13.5,
+        nu_100_cSt=5.1,
+        T_cold_K=T0_K - 40.0,
+        barus_1_Pa=1.5e-8,
+        cp_J_kgK=cp,
+        k_W_mK=k,
+        T_min_K=T0_K - 54.0,
+        T_max_K=T0_K + 135.0,
+        source_notes=(
+            'Petroleum base, VI-improved (NATO H-515). Viscosity: typical values of '
+            'qualified fluids (physics.md): 13.5 cSt at 40 degC, 5.1 cSt at 100 degC, '
+            '495 cSt at -40 degC (spec limits: >= 10.0, >= 4.90, <= 600 cSt). '
+            'rho_15 865 kg/m^3 (typical data sheets 0.86-0.87). alpha_p 8e-4 1/K (est.). '
+            'Bulk modulus: isothermal secant, 0..35 MPa at about 40 degC, 1.4 GPa (est.; '
+            'isentropic tangent about 1.5 GPa). Barus a_p 1.5e-8 1/Pa (est., typical of '
+            'light mineral hydraulic oils). c_p and k: Cragoe petroleum-oil '
+            'correlations with s = rho_15/999.1. Temperature range -54..135 degC '
+            '(spec service range; 135 degC is the oil limit of the reference rig); '
+            'viscosity below -40 degC is extrapolated along the cold Walther line.'),
+    )
+
+
+def _grade_83282() -> OilGrade:
+    rho15 = 845.0
+    cp, k = cragoe_laws(rho15 / RHO_WATER_15)
+    return OilGrade(
+        name='MIL-PRF-83282',
+        rho15_kg_m3=rho15,
+        alpha_p_1_K=7.8e-4,
+        bulk_modulus_Pa=1.45e9,
+        nu_cold_cSt=2050.0,
+        nu_40_cSt=14.2,
+        nu_100_cSt=3.6,
+        T_cold_K=T0_K - 40.0,
+        barus_1_Pa=1.3e-8,
+        cp_J_kgK=cp,
+        k_W_mK=k,
+        T_min_K=T0_K - 40.0,
+        T_max_K=T0_K + 205.0,
+        source_notes=(
+            'Synthetic hydrocarbon (PAO) base, fire resistant (NATO H-537). Viscosity '
+            '(est.): 14.2 cSt at 40 degC, 3.6 cSt at 100 degC, 2050 cSt at -40 degC, '
+            'chosen a little inside the spec limits (>= 14.0, >= 3.45, <= 2200 cSt) as '
+            'typical of qualified products; replace with the batch data sheet. '
+            'rho_15 845 kg/m^3, alpha_p 7.8e-4 1/K, secant bulk modulus 1.45 GPa, '
+            'Barus a_p 1.3e-8 1/Pa (all est.). c_p and k (est.): Cragoe petroleum-oil '
+            'correlations applied with s = rho_15/999.1 for want of PAO data: Cragoe '
+            'is a petroleum correlation, and PAO data in the literature tend to be '
+            'somewhat higher in c_p (of order 5-10 %); treat as an estimate. '
+            'Temperature range -40..205 degC (spec service range).'),
+    )
+
+
+#: Known oil grades by name.
+OIL_GRADES: Dict[str, OilGrade] = {
+    g.name: g for g in (_grade_5606(), _grade_83282())
+}
+
+#: Name of the default grade.
+DEFAULT_GRADE = 'MIL-PRF-5606'
+
+
+def get_oil(name: str = DEFAULT_GRADE) -> Oil:
+    """
+    Return the :class:`Oil` of a named grade.
+
+    :raises ValueError: the grade is unknown; the message names it and lists the
+        known grades.
+
+    """
+    try:
+        grade = OIL_GRADES[name]
+    except (KeyError, TypeError):
+        known = ', '.join(sorted(OIL_GRADES))
+        raise ValueError(f'unknown oil grade {name!r}; known grades: {known}') from None
+    return Oil(grade)
+
+
+def isenthalpic_throttle_temperature_rise(dp_Pa, T_K, oil: Oil, p_Pa=0.0,
+                                          log: Optional[ValidityLog] = None):
+    """
+    Return the temperature rise (K) of oil throttled isenthalpically across dp_Pa.
+
+    From dh = c_p dT + (1 - alpha_p T) dp / rho = 0 (physics.md section 4):
+    dT = (1 - alpha_p T) dp / (rho c_p), about 0.45 K/MPa for MIL-PRF-5606 at
+    40 degC. ``dp_Pa`` is the pressure drop (positive for a drop, giving a
+    rise); ``T_K`` and ``p_Pa`` (gauge) are the state at which rho and c_p
+    are evaluated (use the mean of the two sides for large drops). Valid
+    where the oil properties are (flags through ``log``).
+    """
+    rho = oil.density(T_K, p_Pa, log)
+    cp = oil.specific_heat(T_K, log)
+    return (1.0 - oil.alpha_p * np.asarray(T_K)) * np.multiply(dp_Pa, 1.0 / (rho * cp))
