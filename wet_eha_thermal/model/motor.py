@@ -52,14 +52,17 @@ class WetMotor:
     steady state; ``step`` advances in time with the exact zero-order-hold
     solution of the network linearised at the start of the step.
 
-    Temperature-dependent coefficients move slowly next to a step, so they are
-    re-evaluated every ``coefficient_period_s`` of sample time, or at once
-    when speed or flow move by more than 1 %, an inlet or ambient temperature
-    by more than 0.2/0.5 K, or the case pressure by more than 0.1 MPa.
+    Coefficients are re-evaluated only when they can have moved: when a node
+    whose temperature sets one (airgap and end-space oil, winding, outer
+    surfaces) drifted by more than ``refresh_dT_K`` since the last refresh,
+    when speed or flow moved by more than 1 %, an inlet or ambient temperature
+    by more than 0.2/0.5 K, or the case pressure by more than 0.1 MPa. Steps
+    longer than ``max_substep_s`` are split internally (inputs held), so that
+    fast oil-temperature changes inside a long step still update viscosity.
     """
 
     def __init__(self, cfg: Motor, oil: Oil, log: Optional[ValidityLog] = None,
-                 coefficient_period_s: float = 0.5) -> None:
+                 refresh_dT_K: float = 0.25, max_substep_s: float = 0.1) -> None:
         self.cfg = cfg
         self.oil = oil
         self.log = log if log is not None else ValidityLog()
@@ -70,8 +73,8 @@ class WetMotor:
         self.T: Optional[np.ndarray] = None
         self.power_W = np.zeros(self.net.ns)
         self._refreshed_at: Optional[tuple] = None
-        self._age_s = 0.0
-        self.coefficient_period_s = coefficient_period_s
+        self.refresh_dT_K = refresh_dT_K
+        self.max_substep_s = max_substep_s
         # coefficients that moved less than this (relative) keep the cached discretisation
         self.net.refresh_rtol = 1e-3
 
@@ -245,6 +248,8 @@ class WetMotor:
         self.idx_magnet = np.array([net.index(m) for m in magnet.mean])
         self.idx_frame = np.array([net.index(m) for m in frame.mean])
         self.frame_volumes = np.array(frame.volume_m3)
+        self.idx_watch = np.concatenate([self.idx_oil, self.idx_copper, self.idx_frame_outer,
+                                         self.idx_cap_outer])
 
     # ------------------------------------------------------------ coefficients
     def _oil_rho_cp(self, T_K, p_Pa):
@@ -290,7 +295,7 @@ class WetMotor:
             wd.phase_resistance_20C_ohm, wd.copper_tempco_1_K, T[self.idx_copper])
         self._refreshed_at = (w, u.oil_flow_m3_s, u.oil_inlet_K, u.ambient_K,
                               u.case_pressure_Pa)
-        self._age_s = 0.0
+        self._T_refreshed = T[self.idx_watch]
 
     def _to_ambient_htc(self, Ts_K, T_amb_K, natural_convection) -> np.ndarray:
         """Return the surface-to-ambient h (W/(m^2 K)): fan or natural convection, + radiation."""
@@ -301,11 +306,13 @@ class WetMotor:
         return natural_convection(Ts_K, T_amb_K, 2 * fr.outer_radius_m, log=self.log) + h_rad
 
     def _refresh_due(self, u: MotorInputs) -> bool:
-        """Tell whether the coefficients are older than their period or an input moved too far."""
-        if self._refreshed_at is None or self._age_s >= self.coefficient_period_s:
+        """Tell whether a temperature or an input moved too far since the last refresh."""
+        if self._refreshed_at is None:
             return True
         w0, q0, tin0, tamb0, p0 = self._refreshed_at
-        return (abs(abs(u.speed_rad_s) - w0) > 0.01 * max(w0, 5.0)
+        drift = np.max(np.abs(self.T[self.idx_watch] - self._T_refreshed))
+        return (drift > self.refresh_dT_K
+                or abs(abs(u.speed_rad_s) - w0) > 0.01 * max(w0, 5.0)
                 or abs(u.oil_flow_m3_s - q0) > 0.01 * max(q0, 1e-8)
                 or abs(u.oil_inlet_K - tin0) > 0.2 or abs(u.ambient_K - tamb0) > 0.5
                 or abs(u.case_pressure_Pa - p0) > 1e5)
@@ -357,7 +364,8 @@ class WetMotor:
         Tb = self.boundaries(u)
         for it in range(max_iter):
             self.refresh(T, u)
-            T_new = self.net.steady_state(Tb, self.losses(u))
+            self.power_W = self.losses(u)
+            T_new = self.net.steady_state(Tb, self.power_W)
             change = float(np.max(np.abs(T_new - T)))
             T = T_new
             if change < tol_K:
@@ -365,9 +373,9 @@ class WetMotor:
         else:
             raise RuntimeError(f'steady state did not converge in {max_iter} iterations '
                                f'(last change {change:.3g} K)')
+        # keep the coefficients and losses T was solved with: the balance then
+        # closes to round-off, and T is within tol_K of the fixed point
         self.iterations = it + 1
-        self.refresh(T, u)
-        self.power_W = self.losses(u)
         self.T = T
         self.x = self.net.initial_state(T)
         return T
@@ -381,19 +389,21 @@ class WetMotor:
         """
         Advance by ``dt_s`` with inputs ``u`` held over the step; return all node temperatures.
 
-        Coefficients are refreshed at the start-of-step temperatures when due
-        (see ``coefficient_period_s``), losses are evaluated for every step, and
-        the linear network is then integrated exactly over the step.
+        Coefficients are refreshed at the start of each (sub-)step when due,
+        losses are evaluated for every step, and the linear network is then
+        integrated exactly over the step.
         """
         if self.x is None:
             raise RuntimeError('set an initial state first (initialise or steady_state)')
-        if self._refresh_due(u):
-            self.refresh(self.T, u)
-        self._age_s += dt_s
-        self.power_W = self.losses(u)
+        substeps = max(1, int(np.ceil(dt_s / self.max_substep_s - 1e-9)))
+        h = dt_s / substeps
         Tb = self.boundaries(u)
-        self.x = self.net.step(self.x, dt_s, Tb, self.power_W)
-        self.T = self.net.temperatures(self.x, Tb, self.power_W)
+        for _ in range(substeps):
+            if self._refresh_due(u):
+                self.refresh(self.T, u)
+            self.power_W = self.losses(u)
+            self.x = self.net.step(self.x, h, Tb, self.power_W)
+            self.T = self.net.temperatures(self.x, Tb, self.power_W)
         return self.T
 
     # --------------------------------------------------------------- outputs
