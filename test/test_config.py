@@ -71,6 +71,12 @@ def test_bad_config_gives_one_clear_error_and_nothing_runs(tmp_path, capsys, nam
     assert not out_dir.exists()
 
 
+def test_exponent_without_sign_is_read_as_a_number(tmp_path):
+    path = write_bad(tmp_path, lambda d: _set(d, '2.0e4', 'hydraulics', 'pump',
+                                              'viscous_friction_coeff'))
+    assert load_config(path).hydraulics.pump.viscous_friction_coeff == 2.0e4
+
+
 def test_command_line_override_is_validated_like_the_file(tmp_path, capsys):
     rc = main(['maps', '--oil-flow-L-min', '-1', '--out', str(tmp_path / 'o')])
     err = capsys.readouterr().err

@@ -153,6 +153,41 @@ def test_any_step_follows_a_violent_load_step(cfg, load_step_reference, dt):
         assert out[key] == pytest.approx(value, abs=0.05), key
 
 
+def test_transient_energy_ledger_closes(cfg):
+    # a load that changes every step: losses = stored + to ambient + carried by the oil
+    m = make_motor(cfg)
+    m.initialise(30.0 + C_TO_K)
+    rng = np.random.default_rng(1)
+    for k in range(600):
+        rpm = 12000 + 6000 * np.sin(k / 40)
+        speeds = rng.normal(rpm * RPM, 20.0, size=20)    # 20 speed samples in the step
+        m.step(0.05, MotorInputs(current_sq_mean_A2=(15 + 10 * np.cos(k / 25)) ** 2,
+                                 speed_rad_s=speeds, oil_inlet_K=(40 + k / 60) + C_TO_K,
+                                 oil_flow_m3_s=(1.0 + 0.3 * np.sin(k / 30)) / 60000,
+                                 ambient_K=20.0 + C_TO_K))
+    e = m.energy_J
+    assert e['losses'] > 1e4
+    # exact discretisation with the coefficients in use: round-off only
+    assert e['stored'] + e['to_ambient'] + e['to_oil'] == pytest.approx(e['losses'], rel=1e-9)
+
+
+def test_losses_average_friction_over_speed_samples(cfg):
+    # friction grows as about speed^2.5: samples alternating 0 and 2w give more loss
+    # than a steady w, exactly the mean of the two sample losses
+    m = make_motor(cfg)
+    m.steady_state(inputs())
+    w = 10000 * RPM
+    steady = m.losses(inputs(rpm=10000))
+    u = inputs()
+    u.speed_rad_s = np.array([0.0, 2 * w])
+    mixed = m.losses(u)
+    u.speed_rad_s = 2 * w
+    double = m.losses(u)
+    gap = slice(-m.cfg.slices, None)
+    assert np.allclose(mixed[gap], 0.5 * double[gap], rtol=1e-12)
+    assert mixed[gap].sum() > 2.5 * steady[gap].sum()
+
+
 def test_laminar_airgap_flow_is_reported(cfg):
     m = make_motor(cfg)
     m.steady_state(inputs())

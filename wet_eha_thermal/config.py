@@ -68,6 +68,12 @@ def _check_value(key: str, value: Any, tp: Any, meta: dict) -> Any:
             raise ConfigError(f'{key} = {value!r}: expected a whole number in '
                               f'{_range_text(meta)}')
     elif tp is float:
+        if isinstance(value, str):
+            # YAML 1.1 (PyYAML) reads 2.0e4, without an exponent sign, as text
+            try:
+                value = float(value)
+            except ValueError:
+                pass
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ConfigError(f'{key} = {value!r}: expected a number in {_range_text(meta)}')
         value = float(value)
@@ -292,6 +298,91 @@ class Motor:
 
 
 @dataclass(frozen=True, kw_only=True)
+class Shell:
+    """Solid shell of a hydraulic component, lumped: heat capacity and two convective areas."""
+
+    mass_kg: float = positive()
+    specific_heat_J_kgK: float = positive()
+    oil_htc_W_m2K: float = positive('oil side')
+    oil_area_m2: float = positive('oil side, per oil volume it wets')
+    air_htc_W_m2K: float = positive('air side, convection plus radiation')
+    air_area_m2: float = positive()
+
+    @property
+    def capacity_J_K(self) -> float:
+        """Heat capacity (J/K)."""
+        return self.mass_kg * self.specific_heat_J_kgK
+
+
+@dataclass(frozen=True, kw_only=True)
+class Pump:
+    """Bidirectional axial piston pump without shaft seal (case drains through the motor)."""
+
+    displacement_m3_rev: float = positive()
+    internal_leak_coeff_m3: float = spec(0.0, None, doc='Q = C dp / mu, port to port')
+    external_leak_coeff_m3: float = spec(0.0, None, doc='Q = C dp / mu, port to case')
+    viscous_friction_coeff: float = spec(0.0, None, doc='C_v of T_loss = C_v mu D w')
+    pressure_friction_coeff: float = spec(0.0, None, doc='C_f of T_loss = C_f D dp')
+    coulomb_torque_Nm: float = spec(0.0, None, doc='T_c')
+    friction_to_case_fraction: float = spec(0.0, 1.0, doc='rest heats the shell')
+    port_volume_m3: float = positive('each port (inlet/outlet)')
+    case_volume_m3: float = positive()
+    shell: Shell
+
+
+@dataclass(frozen=True, kw_only=True)
+class Actuator:
+    """Double-rod (balanced) cylinder."""
+
+    bore_m: float = positive()
+    rod_m: float = positive()
+    half_stroke_m: float = positive('travel each side of centre')
+    dead_volume_m3: float = positive('each chamber at centre stroke minus the swept part')
+    shell: Shell
+
+    @property
+    def area_m2(self) -> float:
+        """Annular piston area (m^2)."""
+        return 0.25 * 3.141592653589793 * (self.bore_m ** 2 - self.rod_m ** 2)
+
+    def check(self, key: str) -> None:
+        """Check the rod fits the bore."""
+        _below(key, 'rod_m', self.rod_m, 'bore_m', self.bore_m)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Accumulator:
+    """Gas-charged accumulator holding the low-pressure side (the pump case drains to it)."""
+
+    oil_volume_m3: float = positive()
+    pressure_Pa: float = positive('working pressure of the low-pressure side')
+    precharge_Pa: float = positive()
+    shell: Shell
+
+
+@dataclass(frozen=True, kw_only=True)
+class Lines:
+    """The two pump-actuator lines (identical)."""
+
+    length_m: float = positive()
+    bore_m: float = positive()
+    wall_m: float = positive()
+    wall_density_kg_m3: float = positive()
+    wall_specific_heat_J_kgK: float = positive()
+    air_htc_W_m2K: float = positive('outside, natural convection plus radiation')
+
+
+@dataclass(frozen=True, kw_only=True)
+class Hydraulics:
+    """Hydraulic circuit of the EHA."""
+
+    pump: Pump
+    actuator: Actuator
+    accumulator: Accumulator
+    lines: Lines
+
+
+@dataclass(frozen=True, kw_only=True)
 class Fluid:
     """Hydraulic oil."""
 
@@ -317,6 +408,7 @@ class Config:
     """Whole configuration file."""
 
     motor: Motor
+    hydraulics: Hydraulics
     fluid: Fluid
     maps: MapsJob
 

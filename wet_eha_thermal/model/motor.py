@@ -15,8 +15,8 @@ Oil path: oil_inlet -> end_oil_front -> gap_oil.s1 .. s<n> -> end_oil_rear
 ambient (natural convection and radiation, or a fan coefficient).
 """
 
-from dataclasses import dataclass
-from typing import Dict, Optional
+from dataclasses import dataclass, replace
+from typing import Dict, Optional, Union
 
 import numpy as np
 
@@ -36,7 +36,7 @@ class MotorInputs:
     """Operating point of the motor over one step (SI units, temperatures in K)."""
 
     current_sq_mean_A2: float  # mean of I_rms^2 over the step (never the square of a sample)
-    speed_rad_s: float
+    speed_rad_s: Union[float, np.ndarray]   # or its samples over the step: losses average them
     oil_inlet_K: float
     oil_flow_m3_s: float
     ambient_K: float
@@ -59,10 +59,18 @@ class WetMotor:
     by more than 0.2/0.5 K, or the case pressure by more than 0.1 MPa. Steps
     longer than ``max_substep_s`` are split internally (inputs held), so that
     fast oil-temperature changes inside a long step still update viscosity.
+
+    With ``coefficient_filter_s`` > 0 the speed, flow and temperatures that
+    set the coefficients first pass a low-pass filter in sample time (two
+    cascaded first-order stages of that time constant): a duty cycle faster
+    than the motor's thermal response (speed and leakage flow swinging at a
+    few Hz) then no longer re-discretises the network every step; losses stay
+    exact for every step. The coupled EHA model uses this.
     """
 
     def __init__(self, cfg: Motor, oil: Oil, log: Optional[ValidityLog] = None,
-                 refresh_dT_K: float = 0.25, max_substep_s: float = 0.1) -> None:
+                 refresh_dT_K: float = 0.25, max_substep_s: float = 0.1,
+                 coefficient_filter_s: float = 0.0) -> None:
         self.cfg = cfg
         self.oil = oil
         self.log = log if log is not None else ValidityLog()
@@ -75,6 +83,11 @@ class WetMotor:
         self._refreshed_at: Optional[tuple] = None
         self.refresh_dT_K = refresh_dT_K
         self.max_substep_s = max_substep_s
+        self.coefficient_filter_s = coefficient_filter_s
+        self._filter_state: Optional[list] = None
+        self.refresh_count = 0
+        # energies (J) since construction: heat generated, stored, to ambient, carried by the oil
+        self.energy_J = {'losses': 0.0, 'stored': 0.0, 'to_ambient': 0.0, 'to_oil': 0.0}
         # coefficients that moved less than this (relative) keep the cached discretisation
         self.net.refresh_rtol = 1e-3
 
@@ -266,8 +279,9 @@ class WetMotor:
         """
         c, net, log = self.cfg, self.net, self.log
         st, ro = c.stator, c.rotor
-        w = abs(u.speed_rad_s)
+        w = float(np.mean(np.abs(u.speed_rad_s)))
         p = u.case_pressure_Pa
+        self.refresh_count += 1
         T_gap = T[self.idx_gap]
         self._rho_gap = self.oil.density(T_gap, p)
         self._mu_gap = self.oil.dynamic_viscosity(T_gap, p)
@@ -290,9 +304,6 @@ class WetMotor:
         # enthalpy flow: one c_p for the whole chain (the inlet's) keeps it conservative
         m_cp = u.oil_flow_m3_s * self._oil_rho_cp(u.oil_inlet_K, p)
         net.set_advection_rates(self.adv, np.full(len(self.adv), m_cp))
-        wd = c.winding
-        self._copper_W_A2 = wd.phases * self.copper_share * copper_resistance(
-            wd.phase_resistance_20C_ohm, wd.copper_tempco_1_K, T[self.idx_copper])
         self._refreshed_at = (w, u.oil_flow_m3_s, u.oil_inlet_K, u.ambient_K,
                               u.case_pressure_Pa)
         self._T_refreshed = T[self.idx_watch]
@@ -305,38 +316,76 @@ class WetMotor:
             return fr.forced_air_htc_W_m2K + h_rad
         return natural_convection(Ts_K, T_amb_K, 2 * fr.outer_radius_m, log=self.log) + h_rad
 
-    def _refresh_due(self, u: MotorInputs) -> bool:
+    def _coefficient_point(self, dt_s: float, u: MotorInputs):
+        """Return the (temperatures, inputs) that set the coefficients, filtered if asked."""
+        raw = np.concatenate([[np.mean(np.abs(u.speed_rad_s)), u.oil_flow_m3_s],
+                              self.T[self.idx_watch]])
+        if self._filter_state is None or self.coefficient_filter_s <= 0.0:
+            self._filter_state = [raw, raw]
+        else:
+            a = -np.expm1(-dt_s / self.coefficient_filter_s)
+            f1, f2 = self._filter_state
+            f1 = f1 + a * (raw - f1)
+            self._filter_state = [f1, f2 + a * (f1 - f2)]
+        f = self._filter_state[1]
+        T = self.T.copy()
+        T[self.idx_watch] = f[2:]
+        return T, replace(u, speed_rad_s=f[0], oil_flow_m3_s=f[1])
+
+    def _refresh_due(self, T: np.ndarray, u: MotorInputs) -> bool:
         """Tell whether a temperature or an input moved too far since the last refresh."""
         if self._refreshed_at is None:
             return True
         w0, q0, tin0, tamb0, p0 = self._refreshed_at
-        drift = np.max(np.abs(self.T[self.idx_watch] - self._T_refreshed))
+        drift = np.max(np.abs(T[self.idx_watch] - self._T_refreshed))
         return (drift > self.refresh_dT_K
-                or abs(abs(u.speed_rad_s) - w0) > 0.01 * max(w0, 5.0)
+                or abs(float(u.speed_rad_s) - w0) > 0.01 * max(w0, 5.0)
                 or abs(u.oil_flow_m3_s - q0) > 0.01 * max(q0, 1e-8)
                 or abs(u.oil_inlet_K - tin0) > 0.2 or abs(u.ambient_K - tamb0) > 0.5
                 or abs(u.case_pressure_Pa - p0) > 1e5)
 
-    def losses(self, u: MotorInputs) -> np.ndarray:
+    def losses(self, u: MotorInputs, T: Optional[np.ndarray] = None) -> np.ndarray:
         """
-        Source powers (W) over a step: copper (R at the last refresh), core, oil friction.
+        Source powers (W) over a step: copper with R(T), core, oil friction.
 
         Order: copper (slot slices, end windings), yoke slices, teeth slices,
-        airgap sections. Friction uses the oil properties of the last refresh
-        at the step's own speed.
+        airgap sections. Core loss and friction are averaged over the speed
+        samples of the step (friction grows as about speed^2.5: the loss at the
+        mean speed would be wrong); friction uses the oil properties of the
+        last refresh.
         """
-        c, st, ro = self.cfg, self.cfg.stator, self.cfg.rotor
-        w = abs(u.speed_rad_s)
-        p_cu = u.current_sq_mean_A2 * self._copper_W_A2
-        f = electrical_frequency(w, c.pole_pairs)
-        core = [mass * steinmetz_loss_density(f, b, st.hysteresis_coeff_W_kgHzT,
-                                              st.steinmetz_exponent, st.eddy_coeff_W_kgHz2T2)
-                for mass, b in ((self.yoke_mass, st.yoke_flux_density_T),
-                                (self.teeth_mass, st.teeth_flux_density_T))]
+        w = np.abs(np.atleast_1d(u.speed_rad_s))
+        wd = self.cfg.winding
+        # R(T) at the present winding temperatures: cheap, and the winding is what
+        # a filtered coefficient would lag most
+        p_cu = u.current_sq_mean_A2 * wd.phases * self.copper_share * copper_resistance(
+            wd.phase_resistance_20C_ohm, wd.copper_tempco_1_K,
+            (self.T if T is None else T)[self.idx_copper])
+        d_yoke, d_teeth = self._core_loss_density(w)
+        return np.concatenate([p_cu, self.yoke_mass * d_yoke.mean(),
+                               self.teeth_mass * d_teeth.mean(),
+                               self.airgap_friction_W(w).mean(axis=0)])
+
+    def _core_loss_density(self, speed_rad_s: np.ndarray):
+        """Return the Steinmetz loss per kg (W/kg) of yoke and teeth at each speed sample."""
+        st = self.cfg.stator
+        f = electrical_frequency(speed_rad_s, self.cfg.pole_pairs)
+        return tuple(steinmetz_loss_density(f, b, st.hysteresis_coeff_W_kgHzT,
+                                            st.steinmetz_exponent, st.eddy_coeff_W_kgHz2T2)
+                     for b in (st.yoke_flux_density_T, st.teeth_flux_density_T))
+
+    def core_loss_W(self, speed_rad_s) -> np.ndarray:
+        """Return the total stator core loss (W) at each speed sample."""
+        d_yoke, d_teeth = self._core_loss_density(np.abs(np.atleast_1d(speed_rad_s)))
+        return self.yoke_mass.sum() * d_yoke + self.teeth_mass.sum() * d_teeth
+
+    def airgap_friction_W(self, speed_rad_s) -> np.ndarray:
+        """Return the oil-friction power (W) of each airgap section at each speed (samples x n)."""
+        st, ro = self.cfg.stator, self.cfg.rotor
+        w = np.abs(np.atleast_1d(speed_rad_s))[:, None]
         p_fric, _ = corr.airgap_friction(self._rho_gap, self._mu_gap, w, ro.outer_radius_m,
                                          st.bore_radius_m, self.dz, log=self.log)
-        return np.concatenate([p_cu, core[0], core[1],
-                               np.broadcast_to(p_fric, self.idx_gap.shape)])
+        return np.broadcast_to(p_fric, (w.shape[0], self.idx_gap.size))
 
     @property
     def losses_W(self) -> Dict[str, float]:
@@ -364,7 +413,7 @@ class WetMotor:
         Tb = self.boundaries(u)
         for it in range(max_iter):
             self.refresh(T, u)
-            self.power_W = self.losses(u)
+            self.power_W = self.losses(u, T)
             T_new = self.net.steady_state(Tb, self.power_W)
             change = float(np.max(np.abs(T_new - T)))
             T = T_new
@@ -384,6 +433,10 @@ class WetMotor:
         """Set every node to one temperature (K), e.g. a cold start at ambient."""
         self.T = np.full(self.net.n, float(T_K))
         self.x = self.net.initial_state(self.T)
+        # airgap oil properties for friction queries before the first step
+        T_gap = self.T[self.idx_gap]
+        self._rho_gap = self.oil.density(T_gap)
+        self._mu_gap = self.oil.dynamic_viscosity(T_gap)
 
     def step(self, dt_s: float, u: MotorInputs) -> np.ndarray:
         """
@@ -398,13 +451,29 @@ class WetMotor:
         substeps = max(1, int(np.ceil(dt_s / self.max_substep_s - 1e-9)))
         h = dt_s / substeps
         Tb = self.boundaries(u)
+        self.T_mean = np.zeros(self.net.n)
         for _ in range(substeps):
-            if self._refresh_due(u):
-                self.refresh(self.T, u)
+            T_c, u_c = self._coefficient_point(h, u)
+            if self._refresh_due(T_c, u_c):
+                self.refresh(T_c, u_c)
             self.power_W = self.losses(u)
-            self.x = self.net.step(self.x, h, Tb, self.power_W)
+            x_new, x_mean = self.net.step(self.x, h, Tb, self.power_W, mean=True)
+            T_mean = self.net.temperatures(x_mean, Tb, self.power_W)
+            self._book(h, x_new - self.x, T_mean, u)
+            self.T_mean += T_mean / substeps
+            self.x = x_new
             self.T = self.net.temperatures(self.x, Tb, self.power_W)
         return self.T
+
+    def _book(self, h: float, dx: np.ndarray, T_mean: np.ndarray, u: MotorInputs) -> None:
+        """Add one step's energies (J) to the ledger, with the coefficients the step used."""
+        g, m_cp, cap = self.net.coefficients_in_use()
+        flows = self.net.link_heat_flows(T_mean, self.boundaries(u))
+        e = self.energy_J
+        e['losses'] += float(np.sum(self.power_W)) * h
+        e['stored'] += float(np.dot(cap[self.net.dynamic], dx))
+        e['to_ambient'] += float(flows[self.ambient_links].sum() + flows[self.cap_links].sum()) * h
+        e['to_oil'] += float(m_cp[self.adv[0]] * (T_mean[self.idx_oil[-1]] - u.oil_inlet_K)) * h
 
     # --------------------------------------------------------------- outputs
     def temperature(self, name: str, T: Optional[np.ndarray] = None) -> float:

@@ -406,12 +406,25 @@ class ThermalNetwork:
         """Pick the states out of a full temperature vector."""
         return np.asarray(T_full, dtype=float)[self.dynamic].copy()
 
+    def coefficients_in_use(self) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """
+        Return (conductances, advection rates, capacities) that the solver uses now.
+
+        They differ from the last values set by at most ``refresh_rtol``
+        (relative) while a cached discretisation is kept; heat flows computed
+        with them make energy balances of the stepped network exact.
+        """
+        self.freeze()
+        if self._used is not None:
+            return self._used
+        return self.conductance, self.advection_rate, self.capacity
+
     def link_heat_flows(self, T_full: np.ndarray, boundary_K) -> np.ndarray:
         """Return the heat flow (W) through each conductance link, positive from end 1 to end 2."""
-        self.freeze()
         tb = np.asarray(boundary_K, dtype=float).reshape(-1)
         values = np.concatenate([T_full, tb])
-        return self.conductance * (values[self._ends[:, 0]] - values[self._ends[:, 1]])
+        g = self.coefficients_in_use()[0]
+        return g * (values[self._ends[:, 0]] - values[self._ends[:, 1]])
 
     def heat_flow(self, T_full: np.ndarray, boundary_K, a: str, b: str) -> float:
         """Return the heat flow (W) from ``a`` to ``b`` through the link joining them."""

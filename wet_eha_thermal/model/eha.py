@@ -1,0 +1,244 @@
+"""
+The coupled wet-EHA thermal model: wet motor plus hydraulic control nodes.
+
+It is driven by blocks of sensor samples (phase current, speed, both actuator
+port pressures, accumulator pressure, actuator position), one block per model
+step, whether they come from the rig (the live estimator) or from the kinetic
+simulator. From the samples it derives, at the current oil temperatures, the
+flows (actuator flow from the position signal, leakage from the pressures and
+the viscosity, pump displacement flow from the speed), the mean of every
+flow-pressure product, the pump friction and the motor losses, and steps:
+
+- the pump case leakage (external leakage) enters the motor as its cooling
+  flow at the case oil temperature, and the motor's outlet oil returns to the
+  accumulator: that flow is the coupling of the two sub-models;
+- the oil viscosity at the present temperatures sets leakage and friction.
+
+The motor's speed- and flow-dependent coefficients follow a low-pass filter
+in sample time (``coefficient_filter_s``); the part of the leakage flow that
+the filtered motor flow does not carry goes straight from the case to the
+accumulator, so mass and energy balance exactly at every step.
+"""
+
+from dataclasses import dataclass
+from typing import Dict, Optional
+
+import numpy as np
+
+from . import fluid_power as fp
+from .hydraulics import HydraulicCircuit, LINKS, StepFlows
+from .motor import MotorInputs, WetMotor
+from .oil import get_oil, Oil
+from .validity import ValidityLog
+from ..config import Config
+
+
+@dataclass
+class SampleBlock:
+    """
+    Sensor samples of one model step, as numpy arrays of equal length.
+
+    Times ``t_s`` are strictly increasing; each sample stands for the interval
+    since the previous one. Units: A RMS, rad/s, Pa (absolute port pressures of
+    the actuator's chambers A and B, and of the accumulator), m (LVDT).
+    """
+
+    t_s: np.ndarray
+    current_A: np.ndarray
+    speed_rad_s: np.ndarray
+    p_a_Pa: np.ndarray
+    p_b_Pa: np.ndarray
+    p_acc_Pa: np.ndarray
+    position_m: np.ndarray
+
+
+class EHAModel:
+    """
+    One coupled thermal model of the wet EHA, one state vector, named outputs.
+
+    The state is the motor network's states followed by the 13 hydraulic
+    node temperatures (K). ``step(block, ambient_K)`` advances to the last
+    sample time of the block; ``outputs()`` gives the named temperatures (K)
+    and heat flows (W) of the last step.
+    """
+
+    def __init__(self, cfg: Config, oil: Optional[Oil] = None,
+                 log: Optional[ValidityLog] = None, coefficient_filter_s: float = 4.0) -> None:
+        self.cfg = cfg
+        self.oil = oil if oil is not None else get_oil(cfg.fluid.grade)
+        self.log = log if log is not None else ValidityLog()
+        self.motor = WetMotor(cfg.motor, self.oil, self.log,
+                              coefficient_filter_s=coefficient_filter_s)
+        self.circuit = HydraulicCircuit(cfg.hydraulics, self.oil)
+        h = cfg.hydraulics
+        self.area = h.actuator.area_m2
+        self.d_rad = fp.displacement_per_rad(h.pump.displacement_m3_rev)
+        self.T_hyd: Optional[np.ndarray] = None
+        self._last: Optional[tuple] = None   # last sample: t, x, node pressures
+        self.flows: Optional[StepFlows] = None
+        self.heat_W: Dict[str, float] = {}
+        self.time_s = 0.0
+
+    # ------------------------------------------------------------------ state
+    def initialise(self, T_K: float, first: SampleBlock) -> None:
+        """Set every temperature to ``T_K`` and take the first sample as the starting point."""
+        self.motor.initialise(T_K)
+        self.T_hyd = np.full(self.circuit.n, float(T_K))
+        self.time_s = float(first.t_s[-1])
+        raw = np.array([first.p_a_Pa[-1], first.p_b_Pa[-1], first.p_acc_Pa[-1]])
+        p = self._node_pressures(raw[:, None], 0.0)
+        self._last = (float(first.t_s[-1]), float(first.position_m[-1]), raw, p[:, -1])
+
+    @property
+    def state(self) -> np.ndarray:
+        """Return the state vector: motor states, then hydraulic node temperatures (K)."""
+        return np.concatenate([self.motor.x, self.T_hyd])
+
+    # ------------------------------------------------------------ the samples
+    def _node_pressures(self, sensed: np.ndarray, flow_m3_s) -> np.ndarray:
+        """Return the pressure (Pa) of every oil node (8 x n) from sensed p_a, p_b, p_acc."""
+        ci = self.circuit
+        ln = self.cfg.hydraulics.lines
+        # both lines at their mean temperature and the low-side pressure, as the kinetics
+        T_l = 0.5 * (self.T_hyd[ci.index('line_a')] + self.T_hyd[ci.index('line_b')])
+        pa, pb, pacc = sensed
+        p_l = float(pacc[-1])
+        dp = fp.line_pressure_drop(flow_m3_s, ln.length_m, ln.bore_m, self.oil.density(T_l, p_l),
+                                   self.oil.dynamic_viscosity(T_l, p_l), log=self.log)
+        return np.vstack([pa + dp, pb - dp, pacc, pa + 0.5 * dp, pb - 0.5 * dp, pa, pb, pacc])
+
+    def step_flows(self, b: SampleBlock):
+        """
+        Derive the hydraulic flows, flow-pressure products and pump friction of a block.
+
+        Returns (StepFlows without the motor terms, external leakage mean m^3/s,
+        step length s, interval weights). Everything is evaluated per sample
+        interval: the mean flow from the position difference, paired with the
+        interval's mean pressures (pairing it with the end pressure would lag
+        by half an interval and book spurious load work).
+        """
+        t0, x0, raw0, p0 = self._last
+        t = np.concatenate([[t0], b.t_s])
+        dts = np.diff(t)
+        if np.any(dts <= 0.0):
+            raise ValueError('sample times must increase strictly')
+        dt = t[-1] - t0
+        wgt = dts / dt
+        x = np.concatenate([[x0], b.position_m])
+        q = self.area * np.diff(x) / dts          # into chamber A
+        raw = np.hstack([raw0[:, None], np.vstack([b.p_a_Pa, b.p_b_Pa, b.p_acc_Pa])])
+        P = self._node_pressures(0.5 * (raw[:, 1:] + raw[:, :-1]), q)
+        pump = self.cfg.hydraulics.pump
+        T_case = self.T_hyd[self.circuit.index('case')]
+        # viscosity at the mean pressure of each gap: port to port, high port to case
+        p_high = np.maximum(P[0], P[1])
+        mu = self.oil.dynamic_viscosity(T_case, 0.5 * (P[0] + P[1]))
+        mu_ext = self.oil.dynamic_viscosity(T_case, 0.5 * (p_high + P[2]))
+        q_int = fp.laminar_leakage(pump.internal_leak_coeff_m3, P[0] - P[1], mu)
+        high_a = P[0] >= P[1]
+        q_ext = np.maximum(fp.laminar_leakage(pump.external_leak_coeff_m3, p_high - P[2],
+                                              mu_ext), 0.0)
+        q_ext_a = np.where(high_a, q_ext, 0.0)
+        q_ext_b = q_ext - q_ext_a
+        # The pump's transfer into the high port closes that port's balance (line flow,
+        # internal and external leakage); only the low port exchanges with the
+        # accumulator (check valves), by the external leakage. Measured speed and
+        # position never agree exactly (sampling, noise): closing the balance through
+        # the high port would pass that mismatch across the full load pressure.
+        q_pump = np.where(high_a, q + q_int + q_ext_a, q + q_int - q_ext_b)   # into port A
+        make_up_a = np.where(high_a, 0.0, q_ext)
+        make_up_b = q_ext - make_up_a
+        pos, neg = np.maximum, lambda v: np.maximum(-v, 0.0)
+        zero = np.zeros_like(q)
+        F = np.vstack([pos(q_pump, 0), neg(q_pump), pos(q_int, 0), neg(q_int), q_ext_a, q_ext_b,
+                       pos(q, 0), neg(q), pos(q, 0), neg(q), pos(q, 0), neg(q), pos(q, 0), neg(q),
+                       make_up_a, zero, make_up_b, zero, zero, zero])
+        ci = self.circuit
+        dP = P[ci.u] - P[ci.d]
+        flow = F @ wgt
+        work = (F * dP) @ wgt
+        fric = fp.pump_friction_torque(b.speed_rad_s, P[0] - P[1], mu, self.d_rad,
+                                       pump.viscous_friction_coeff,
+                                       pump.pressure_friction_coeff, pump.coulomb_torque_Nm)
+        x_mean = float(np.dot(0.5 * (x[1:] + x[:-1]), wgt))
+        act = self.cfg.hydraulics.actuator
+        chambers = (act.dead_volume_m3 + self.area * (act.half_stroke_m + x_mean),
+                    act.dead_volume_m3 + self.area * (act.half_stroke_m - x_mean))
+        dv = self.area * (x[-1] - x[0])
+        # integral of V dp per oil node: P holds interval-mean pressures, so between two
+        # of them the chamber volume is the one at the sample instant in between
+        dP = np.diff(np.hstack([p0[:, None], P]), axis=1)
+        vdp = ci.oil_volumes * dP.sum(axis=1)
+        va = act.dead_volume_m3 + self.area * (act.half_stroke_m + x[:-1])
+        vb = 2 * act.dead_volume_m3 + 2 * self.area * act.half_stroke_m - va
+        vdp[5], vdp[6] = np.dot(va, dP[5]), np.dot(vb, dP[6])
+        sf = StepFlows(flow, work, p0, P[:, -1], vdp, chambers, (dv, -dv), 0.0, 0.0,
+                       float(np.dot(fric * np.abs(b.speed_rad_s), wgt)))
+        self._pending_last = (float(t[-1]), float(x[-1]), raw[:, -1], P[:, -1])
+        return sf, float(np.dot(q_ext, wgt)), dt, wgt
+
+    # ------------------------------------------------------------------ step
+    def step(self, b: SampleBlock, ambient_K: float) -> None:
+        """Advance the coupled model over one block of samples."""
+        if self._last is None:
+            raise RuntimeError('initialise the model with a first sample before stepping')
+        sf, q_ext, dt, wgt = self.step_flows(b)
+        ci = self.circuit
+        T_case = float(self.T_hyd[ci.index('case')])
+        p_case = float(sf.p_end_Pa[2])
+        i_sq = float(np.dot(b.current_A ** 2, wgt))
+        u = MotorInputs(current_sq_mean_A2=i_sq, speed_rad_s=b.speed_rad_s, oil_inlet_K=T_case,
+                        oil_flow_m3_s=q_ext, ambient_K=ambient_K, case_pressure_Pa=p_case)
+        self.motor.step(dt, u)
+        m = self.motor
+        # the enthalpy flow the motor network used decides the flow through the motor;
+        # the rest of the leakage bypasses it, so the loop's mass balance is exact
+        m_cp = float(m.net.coefficients_in_use()[1][m.adv[0]])
+        rho_cp = float(ci.rho_cp(T_case, p_case))
+        q_motor = m_cp / rho_cp
+        bypass = q_ext - q_motor
+        sf.flow_m3_s[LINKS.index(('case', 'accumulator'))] = max(bypass, 0.0)
+        sf.flow_m3_s[LINKS.index(('accumulator', 'case'))] = max(-bypass, 0.0)
+        sf.motor_flow_m3_s = q_motor
+        sf.motor_outlet_K = float(m.T_mean[m.idx_oil[-1]])
+        self.T_hyd = ci.step(self.T_hyd, dt, sf, ambient_K, rho_cp)
+        self.flows = sf
+        self._last = self._pending_last
+        self.time_s = self._last[0]
+        self.heat_W = {
+            'motor_losses': float(np.sum(m.power_W)),
+            'motor_to_oil': float(m_cp * (sf.motor_outlet_K - T_case)),
+            'pump_friction': sf.pump_friction_W,
+            'hydraulic_sources': float(ci.last_sources.sum()),
+            'motor_flow_L_min': q_motor * 60000.0,
+            'leakage_to_case_L_min': q_ext * 60000.0,
+        }
+
+    # --------------------------------------------------------------- outputs
+    def outputs(self) -> Dict[str, float]:
+        """Return the named temperatures (K) of the present state."""
+        out = dict(self.motor.outputs())
+        named = self.circuit.named(self.T_hyd)
+        out.update({'pump_case': named['case'], 'pump_port_a': named['port_a'],
+                    'pump_port_b': named['port_b'], 'chamber_a': named['chamber_a'],
+                    'chamber_b': named['chamber_b'], 'accumulator': named['accumulator'],
+                    'line_a': named['line_a'], 'line_b': named['line_b'],
+                    'pump_shell': named['pump_shell'], 'actuator_shell': named['actuator_shell']})
+        if self._last is not None:
+            p = self._last[3]
+            out['pump_outlet'] = named['port_a'] if p[0] >= p[1] else named['port_b']
+        return out
+
+    def energy(self) -> Dict[str, float]:
+        """
+        Return the energies (J) since the start: heat generated, stored, to ambient.
+
+        ``coupling_mismatch`` is the enthalpy the motor reports giving the oil
+        minus what the circuit received; it is not zero only because the motor
+        takes the case temperature at the start of a step as its inlet.
+        """
+        me, he = self.motor.energy_J, self.circuit.energy_J
+        return {'sources': me['losses'] + he['sources'],
+                'stored': me['stored'] + he['stored'],
+                'to_ambient': me['to_ambient'] + he['to_ambient'],
+                'coupling_mismatch': me['to_oil'] - he['motor_loop']}

@@ -1,0 +1,231 @@
+"""
+Control-node thermal model of the EHA hydraulic circuit (physics.md section 4).
+
+Oil volumes (pump ports A and B, pump case, the two lines, the two actuator
+chambers, the accumulator) and solid shells (pump, lines, actuator,
+accumulator). Each oil volume V at (T, p) obeys, for a fixed or a moving
+boundary alike (the boundary work cancels in the enthalpy form),
+
+    rho V c_p dT/dt = sum_in m_dot (h_in - h) + Q_heat + alpha_p T V dp/dt,
+    h_in - h = c_p (T_in - T) + (1 - alpha_p T)(p_in - p) / rho.
+
+Only inflows change a volume's temperature. Every flow is a directed link
+whose mean volumetric flow over a step comes from the sensor samples; the
+pressure part of h_in - h becomes a heat source in the receiving volume:
+``(1 - alpha_p T) dp Q`` for a throttle or a leak (isenthalpic: about
+0.45 K/MPa) and ``alpha_p T (p_d - p_u) Q`` for the pump's displacement flow
+(isentropic compression: the pump adds dp/rho of work per kg), so that all
+dissipated hydraulic power ends up as heat. With the flows and sources held
+over a step, the 13-node system is integrated exactly (one small matrix
+exponential per step, which also gives the step-mean temperatures).
+"""
+
+from dataclasses import dataclass
+from typing import Dict, Tuple
+
+import numpy as np
+import scipy.linalg
+
+from . import correlations as corr
+from .oil import Oil
+from ..config import Hydraulics
+
+OIL_NODES = ('port_a', 'port_b', 'case', 'line_a', 'line_b', 'chamber_a', 'chamber_b',
+             'accumulator')
+SOLID_NODES = ('pump_shell', 'line_a_shell', 'line_b_shell', 'actuator_shell',
+               'accumulator_shell')
+NODES = OIL_NODES + SOLID_NODES
+_I = {name: i for i, name in enumerate(NODES)}
+
+# Directed flow links (upstream, downstream); 'pump' is the displacement flow, the
+# rest are throttles (leaks, line friction, check valves).
+LINKS: Tuple[Tuple[str, str], ...] = (
+    ('port_b', 'port_a'), ('port_a', 'port_b'),             # 0, 1 pump displacement
+    ('port_a', 'port_b'), ('port_b', 'port_a'),             # 2, 3 internal leakage
+    ('port_a', 'case'), ('port_b', 'case'),                 # 4, 5 external leakage
+    ('port_a', 'line_a'), ('line_a', 'port_a'),             # 6, 7 line A, pump end
+    ('line_a', 'chamber_a'), ('chamber_a', 'line_a'),       # 8, 9 line A, actuator end
+    ('chamber_b', 'line_b'), ('line_b', 'chamber_b'),       # 10, 11 line B, actuator end
+    ('line_b', 'port_b'), ('port_b', 'line_b'),             # 12, 13 line B, pump end
+    ('accumulator', 'port_a'), ('port_a', 'accumulator'),   # 14, 15 make-up / relief A
+    ('accumulator', 'port_b'), ('port_b', 'accumulator'),   # 16, 17 make-up / relief B
+    ('case', 'accumulator'), ('accumulator', 'case'),       # 18, 19 leakage not through the motor
+)
+PUMP_LINKS = (0, 1)
+
+
+@dataclass
+class StepFlows:
+    """
+    What the circuit needs from one step of samples (SI units, means over the step).
+
+    ``flow_m3_s`` and ``work_W`` hold, per link of :data:`LINKS`, the mean flow
+    and the mean of flow x (p_upstream - p_downstream); ``p_start_Pa`` and
+    ``p_end_Pa`` the oil-node pressures at both ends of the step;
+    ``volume_dp_m3Pa`` the integral of V dp of every oil node over the step,
+    summed per sample interval (the compression heat; a chamber's volume
+    moves with the pressure); ``chamber_volumes_m3`` the mean volumes of chambers A
+    and B and ``chamber_dV_m3`` their changes over the step;
+    ``motor_flow_m3_s`` the oil flowing case -> motor -> accumulator and
+    ``motor_outlet_K`` its mean temperature back from the motor;
+    ``pump_friction_W`` the pump's friction loss.
+    """
+
+    flow_m3_s: np.ndarray
+    work_W: np.ndarray
+    p_start_Pa: np.ndarray
+    p_end_Pa: np.ndarray
+    volume_dp_m3Pa: np.ndarray
+    chamber_volumes_m3: Tuple[float, float]
+    chamber_dV_m3: Tuple[float, float]
+    motor_flow_m3_s: float
+    motor_outlet_K: float
+    pump_friction_W: float
+
+
+class HydraulicCircuit:
+    """Thermal control nodes of the pump, lines, actuator and accumulator."""
+
+    def __init__(self, cfg: Hydraulics, oil: Oil) -> None:
+        self.cfg, self.oil = cfg, oil
+        n = len(NODES)
+        self.n, self.n_oil = n, len(OIL_NODES)
+        pump, act, acc, ln = cfg.pump, cfg.actuator, cfg.accumulator, cfg.lines
+        line_vol = 0.25 * np.pi * ln.bore_m ** 2 * ln.length_m
+        self.oil_volumes = np.array([pump.port_volume_m3, pump.port_volume_m3,
+                                     pump.case_volume_m3, line_vol, line_vol, np.nan, np.nan,
+                                     acc.oil_volume_m3])
+        wall = np.pi * ((0.5 * ln.bore_m + ln.wall_m) ** 2 - (0.5 * ln.bore_m) ** 2) * ln.length_m
+        line_shell_C = wall * ln.wall_density_kg_m3 * ln.wall_specific_heat_J_kgK
+        self.solid_capacity = np.array([pump.shell.capacity_J_K, line_shell_C, line_shell_C,
+                                        act.shell.capacity_J_K, acc.shell.capacity_J_K])
+        # constant conductances (W/K): shells to oil and to ambient
+        g = np.zeros((n, n))
+        g_amb = np.zeros(n)
+
+        def link(a, b, G):
+            i, j = _I[a], _I[b]
+            g[i, j] += G
+            g[j, i] += G
+
+        link('pump_shell', 'case', pump.shell.oil_htc_W_m2K * pump.shell.oil_area_m2)
+        for ch in ('chamber_a', 'chamber_b'):
+            link('actuator_shell', ch, act.shell.oil_htc_W_m2K * act.shell.oil_area_m2)
+        link('accumulator_shell', 'accumulator', acc.shell.oil_htc_W_m2K * acc.shell.oil_area_m2)
+        outer = np.pi * (ln.bore_m + 2 * ln.wall_m) * ln.length_m
+        for name, shell in (('pump_shell', pump.shell), ('actuator_shell', act.shell),
+                            ('accumulator_shell', acc.shell)):
+            g_amb[_I[name]] = shell.air_htc_W_m2K * shell.air_area_m2
+        g_amb[_I['line_a_shell']] = g_amb[_I['line_b_shell']] = ln.air_htc_W_m2K * outer
+        self.G = g
+        self.G_amb = g_amb
+        self.K_static = np.diag(g.sum(axis=1) + g_amb) - g
+        self.line_inner_area = np.pi * ln.bore_m * ln.length_m
+        self.u = np.array([_I[a] for a, _ in LINKS])
+        self.d = np.array([_I[b] for _, b in LINKS])
+        self.is_pump = np.zeros(len(LINKS), dtype=bool)
+        self.is_pump[list(PUMP_LINKS)] = True
+        self.friction_to_case = pump.friction_to_case_fraction
+        # energies (J): heat generated, stored (a moving chamber's oil included), to
+        # ambient, and the net enthalpy the motor adds to the oil passing through it
+        self.energy_J = {'sources': 0.0, 'stored': 0.0, 'to_ambient': 0.0, 'motor_loop': 0.0}
+        self.T_mean = np.full(n, np.nan)
+
+    def index(self, name: str) -> int:
+        """Return the index of a node in the temperature vector."""
+        return _I[name]
+
+    def rho_cp(self, T_K, p_Pa) -> float:
+        """Return the volumetric heat capacity rho c_p (J/(m^3 K)) of the oil."""
+        return self.oil.density(T_K, p_Pa) * self.oil.specific_heat(T_K)
+
+    def capacities(self, T: np.ndarray, p_Pa: np.ndarray, chambers: Tuple[float, float]):
+        """Return the heat capacity (J/K) of every node at temperatures T and pressures p."""
+        vol = self.oil_volumes.copy()
+        vol[5], vol[6] = chambers
+        return np.concatenate([self.rho_cp(T[:self.n_oil], p_Pa) * vol, self.solid_capacity])
+
+    def step(self, T0: np.ndarray, dt_s: float, sf: StepFlows, ambient_K: float,
+             rho_cp_flow: float) -> np.ndarray:
+        """
+        Advance the node temperatures (K) by ``dt_s`` with the step's flows; return them.
+
+        ``rho_cp_flow`` is the one volumetric heat capacity used for every
+        enthalpy flow of the loop (the motor's too), which keeps the loop's
+        advection exactly conservative.
+        """
+        n = self.n
+        p_mid = 0.5 * (sf.p_start_Pa + sf.p_end_Pa)
+        C = self.capacities(T0, p_mid, sf.chamber_volumes_m3)
+        K = self.K_static.copy()
+        rate = rho_cp_flow * sf.flow_m3_s
+        np.add.at(K, (self.d, self.d), rate)
+        np.add.at(K, (self.d, self.u), -rate)
+        # lines: forced convection inside, from the step's mean flow in each line
+        for line, shell, links in (('line_a', 'line_a_shell', (6, 7)),
+                                   ('line_b', 'line_b_shell', (10, 11))):
+            G = self._line_htc(T0[_I[line]], p_mid[_I[line]], sf.flow_m3_s[list(links)].sum())
+            i, j = _I[line], _I[shell]
+            K[i, i] += G
+            K[j, j] += G
+            K[i, j] -= G
+            K[j, i] -= G
+        s = self.G_amb * ambient_K
+        acc = _I['accumulator']
+        motor_rate = rho_cp_flow * sf.motor_flow_m3_s
+        K[acc, acc] += motor_rate
+        s[acc] += motor_rate * sf.motor_outlet_K
+        heat = self.sources(T0, dt_s, sf)
+        s = s + heat
+        # exact step of C dT/dt = -K T + s, and its step mean (Van Loan)
+        A = -K / C[:, None]
+        M = np.zeros((2 * (n + 1), 2 * (n + 1)))
+        M[:n, :n] = A * dt_s
+        M[:n, n] = s / C * dt_s
+        M[:n + 1, n + 1:] = np.eye(n + 1) * dt_s
+        F = scipy.linalg.expm(M)
+        z0 = np.append(T0, 1.0)
+        T1 = F[:n, :n + 1] @ z0
+        self.T_mean = F[:n, n + 1:] @ z0 / dt_s
+        e = self.energy_J
+        Tm = self.T_mean
+        e['sources'] += float(heat.sum()) * dt_s
+        e['stored'] += float(np.dot(C, T1 - T0)) + rho_cp_flow * (
+            Tm[_I['chamber_a']] * sf.chamber_dV_m3[0] + Tm[_I['chamber_b']] * sf.chamber_dV_m3[1])
+        e['to_ambient'] += float(np.dot(self.G_amb, Tm - ambient_K)) * dt_s
+        e['motor_loop'] += motor_rate * (sf.motor_outlet_K - Tm[_I['case']]) * dt_s
+        self.last_sources = heat
+        return T1
+
+    def sources(self, T0: np.ndarray, dt_s: float, sf: StepFlows) -> np.ndarray:
+        """
+        Return the heat input (W) of each node over a step: pressure work, compression, friction.
+
+        The alpha_p T factor of the pressure terms takes one temperature per
+        step, the mean oil temperature: the isentropic part (at the pump, and
+        in compression) and the isenthalpic part (at the throttles) then add
+        up to exactly the dissipated dp Q, so the model conserves energy; the
+        few kelvin between volumes would change a throttle rise by < 0.5 %.
+        """
+        alpha_T = self.oil.alpha_p * float(np.mean(T0[:self.n_oil]))
+        # throttles: (1 - alpha T) dp Q; pump: alpha T (p_d - p_u) Q = -alpha T * work
+        per_link = np.where(self.is_pump, -alpha_T * sf.work_W, (1 - alpha_T) * sf.work_W)
+        heat = np.bincount(self.d, weights=per_link, minlength=self.n)
+        heat[:self.n_oil] += alpha_T * sf.volume_dp_m3Pa / dt_s
+        heat[_I['case']] += self.friction_to_case * sf.pump_friction_W
+        heat[_I['pump_shell']] += (1 - self.friction_to_case) * sf.pump_friction_W
+        return heat
+
+    def _line_htc(self, T_K: float, p_Pa: float, flow_m3_s: float) -> float:
+        """Return the oil-to-wall conductance (W/K) of one line at its mean flow."""
+        ln = self.cfg.lines
+        mu = self.oil.dynamic_viscosity(T_K, p_Pa)
+        rho = self.oil.density(T_K, p_Pa)
+        re = rho * abs(flow_m3_s) / (0.25 * np.pi * ln.bore_m ** 2) * ln.bore_m / mu
+        pr = self.oil.prandtl(T_K, p_Pa)
+        nu = corr.pipe_internal_nusselt(re, pr)
+        return float(nu * self.oil.conductivity(T_K) / ln.bore_m * self.line_inner_area)
+
+    def named(self, T: np.ndarray) -> Dict[str, float]:
+        """Return the node temperatures (K) by name."""
+        return {name: float(T[i]) for name, i in _I.items()}
