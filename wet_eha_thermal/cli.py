@@ -6,13 +6,19 @@ exits with status 2, without a traceback; nothing runs after a bad config.
 """
 
 import argparse
+import math
 from pathlib import Path
 import sys
 import time
 from typing import List, Optional
 
 from .config import ConfigError, load_config
+from .model.kinetics import DutyError
 from .model.validity import ValidityLog
+
+
+class BadArgument(ValueError):
+    """A command-line value that is out of range; the message names the option and value."""
 
 
 class Progress:
@@ -74,6 +80,102 @@ def _maps(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check_simulate_args(args: argparse.Namespace) -> None:
+    """Raise :class:`BadArgument` for the first out-of-range option that needs no config."""
+    from .model.kinetics import STAGES
+
+    if args.stage is not None and args.stage not in STAGES:
+        raise BadArgument(f'--stage {args.stage}: unknown stage; valid stages: '
+                          f'{", ".join(str(k) for k in STAGES)}')
+    if not (math.isfinite(args.duration) and args.duration > 0.0):
+        raise BadArgument(f'--duration {args.duration:g}: must be a number of seconds > 0')
+    if not (math.isfinite(args.dt) and 0.0 < args.dt <= args.duration):
+        raise BadArgument(f'--dt {args.dt:g}: must be > 0 s and at most --duration '
+                          f'({args.duration:g} s)')
+    samples = args.sample_rate_Hz * args.dt
+    if not (math.isfinite(args.sample_rate_Hz) and round(samples) >= 1):
+        raise BadArgument(f'--sample-rate-Hz {args.sample_rate_Hz:g}: gives {samples:.3g} '
+                          f'samples per {args.dt:g} s step; needs at least 1, i.e. >= '
+                          f'{1.0 / args.dt:g} Hz')
+
+
+def _simulate(args: argparse.Namespace) -> int:
+    from . import report
+    from .model.kinetics import L_MIN, load_duty_csv, MPA, stage_duty
+    from .model.motor import C_TO_K
+    from .model.oil import OIL_GRADES
+    from . import simulation
+    from .simulation import simulate
+
+    _check_simulate_args(args)
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise BadArgument(f'--out {out}: exists and is not a folder')
+    cfg = load_config(args.config, {'fluid.grade': args.fluid} if args.fluid else None)
+    grade = OIL_GRADES[cfg.fluid.grade]
+    low, high = grade.T_min_K - C_TO_K, grade.T_max_K - C_TO_K
+    initial_C = args.ambient_C if args.initial_C is None else args.initial_C
+    for option, value in (('--ambient-C', args.ambient_C), ('--initial-C', initial_C)):
+        if not (math.isfinite(value) and low <= value <= high):
+            raise BadArgument(f'{option} {value:g}: outside the {grade.name} range '
+                              f'{low:g}..{high:g} degC')
+    act = cfg.hydraulics.actuator
+    if args.stage is not None:
+        duty = stage_duty(cfg, args.stage)
+        st = duty.stage
+        what = (f'stage {st.number} (load {st.load_dp_amplitude_Pa / MPA:g} MPa, flow '
+                f'{st.flow_amplitude_m3_s / L_MIN:g} L/min, {st.frequency_Hz:g} Hz)')
+    else:
+        duty = load_duty_csv(args.duty, act.area_m2, act.half_stroke_m)
+        what = f'duty file {args.duty} (period {duty.period_s:g} s)'
+    title = (f'Duty-cycle simulation: {what}, {args.duration:g} s at dt {args.dt:g} s '
+             f'({args.sample_rate_Hz:g} Hz samples), ambient {args.ambient_C:g} degC, '
+             f'start {initial_C:g} degC, {cfg.fluid.grade}')
+    print(title, flush=True)
+    stopped = None
+    try:
+        res = simulate(cfg, duty, args.duration, dt_s=args.dt,
+                       sample_rate_Hz=args.sample_rate_Hz, ambient_C=args.ambient_C,
+                       initial_C=initial_C, progress=Progress())
+    except getattr(simulation, 'ThermalRunaway', ()) as exc:  # carries the run so far
+        stopped, res = exc, exc.result
+        if not res.time_s:
+            raise
+    print()
+    if stopped is not None:
+        print(f'Run stopped early: {stopped}\nResults up to t = {res.time_s[-1]:g} s:\n')
+    print(report.format_table(res))
+    oil_lim, oil_src = report.oil_limit_C(cfg)
+    _, hottest = report.hottest_oil_C(res)
+    print('\nLimits: first crossing in the run, else extrapolated by a first-order fit to the '
+          'last third of the run')
+    print(report.format_limits(report.check_limits(res, cfg)))
+    print(f'(oil limit {oil_lim:g} degC from {oil_src}; hottest oil node at the end: '
+          f'{hottest.replace("_", " ")})')
+    print('\n' + report.format_energy(report.energy_check(res)))
+    log = res.model.log if res.model is not None else []
+    if len(log):
+        print('\nCorrelations used outside their validated range:')
+        for flag in log:
+            print(f'  - {flag}')
+    csv_path, png_path = out / 'simulation.csv', out / 'simulation.png'
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        report.write_csv(res, csv_path)
+        stop = f' (stopped at {res.time_s[-1]:.0f} s)' if stopped is not None else ''
+        report.plot(res, cfg, png_path, title.replace(', ambient', f'{stop},\nambient', 1),
+                    duty.period_s)
+    except OSError as exc:
+        reason = exc.strerror or str(exc)
+        raise BadArgument(f'--out {out}: cannot write the results: {reason}') from None
+    print(f'\nwrote {csv_path} and {png_path}')
+    if stopped is not None:
+        print(f'stopped at t = {res.time_s[-1]:g} s of {args.duration:g} s: {stopped}',
+              file=sys.stderr)
+        return 1
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of all commands."""
     parser = argparse.ArgumentParser(
@@ -95,6 +197,31 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--slices', type=int, default=None, help='axial slices of the stack')
     p.add_argument('--fluid', default=None, help='oil grade (MIL-PRF-5606 or MIL-PRF-83282)')
     p.set_defaults(func=_maps)
+
+    p = sub.add_parser('simulate', help='temperatures over a duty cycle (a stage or a duty file)',
+                       description='Run the coupled thermal model over a duty cycle: a reference '
+                                   'stage or a duty CSV (columns time_s, flow_L_min, load_MPa). '
+                                   'Prints end and peak temperatures and when each limit is or '
+                                   'would be reached; writes a CSV and a PNG plot.')
+    which = p.add_mutually_exclusive_group(required=True)
+    which.add_argument('--stage', type=int, help='reference stage number (1-6)')
+    which.add_argument('--duty', type=Path, metavar='FILE.csv',
+                       help='duty table: time_s, flow_L_min, load_MPa (repeats periodically)')
+    p.add_argument('--duration', type=float, default=3600.0,
+                   help='simulated time, s (default: %(default)g)')
+    p.add_argument('--ambient-C', type=float, default=20.0,
+                   help='ambient temperature, degC (default: %(default)g)')
+    p.add_argument('--initial-C', type=float, default=None,
+                   help='starting temperature of every node, degC (default: ambient)')
+    p.add_argument('--dt', type=float, default=1.0,
+                   help='thermal model step, s (default: %(default)g)')
+    p.add_argument('--sample-rate-Hz', type=float, default=200.0,
+                   help='sensor sample rate, Hz (default: %(default)g)')
+    p.add_argument('--config', type=Path, default=None,
+                   help='YAML configuration (default: the reference rig)')
+    p.add_argument('--out', default='out/simulate', help='output folder (default: %(default)s)')
+    p.add_argument('--fluid', default=None, help='oil grade (MIL-PRF-5606 or MIL-PRF-83282)')
+    p.set_defaults(func=_simulate)
     return parser
 
 
@@ -103,7 +230,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)
-    except ConfigError as exc:
+    except (BadArgument, ConfigError, DutyError) as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
     except KeyboardInterrupt:

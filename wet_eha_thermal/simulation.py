@@ -19,6 +19,15 @@ from .model.kinetics import Duty, KineticModel, ThermalFeedback
 from .model.motor import C_TO_K
 
 SENSORS = ('current_A', 'speed_rad_s', 'p_a_Pa', 'p_b_Pa', 'p_acc_Pa', 'position_m')
+RUNAWAY_C = 300.0   # far past every limit (oil 135, insulation 180 degC): stop, do not extrapolate
+
+
+class ThermalRunaway(RuntimeError):
+    """A duty the cooling cannot hold: a temperature passed ``RUNAWAY_C``; has the partial run."""
+
+    def __init__(self, message: str, result: 'SimulationResult') -> None:
+        super().__init__(message)
+        self.result = result
 
 
 @dataclass
@@ -55,7 +64,7 @@ def feedback(model: EHAModel) -> ThermalFeedback:
         core_loss_W=m.core_loss_W)
 
 
-def simulate(cfg: Config, duty: Duty, duration_s: float, dt_s: float = 0.1,
+def simulate(cfg: Config, duty: Duty, duration_s: float, dt_s: float = 1.0,
              sample_rate_Hz: float = 200.0, ambient_C: float = 20.0,
              initial_C: Optional[float] = None, record_every_s: float = 1.0,
              progress: Optional[Callable[[int, int, str], None]] = None,
@@ -64,36 +73,56 @@ def simulate(cfg: Config, duty: Duty, duration_s: float, dt_s: float = 0.1,
     Run ``duty`` for ``duration_s`` and return the recorded histories.
 
     ``dt_s`` is the thermal model step; each step gets ``sample_rate_Hz * dt_s``
-    samples. All temperatures start at ``initial_C`` (default: ambient).
+    samples. All temperatures start at ``initial_C`` (default: ambient). A
+    ``model`` that has already run continues from its state and time (and
+    ``initial_C`` is ignored), so a long run can be split into pieces.
+
+    Raises :class:`ThermalRunaway`, with the run so far, when a temperature
+    passes ``RUNAWAY_C``: the leakage loss of a sustained high load grows as
+    the oil thins, and nothing but the housings' natural convection removes it.
     """
     n_sub = max(1, int(round(sample_rate_Hz * dt_s)))
     steps = int(round(duration_s / dt_s))
     amb_K = ambient_C + C_TO_K
     model = model if model is not None else EHAModel(cfg)
     kin = KineticModel(cfg, model.oil, model.log)
-    start_K = (initial_C if initial_C is not None else ambient_C) + C_TO_K
-    t0 = np.array([0.0])
-    model.T_hyd = np.full(model.circuit.n, start_K)
-    first = kin.sample(duty, t0, ThermalFeedback.uniform(start_K))
-    model.initialise(start_K, _block(first))
+    if model.T_hyd is None:
+        start_K = (initial_C if initial_C is not None else ambient_C) + C_TO_K
+        model.T_hyd = np.full(model.circuit.n, start_K)
+        first = kin.sample(duty, np.array([0.0]), ThermalFeedback.uniform(start_K))
+        model.initialise(start_K, _block(first))
+    t_start = model.time_s
     res = SimulationResult(model=model)
     frac = np.arange(1, n_sub + 1) / n_sub
     record_every = max(1, int(round(record_every_s / dt_s)))
     report_every = max(1, steps // 100)
+    acc = np.zeros(5)   # integrals over the record interval: I^2, |w|, p_a, p_b, time
     for k in range(steps):
-        t = (k + frac) * dt_s
+        t = t_start + (k + frac) * dt_s
         s = kin.sample(duty, t, feedback(model))
         model.step(_block(s), amb_K)
-        w = np.diff(np.concatenate([[k * dt_s], t]))
+        hottest = max(model.outputs().items(), key=lambda kv: kv[1])
+        if hottest[1] - C_TO_K > RUNAWAY_C:
+            res.append(float(t[-1]), model.outputs(), {}, dict(model.heat_W))
+            raise ThermalRunaway(f'thermal runaway: {hottest[0]} passed {RUNAWAY_C:.0f} degC at '
+                                 f't = {t[-1]:.0f} s; the cooling cannot hold this duty', res)
+        w = np.diff(np.concatenate([[t_start + k * dt_s], t]))
         res.electrical_J += float(np.dot(s.electrical_power_W, w))
         res.load_work_J += float(np.dot(s.load_power_W, w))
+        acc += [np.dot(s.current_A ** 2, w), np.dot(np.abs(s.speed_rad_s), w),
+                np.dot(s.p_a_Pa, w), np.dot(s.p_b_Pa, w), w.sum()]
         if (k + 1) % record_every == 0 or k == steps - 1:
+            # inputs as means over the record interval (a snapshot of a 1 Hz duty
+            # taken every second would always catch the same phase)
+            span = acc[4]
             res.append(float(t[-1]), model.outputs(),
-                       {'current_A_rms': float(np.sqrt(np.mean(s.current_A ** 2))),
-                        'speed_rpm': float(np.mean(np.abs(s.speed_rad_s)) * 30 / np.pi),
-                        'p_a_MPa': float(s.p_a_Pa[-1] / 1e6), 'p_b_MPa': float(s.p_b_Pa[-1] / 1e6),
+                       {'current_A_rms': float(np.sqrt(acc[0] / span)),
+                        'speed_rpm': float(acc[1] / span * 30 / np.pi),
+                        'p_a_MPa': float(acc[2] / span / 1e6),
+                        'p_b_MPa': float(acc[3] / span / 1e6),
                         'position_mm': float(s.position_m[-1] * 1e3)},
                        dict(model.heat_W))
+            acc[:] = 0.0
         if progress is not None and (k % report_every == 0 or k == steps - 1):
             progress(k + 1, steps, f't = {t[-1]:.0f} s')
     return res

@@ -15,9 +15,11 @@ flow-pressure product, the pump friction and the motor losses, and steps:
 - the oil viscosity at the present temperatures sets leakage and friction.
 
 The motor's speed- and flow-dependent coefficients follow a low-pass filter
-in sample time (``coefficient_filter_s``); the part of the leakage flow that
-the filtered motor flow does not carry goes straight from the case to the
-accumulator, so mass and energy balance exactly at every step.
+in sample time (``coefficient_filter_s``), so the motor carries a smoothed
+leakage flow; the pump case oil buffers the difference with the pulsating
+leakage (a few mL of its 40 mL), and the buffer's content feeds back into the
+motor's flow so that it cannot drift. Mass and energy balance exactly at
+every step, and no oil takes a path the rig does not have.
 """
 
 from dataclasses import dataclass
@@ -26,7 +28,7 @@ from typing import Dict, Optional
 import numpy as np
 
 from . import fluid_power as fp
-from .hydraulics import HydraulicCircuit, LINKS, StepFlows
+from .hydraulics import HydraulicCircuit, StepFlows
 from .motor import MotorInputs, WetMotor
 from .oil import get_oil, Oil
 from .validity import ValidityLog
@@ -67,13 +69,21 @@ class EHAModel:
         self.cfg = cfg
         self.oil = oil if oil is not None else get_oil(cfg.fluid.grade)
         self.log = log if log is not None else ValidityLog()
-        self.motor = WetMotor(cfg.motor, self.oil, self.log,
-                              coefficient_filter_s=coefficient_filter_s)
+        # with filtered coefficients, sub-steps would not track anything faster: the
+        # network step is exact for inputs held over the step
+        # friction and R(T) follow the present temperatures every step, so the 0.5 K
+        # refresh threshold only bounds the convection coefficients (~1.5 %/K)
+        self.motor = WetMotor(cfg.motor, self.oil, self.log, refresh_dT_K=0.5,
+                              max_substep_s=1.0, coefficient_filter_s=coefficient_filter_s)
         self.circuit = HydraulicCircuit(cfg.hydraulics, self.oil)
         h = cfg.hydraulics
         self.area = h.actuator.area_m2
         self.d_rad = fp.displacement_per_rad(h.pump.displacement_m3_rev)
         self.T_hyd: Optional[np.ndarray] = None
+        self.case_buffer_m3 = 0.0      # case oil above its nominal volume
+        self._case_prev_K, self._dt_prev = 0.0, 0.0
+        # slower than the two filter stages, so buffer -> filter -> flow stays damped
+        self.buffer_time_s = max(3.0 * coefficient_filter_s, 1.0)
         self._last: Optional[tuple] = None   # last sample: t, x, node pressures
         self.flows: Optional[StepFlows] = None
         self.heat_W: Dict[str, float] = {}
@@ -152,7 +162,7 @@ class EHAModel:
         zero = np.zeros_like(q)
         F = np.vstack([pos(q_pump, 0), neg(q_pump), pos(q_int, 0), neg(q_int), q_ext_a, q_ext_b,
                        pos(q, 0), neg(q), pos(q, 0), neg(q), pos(q, 0), neg(q), pos(q, 0), neg(q),
-                       make_up_a, zero, make_up_b, zero, zero, zero])
+                       make_up_a, zero, make_up_b, zero])
         ci = self.circuit
         dP = P[ci.u] - P[ci.d]
         flow = F @ wgt
@@ -172,7 +182,7 @@ class EHAModel:
         va = act.dead_volume_m3 + self.area * (act.half_stroke_m + x[:-1])
         vb = 2 * act.dead_volume_m3 + 2 * self.area * act.half_stroke_m - va
         vdp[5], vdp[6] = np.dot(va, dP[5]), np.dot(vb, dP[6])
-        sf = StepFlows(flow, work, p0, P[:, -1], vdp, chambers, (dv, -dv), 0.0, 0.0,
+        sf = StepFlows(flow, work, p0, P[:, -1], vdp, chambers, (dv, -dv), 0.0, 0.0, 0.0, 0.0,
                        float(np.dot(fric * np.abs(b.speed_rad_s), wgt)))
         self._pending_last = (float(t[-1]), float(x[-1]), raw[:, -1], P[:, -1])
         return sf, float(np.dot(q_ext, wgt)), dt, wgt
@@ -184,11 +194,19 @@ class EHAModel:
             raise RuntimeError('initialise the model with a first sample before stepping')
         sf, q_ext, dt, wgt = self.step_flows(b)
         ci = self.circuit
-        T_case = float(self.T_hyd[ci.index('case')])
+        # the motor's inlet over the step: the case temperature extrapolated to mid-step
+        # (the case moves with the leakage heat; a start-of-step value would lag)
+        T_now = float(self.T_hyd[ci.index('case')])
+        T_case = T_now + 0.5 * (T_now - self._case_prev_K) * dt / self._dt_prev \
+            if self._dt_prev else T_now
+        self._case_prev_K, self._dt_prev = T_now, dt
         p_case = float(sf.p_end_Pa[2])
         i_sq = float(np.dot(b.current_A ** 2, wgt))
+        # the buffered oil drains through the motor: the motor's (filtered) flow follows
+        # the leakage plus the buffer over buffer_time_s
+        q_drive = max(q_ext + self.case_buffer_m3 / self.buffer_time_s, 0.0)
         u = MotorInputs(current_sq_mean_A2=i_sq, speed_rad_s=b.speed_rad_s, oil_inlet_K=T_case,
-                        oil_flow_m3_s=q_ext, ambient_K=ambient_K, case_pressure_Pa=p_case)
+                        oil_flow_m3_s=q_drive, ambient_K=ambient_K, case_pressure_Pa=p_case)
         self.motor.step(dt, u)
         m = self.motor
         # the enthalpy flow the motor network used decides the flow through the motor;
@@ -196,9 +214,10 @@ class EHAModel:
         m_cp = float(m.net.coefficients_in_use()[1][m.adv[0]])
         rho_cp = float(ci.rho_cp(T_case, p_case))
         q_motor = m_cp / rho_cp
-        bypass = q_ext - q_motor
-        sf.flow_m3_s[LINKS.index(('case', 'accumulator'))] = max(bypass, 0.0)
-        sf.flow_m3_s[LINKS.index(('accumulator', 'case'))] = max(-bypass, 0.0)
+        dv_case = (q_ext - q_motor) * dt
+        sf.case_volume_m3 = ci.oil_volumes[2] + self.case_buffer_m3 + 0.5 * dv_case
+        sf.case_dV_m3 = dv_case
+        self.case_buffer_m3 += dv_case
         sf.motor_flow_m3_s = q_motor
         sf.motor_outlet_K = float(m.T_mean[m.idx_oil[-1]])
         self.T_hyd = ci.step(self.T_hyd, dt, sf, ambient_K, rho_cp)
@@ -211,6 +230,7 @@ class EHAModel:
             'pump_friction': sf.pump_friction_W,
             'hydraulic_sources': float(ci.last_sources.sum()),
             'motor_flow_L_min': q_motor * 60000.0,
+            'case_buffer_mL': self.case_buffer_m3 * 1e6,
             'leakage_to_case_L_min': q_ext * 60000.0,
         }
 

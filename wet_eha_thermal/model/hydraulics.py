@@ -21,7 +21,7 @@ exponential per step, which also gives the step-mean temperatures).
 """
 
 from dataclasses import dataclass
-from typing import Dict, Tuple
+from typing import Dict, Optional, Tuple
 
 import numpy as np
 import scipy.linalg
@@ -49,7 +49,6 @@ LINKS: Tuple[Tuple[str, str], ...] = (
     ('line_b', 'port_b'), ('port_b', 'line_b'),             # 12, 13 line B, pump end
     ('accumulator', 'port_a'), ('port_a', 'accumulator'),   # 14, 15 make-up / relief A
     ('accumulator', 'port_b'), ('port_b', 'accumulator'),   # 16, 17 make-up / relief B
-    ('case', 'accumulator'), ('accumulator', 'case'),       # 18, 19 leakage not through the motor
 )
 PUMP_LINKS = (0, 1)
 
@@ -65,7 +64,10 @@ class StepFlows:
     ``volume_dp_m3Pa`` the integral of V dp of every oil node over the step,
     summed per sample interval (the compression heat; a chamber's volume
     moves with the pressure); ``chamber_volumes_m3`` the mean volumes of chambers A
-    and B and ``chamber_dV_m3`` their changes over the step;
+    and B and ``chamber_dV_m3`` their changes over the step; ``case_volume_m3``
+    and ``case_dV_m3`` the same for the pump case, whose oil buffers the
+    difference between the pulsating leakage and the motor's smoothed flow
+    (the accumulator's oil changes by the opposite amount);
     ``motor_flow_m3_s`` the oil flowing case -> motor -> accumulator and
     ``motor_outlet_K`` its mean temperature back from the motor;
     ``pump_friction_W`` the pump's friction loss.
@@ -78,6 +80,8 @@ class StepFlows:
     volume_dp_m3Pa: np.ndarray
     chamber_volumes_m3: Tuple[float, float]
     chamber_dV_m3: Tuple[float, float]
+    case_volume_m3: float
+    case_dV_m3: float
     motor_flow_m3_s: float
     motor_outlet_K: float
     pump_friction_W: float
@@ -108,7 +112,10 @@ class HydraulicCircuit:
             g[i, j] += G
             g[j, i] += G
 
-        link('pump_shell', 'case', pump.shell.oil_htc_W_m2K * pump.shell.oil_area_m2)
+        # the pump body is wetted by the case oil and by both ports: (est.) 60/20/20 %
+        g_pump = pump.shell.oil_htc_W_m2K * pump.shell.oil_area_m2
+        for node, share in (('case', 0.6), ('port_a', 0.2), ('port_b', 0.2)):
+            link('pump_shell', node, share * g_pump)
         for ch in ('chamber_a', 'chamber_b'):
             link('actuator_shell', ch, act.shell.oil_htc_W_m2K * act.shell.oil_area_m2)
         link('accumulator_shell', 'accumulator', acc.shell.oil_htc_W_m2K * acc.shell.oil_area_m2)
@@ -123,9 +130,18 @@ class HydraulicCircuit:
         self.line_inner_area = np.pi * ln.bore_m * ln.length_m
         self.u = np.array([_I[a] for a, _ in LINKS])
         self.d = np.array([_I[b] for _, b in LINKS])
+        # flat indices of K for: advection (d,d), (d,u); line convection (i,i), (j,j), (i,j),
+        # (j,i) for lines A and B; the motor's inflow into the accumulator
+        li = np.array([_I['line_a'], _I['line_b']])
+        lj = np.array([_I['line_a_shell'], _I['line_b_shell']])
+        acc = _I['accumulator']
+        self._k_index = np.concatenate([self.d * n + self.d, self.d * n + self.u, li * n + li,
+                                        lj * n + lj, li * n + lj, lj * n + li, [acc * n + acc]])
         self.is_pump = np.zeros(len(LINKS), dtype=bool)
         self.is_pump[list(PUMP_LINKS)] = True
         self.friction_to_case = pump.friction_to_case_fraction
+        self.alpha_T_filter_s = 30.0
+        self._T_alpha: Optional[float] = None
         # energies (J): heat generated, stored (a moving chamber's oil included), to
         # ambient, and the net enthalpy the motor adds to the oil passing through it
         self.energy_J = {'sources': 0.0, 'stored': 0.0, 'to_ambient': 0.0, 'motor_loop': 0.0}
@@ -139,12 +155,6 @@ class HydraulicCircuit:
         """Return the volumetric heat capacity rho c_p (J/(m^3 K)) of the oil."""
         return self.oil.density(T_K, p_Pa) * self.oil.specific_heat(T_K)
 
-    def capacities(self, T: np.ndarray, p_Pa: np.ndarray, chambers: Tuple[float, float]):
-        """Return the heat capacity (J/K) of every node at temperatures T and pressures p."""
-        vol = self.oil_volumes.copy()
-        vol[5], vol[6] = chambers
-        return np.concatenate([self.rho_cp(T[:self.n_oil], p_Pa) * vol, self.solid_capacity])
-
     def step(self, T0: np.ndarray, dt_s: float, sf: StepFlows, ambient_K: float,
              rho_cp_flow: float) -> np.ndarray:
         """
@@ -152,62 +162,81 @@ class HydraulicCircuit:
 
         ``rho_cp_flow`` is the one volumetric heat capacity used for every
         enthalpy flow of the loop (the motor's too), which keeps the loop's
-        advection exactly conservative.
+        advection exactly conservative. The step is exact for flows and
+        sources held over it: one matrix exponential of the 13 nodes plus the
+        constant input; the step mean follows from one solve, since
+        K int(T) = s dt - C (T1 - T0).
         """
-        n = self.n
+        n, no = self.n, self.n_oil
         p_mid = 0.5 * (sf.p_start_Pa + sf.p_end_Pa)
-        C = self.capacities(T0, p_mid, sf.chamber_volumes_m3)
-        K = self.K_static.copy()
+        T_oil = T0[:no]
+        rho, cp = self.oil.density(T_oil, p_mid), self.oil.specific_heat(T_oil)
+        vol = self.oil_volumes.copy()
+        vol[5], vol[6] = sf.chamber_volumes_m3
+        vol[2] = sf.case_volume_m3
+        C = np.concatenate([rho * cp * vol, self.solid_capacity])
         rate = rho_cp_flow * sf.flow_m3_s
-        np.add.at(K, (self.d, self.d), rate)
-        np.add.at(K, (self.d, self.u), -rate)
-        # lines: forced convection inside, from the step's mean flow in each line
-        for line, shell, links in (('line_a', 'line_a_shell', (6, 7)),
-                                   ('line_b', 'line_b_shell', (10, 11))):
-            G = self._line_htc(T0[_I[line]], p_mid[_I[line]], sf.flow_m3_s[list(links)].sum())
-            i, j = _I[line], _I[shell]
-            K[i, i] += G
-            K[j, j] += G
-            K[i, j] -= G
-            K[j, i] -= G
-        s = self.G_amb * ambient_K
-        acc = _I['accumulator']
+        g_line = self._line_conductances(T0, p_mid, rho, cp, sf.flow_m3_s)
         motor_rate = rho_cp_flow * sf.motor_flow_m3_s
-        K[acc, acc] += motor_rate
-        s[acc] += motor_rate * sf.motor_outlet_K
+        K = self.K_static + np.bincount(
+            self._k_index, minlength=n * n,
+            weights=np.concatenate([rate, -rate, g_line, g_line, -g_line, -g_line,
+                                    [motor_rate]])).reshape(n, n)
         heat = self.sources(T0, dt_s, sf)
-        s = s + heat
-        # exact step of C dT/dt = -K T + s, and its step mean (Van Loan)
-        A = -K / C[:, None]
-        M = np.zeros((2 * (n + 1), 2 * (n + 1)))
-        M[:n, :n] = A * dt_s
-        M[:n, n] = s / C * dt_s
-        M[:n + 1, n + 1:] = np.eye(n + 1) * dt_s
-        F = scipy.linalg.expm(M)
-        z0 = np.append(T0, 1.0)
-        T1 = F[:n, :n + 1] @ z0
-        self.T_mean = F[:n, n + 1:] @ z0 / dt_s
+        s = self.G_amb * ambient_K + heat
+        s[_I['accumulator']] += motor_rate * sf.motor_outlet_K
+        M = np.zeros((n + 1, n + 1))
+        M[:n, :n] = -K * (dt_s / C[:, None])
+        M[:n, n] = s * (dt_s / C)
+        T1 = scipy.linalg.expm(M)[:n] @ np.append(T0, 1.0)
+        self.T_mean = np.linalg.solve(K, s * dt_s - C * (T1 - T0)) / dt_s
         e = self.energy_J
         Tm = self.T_mean
         e['sources'] += float(heat.sum()) * dt_s
         e['stored'] += float(np.dot(C, T1 - T0)) + rho_cp_flow * (
-            Tm[_I['chamber_a']] * sf.chamber_dV_m3[0] + Tm[_I['chamber_b']] * sf.chamber_dV_m3[1])
+            Tm[_I['chamber_a']] * sf.chamber_dV_m3[0] + Tm[_I['chamber_b']] * sf.chamber_dV_m3[1]
+            + (Tm[_I['case']] - Tm[_I['accumulator']]) * sf.case_dV_m3)
         e['to_ambient'] += float(np.dot(self.G_amb, Tm - ambient_K)) * dt_s
         e['motor_loop'] += motor_rate * (sf.motor_outlet_K - Tm[_I['case']]) * dt_s
         self.last_sources = heat
         return T1
 
+    def _line_conductances(self, T, p, rho, cp, flows) -> np.ndarray:
+        """
+        Return the oil-to-wall conductances (W/K) of lines A and B at their mean flows.
+
+        Fully developed pipe flow (laminar 3.66, Gnielinski above Re 4000);
+        ``rho`` and ``cp`` are the oil-node values already evaluated.
+        """
+        ln = self.cfg.lines
+        idx = [_I['line_a'], _I['line_b']]
+        T_l, p_l = T[idx], p[idx]
+        mu = self.oil.dynamic_viscosity(T_l, p_l)
+        k = self.oil.conductivity(T_l)
+        q = np.array([flows[6] + flows[7], flows[10] + flows[11]])
+        re = rho[idx] * q / (0.25 * np.pi * ln.bore_m ** 2) * ln.bore_m / mu
+        nu = corr.pipe_internal_nusselt(re, mu * cp[idx] / k)
+        return nu * k / ln.bore_m * self.line_inner_area
+
     def sources(self, T0: np.ndarray, dt_s: float, sf: StepFlows) -> np.ndarray:
         """
         Return the heat input (W) of each node over a step: pressure work, compression, friction.
 
-        The alpha_p T factor of the pressure terms takes one temperature per
-        step, the mean oil temperature: the isentropic part (at the pump, and
-        in compression) and the isenthalpic part (at the throttles) then add
-        up to exactly the dissipated dp Q, so the model conserves energy; the
-        few kelvin between volumes would change a throttle rise by < 0.5 %.
+        The alpha_p T factor of the pressure terms takes one temperature, the
+        mean oil temperature of the circuit low-passed over ``alpha_T_filter_s``:
+        the isentropic part (at the pump, and in compression) and the
+        isenthalpic part (at the throttles) then add up to exactly the
+        dissipated dp Q, and the reversible compression heat cancels over a
+        duty cycle (a factor that swung within the cycle would pump heat that
+        no pump work pays for). The few kelvin between volumes would change a
+        throttle rise by < 0.5 %.
         """
-        alpha_T = self.oil.alpha_p * float(np.mean(T0[:self.n_oil]))
+        T_oil = float(np.mean(T0[:self.n_oil]))
+        if self._T_alpha is None:
+            self._T_alpha = T_oil
+        else:
+            self._T_alpha += -np.expm1(-dt_s / self.alpha_T_filter_s) * (T_oil - self._T_alpha)
+        alpha_T = self.oil.alpha_p * self._T_alpha
         # throttles: (1 - alpha T) dp Q; pump: alpha T (p_d - p_u) Q = -alpha T * work
         per_link = np.where(self.is_pump, -alpha_T * sf.work_W, (1 - alpha_T) * sf.work_W)
         heat = np.bincount(self.d, weights=per_link, minlength=self.n)
@@ -215,16 +244,6 @@ class HydraulicCircuit:
         heat[_I['case']] += self.friction_to_case * sf.pump_friction_W
         heat[_I['pump_shell']] += (1 - self.friction_to_case) * sf.pump_friction_W
         return heat
-
-    def _line_htc(self, T_K: float, p_Pa: float, flow_m3_s: float) -> float:
-        """Return the oil-to-wall conductance (W/K) of one line at its mean flow."""
-        ln = self.cfg.lines
-        mu = self.oil.dynamic_viscosity(T_K, p_Pa)
-        rho = self.oil.density(T_K, p_Pa)
-        re = rho * abs(flow_m3_s) / (0.25 * np.pi * ln.bore_m ** 2) * ln.bore_m / mu
-        pr = self.oil.prandtl(T_K, p_Pa)
-        nu = corr.pipe_internal_nusselt(re, pr)
-        return float(nu * self.oil.conductivity(T_K) / ln.bore_m * self.line_inner_area)
 
     def named(self, T: np.ndarray) -> Dict[str, float]:
         """Return the node temperatures (K) by name."""

@@ -52,13 +52,14 @@ class WetMotor:
     steady state; ``step`` advances in time with the exact zero-order-hold
     solution of the network linearised at the start of the step.
 
-    Coefficients are re-evaluated only when they can have moved: when a node
-    whose temperature sets one (airgap and end-space oil, winding, outer
-    surfaces) drifted by more than ``refresh_dT_K`` since the last refresh,
-    when speed or flow moved by more than 1 %, an inlet or ambient temperature
-    by more than 0.2/0.5 K, or the case pressure by more than 0.1 MPa. Steps
-    longer than ``max_substep_s`` are split internally (inputs held), so that
-    fast oil-temperature changes inside a long step still update viscosity.
+    Coefficients are re-evaluated only when they can have moved: when the
+    airgap oil drifted by more than ``refresh_dT_K`` since the last refresh
+    (end-space oil and outer surfaces: four times that), when speed or flow
+    moved by more than 1 %, an inlet or ambient temperature by more than
+    0.2/0.5 K, or the case pressure by more than 0.1 MPa; copper resistance
+    and friction viscosity follow the temperatures every step. Steps longer
+    than ``max_substep_s`` are split internally (inputs held), so that fast
+    oil-temperature changes inside a long step still update the coefficients.
 
     With ``coefficient_filter_s`` > 0 the speed, flow and temperatures that
     set the coefficients first pass a low-pass filter in sample time (two
@@ -85,6 +86,8 @@ class WetMotor:
         self.max_substep_s = max_substep_s
         self.coefficient_filter_s = coefficient_filter_s
         self._filter_state: Optional[list] = None
+        self._friction_memo: Optional[tuple] = None
+        self._case_pressure_Pa = 0.0
         self.refresh_count = 0
         # energies (J) since construction: heat generated, stored, to ambient, carried by the oil
         self.energy_J = {'losses': 0.0, 'stored': 0.0, 'to_ambient': 0.0, 'to_oil': 0.0}
@@ -261,8 +264,14 @@ class WetMotor:
         self.idx_magnet = np.array([net.index(m) for m in magnet.mean])
         self.idx_frame = np.array([net.index(m) for m in frame.mean])
         self.frame_volumes = np.array(frame.volume_m3)
-        self.idx_watch = np.concatenate([self.idx_oil, self.idx_copper, self.idx_frame_outer,
-                                         self.idx_cap_outer])
+        # nodes whose temperature sets a coefficient, with the drift (in units of
+        # refresh_dT_K) that triggers a refresh: airgap oil viscosity sets the airgap h
+        # (~1.5 %/K); end-space oil capacity and natural convection move < 0.2 %/K.
+        # Copper R(T) and friction viscosity are evaluated every step.
+        self.idx_watch = np.concatenate([self.idx_gap, [self.idx_oil[0], self.idx_oil[-1]],
+                                         self.idx_frame_outer, self.idx_cap_outer])
+        self.watch_scale = np.concatenate([np.ones(self.idx_gap.size),
+                                           np.full(self.idx_watch.size - self.idx_gap.size, 4.0)])
 
     # ------------------------------------------------------------ coefficients
     def _oil_rho_cp(self, T_K, p_Pa):
@@ -283,11 +292,11 @@ class WetMotor:
         p = u.case_pressure_Pa
         self.refresh_count += 1
         T_gap = T[self.idx_gap]
-        self._rho_gap = self.oil.density(T_gap, p)
-        self._mu_gap = self.oil.dynamic_viscosity(T_gap, p)
+        self._case_pressure_Pa = p
         gap_h = corr.airgap_wall_to_bulk_htc(
-            w, ro.outer_radius_m, st.bore_radius_m, u.oil_flow_m3_s, self._rho_gap,
-            self._mu_gap, self.oil.conductivity(T_gap), self.oil.specific_heat(T_gap), log=log)
+            w, ro.outer_radius_m, st.bore_radius_m, u.oil_flow_m3_s, self.oil.density(T_gap, p),
+            self.oil.dynamic_viscosity(T_gap, p), self.oil.conductivity(T_gap),
+            self.oil.specific_heat(T_gap), log=log)
         self.gap_state = gap_h
         h = np.broadcast_to(gap_h.h, T_gap.shape)
         net.set_conductances(self.gap_links_stator, h * 2 * np.pi * st.bore_radius_m * self.dz)
@@ -320,10 +329,19 @@ class WetMotor:
         """Return the (temperatures, inputs) that set the coefficients, filtered if asked."""
         raw = np.concatenate([[np.mean(np.abs(u.speed_rad_s)), u.oil_flow_m3_s],
                               self.T[self.idx_watch]])
-        if self._filter_state is None or self.coefficient_filter_s <= 0.0:
+        tau = self.coefficient_filter_s
+        if self._filter_state is None or tau <= 0.0:
             self._filter_state = [raw, raw]
+            self._filter_age_s = dt_s
+        elif self._filter_age_s < tau:
+            # first time constant: the running mean since the start, so the state does
+            # not depend on how long the first step was
+            age = self._filter_age_s + dt_s
+            f = self._filter_state[0] + (raw - self._filter_state[0]) * (dt_s / age)
+            self._filter_state = [f, f]
+            self._filter_age_s = age
         else:
-            a = -np.expm1(-dt_s / self.coefficient_filter_s)
+            a = -np.expm1(-dt_s / tau)
             f1, f2 = self._filter_state
             f1 = f1 + a * (raw - f1)
             self._filter_state = [f1, f2 + a * (f1 - f2)]
@@ -337,7 +355,7 @@ class WetMotor:
         if self._refreshed_at is None:
             return True
         w0, q0, tin0, tamb0, p0 = self._refreshed_at
-        drift = np.max(np.abs(T[self.idx_watch] - self._T_refreshed))
+        drift = np.max(np.abs(T[self.idx_watch] - self._T_refreshed) / self.watch_scale)
         return (drift > self.refresh_dT_K
                 or abs(float(u.speed_rad_s) - w0) > 0.01 * max(w0, 5.0)
                 or abs(u.oil_flow_m3_s - q0) > 0.01 * max(q0, 1e-8)
@@ -351,8 +369,8 @@ class WetMotor:
         Order: copper (slot slices, end windings), yoke slices, teeth slices,
         airgap sections. Core loss and friction are averaged over the speed
         samples of the step (friction grows as about speed^2.5: the loss at the
-        mean speed would be wrong); friction uses the oil properties of the
-        last refresh.
+        mean speed would be wrong); copper resistance and oil viscosity are
+        taken at the present temperatures ``T`` (default: the model's).
         """
         w = np.abs(np.atleast_1d(u.speed_rad_s))
         wd = self.cfg.winding
@@ -364,7 +382,7 @@ class WetMotor:
         d_yoke, d_teeth = self._core_loss_density(w)
         return np.concatenate([p_cu, self.yoke_mass * d_yoke.mean(),
                                self.teeth_mass * d_teeth.mean(),
-                               self.airgap_friction_W(w).mean(axis=0)])
+                               self.airgap_friction_W(w, T).mean(axis=0)])
 
     def _core_loss_density(self, speed_rad_s: np.ndarray):
         """Return the Steinmetz loss per kg (W/kg) of yoke and teeth at each speed sample."""
@@ -379,13 +397,30 @@ class WetMotor:
         d_yoke, d_teeth = self._core_loss_density(np.abs(np.atleast_1d(speed_rad_s)))
         return self.yoke_mass.sum() * d_yoke + self.teeth_mass.sum() * d_teeth
 
-    def airgap_friction_W(self, speed_rad_s) -> np.ndarray:
-        """Return the oil-friction power (W) of each airgap section at each speed (samples x n)."""
+    def airgap_friction_W(self, speed_rad_s, T: Optional[np.ndarray] = None) -> np.ndarray:
+        """
+        Return the oil-friction power (W) of each airgap section at each speed (samples x n).
+
+        The oil viscosity is taken at the airgap temperatures of ``T`` (default:
+        the model's present ones): the gap oil swings by about a kelvin within
+        a duty cycle, and friction follows it.
+        """
         st, ro = self.cfg.stator, self.cfg.rotor
-        w = np.abs(np.atleast_1d(speed_rad_s))[:, None]
-        p_fric, _ = corr.airgap_friction(self._rho_gap, self._mu_gap, w, ro.outer_radius_m,
-                                         st.bore_radius_m, self.dz, log=self.log)
-        return np.broadcast_to(p_fric, (w.shape[0], self.idx_gap.size))
+        T = self.T if T is None else T
+        w = np.abs(np.atleast_1d(speed_rad_s))
+        # a simulator asks for the same speeds (for the current) that the losses use
+        memo = self._friction_memo
+        if memo is not None and memo[0] is T and np.array_equal(memo[1], w):
+            return memo[2]
+        T_gap = T[self.idx_gap]
+        p = self._case_pressure_Pa
+        p_fric, _ = corr.airgap_friction(self.oil.density(T_gap, p),
+                                         self.oil.dynamic_viscosity(T_gap, p), w[:, None],
+                                         ro.outer_radius_m, st.bore_radius_m, self.dz,
+                                         log=self.log)
+        out = np.broadcast_to(p_fric, (w.shape[0], self.idx_gap.size))
+        self._friction_memo = (T, w, out)
+        return out
 
     @property
     def losses_W(self) -> Dict[str, float]:
@@ -433,10 +468,6 @@ class WetMotor:
         """Set every node to one temperature (K), e.g. a cold start at ambient."""
         self.T = np.full(self.net.n, float(T_K))
         self.x = self.net.initial_state(self.T)
-        # airgap oil properties for friction queries before the first step
-        T_gap = self.T[self.idx_gap]
-        self._rho_gap = self.oil.density(T_gap)
-        self._mu_gap = self.oil.dynamic_viscosity(T_gap)
 
     def step(self, dt_s: float, u: MotorInputs) -> np.ndarray:
         """

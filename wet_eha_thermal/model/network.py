@@ -21,10 +21,10 @@ With T the node temperatures (K), T_b the boundary temperatures and P the
 source powers, the network reads ``C dT/dt = -K T + G_b T_b + E P``. After
 eliminating the algebraic nodes the states x = T_d obey ``dx/dt = A x + B w``
 with ``w = [T_b; P]``. A transient step is the exact zero-order-hold solution
-(inputs held over the step), computed with one augmented matrix exponential
-(Van Loan), so it is stable and exact for the linear network at any step; the
-same exponential gives the time integral of the state over the step, which
-makes step-averaged heat flows (and so energy balances) exact as well.
+(inputs held over the step), computed with one matrix exponential of the
+reduced network, so it is stable and exact for the linear network at any step; the
+time integral of the state over the step follows from the same exponential,
+which makes step-averaged heat flows (and so energy balances) exact as well.
 """
 
 from dataclasses import dataclass
@@ -176,17 +176,15 @@ class ThermalNetwork:
         self._adv_n = np.array(adv_n, dtype=int).reshape(-1, 3)
         self._adv_b = np.array(adv_b, dtype=int).reshape(-1, 3)
         self._src = np.array([self._kind[s][1] for s in self._source_nodes], dtype=int)
-        # flat scatter indices for K (n x n) and G_b (n x nb)
-        i, j = self._nn[:, 1], self._nn[:, 2]
-        self._k_idx_links = np.concatenate([i * n + i, j * n + j, i * n + j, j * n + i])
-        bi = self._nbl[:, 1]
-        self._k_idx_blinks = bi * n + bi
-        self._gb_idx_blinks = bi * max(self.nb, 1) + self._nbl[:, 2]
-        au, ad = self._adv_n[:, 1], self._adv_n[:, 2]
-        self._k_idx_adv = np.concatenate([ad * n + ad, ad * n + au])
-        bd = self._adv_b[:, 2]
-        self._k_idx_badv = bd * n + bd
-        self._gb_idx_badv = bd * max(self.nb, 1) + self._adv_b[:, 1]
+        # scatter indices of K, G_b, E in node order, and in the order [states;
+        # algebraic nodes] that makes the Kron reduction work on plain slices (capacities
+        # may change, but never to or from zero, so the split is fixed from here on)
+        self._d = np.flatnonzero(self.capacity > 0.0)
+        self._a = np.flatnonzero(self.capacity == 0.0)
+        position = np.empty(n, dtype=int)
+        position[np.concatenate([self._d, self._a])] = np.arange(n)
+        self._scatter = self._scatter_indices(np.arange(n))
+        self._scatter_reduced = self._scatter_indices(position)
         # link ends in the vector [T; T_b], for heat flows
         flat = {nm: (i if k == 'n' else n + i) for nm, (k, i) in self._kind.items()}
         self._ends = np.array([[flat[a], flat[b]] for a, b in self._links],
@@ -222,7 +220,7 @@ class ThermalNetwork:
     @property
     def dynamic(self) -> np.ndarray:
         """Return the indices of the nodes with heat capacity (the states), in state order."""
-        return np.flatnonzero(self.freeze().capacity > 0.0)
+        return self.freeze()._d
 
     @property
     def state_names(self) -> List[str]:
@@ -274,24 +272,39 @@ class ThermalNetwork:
         self._disc = None
 
     # -------------------------------------------------------------- matrices
-    def matrices(self) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Assemble K (n x n), G_b (n x nb), E (n x ns) of ``C dT/dt = -K T + G_b T_b + E P``."""
+    def _scatter_indices(self, position: np.ndarray) -> tuple:
+        """Return flat indices of K, G_b and E's rows with node i placed at ``position[i]``."""
+        n, nb = self.n, max(self.nb, 1)
+        i, j = position[self._nn[:, 1]], position[self._nn[:, 2]]
+        bi = position[self._nbl[:, 1]]
+        au, ad = position[self._adv_n[:, 1]], position[self._adv_n[:, 2]]
+        bd = position[self._adv_b[:, 2]]
+        k_idx = np.concatenate([i * n + i, j * n + j, i * n + j, j * n + i, bi * n + bi,
+                                ad * n + ad, ad * n + au, bd * n + bd])
+        gb_idx = np.concatenate([bi * nb + self._nbl[:, 2], bd * nb + self._adv_b[:, 1]])
+        return k_idx, gb_idx, position[self._src]
+
+    def matrices(self, reduced_order: bool = False) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """
+        Assemble K (n x n), G_b (n x nb), E (n x ns) of ``C dT/dt = -K T + G_b T_b + E P``.
+
+        Rows and columns follow the node order, or with ``reduced_order`` the
+        states first and then the algebraic nodes.
+        """
         self.freeze()
         n, nb = self.n, max(self.nb, 1)
+        k_idx, gb_idx, src = self._scatter_reduced if reduced_order else self._scatter
         g, c = self.conductance, self.advection_rate
         g_nn = g[self._nn[:, 0]]
         g_nb = g[self._nbl[:, 0]]
         c_n = c[self._adv_n[:, 0]]
         c_b = c[self._adv_b[:, 0]]
-        k_idx = np.concatenate([self._k_idx_links, self._k_idx_blinks, self._k_idx_adv,
-                                self._k_idx_badv])
         k_val = np.concatenate([g_nn, g_nn, -g_nn, -g_nn, g_nb, c_n, -c_n, c_b])
         K = np.bincount(k_idx, weights=k_val, minlength=n * n).reshape(n, n)
-        gb_idx = np.concatenate([self._gb_idx_blinks, self._gb_idx_badv])
         Gb = np.bincount(gb_idx, weights=np.concatenate([g_nb, c_b]),
                          minlength=n * nb).reshape(n, nb)[:, :self.nb]
         E = np.zeros((n, self.ns))
-        E[self._src, np.arange(self.ns)] = 1.0
+        E[src, np.arange(self.ns)] = 1.0
         return K, Gb, E
 
     def _reduce(self) -> tuple:
@@ -299,30 +312,30 @@ class ThermalNetwork:
         self.freeze()
         if self._reduced is not None:
             return self._reduced
-        K, Gb, E = self.matrices()
+        K, Gb, E = self.matrices(reduced_order=True)
         W = np.hstack([Gb, E])  # input map of w = [T_b; P]
-        d = np.flatnonzero(self.capacity > 0.0)
-        a = np.flatnonzero(self.capacity == 0.0)
+        d, a = self._d, self._a
+        m = d.size
         if a.size:
+            K_aa = K[m:, m:]
             try:
                 with warnings.catch_warnings():   # a singular block is reported below
                     warnings.simplefilter('ignore', scipy.linalg.LinAlgWarning)
-                    lu = scipy.linalg.lu_factor(K[np.ix_(a, a)], check_finite=True)
+                    lu = scipy.linalg.lu_factor(K_aa, check_finite=True)
             except (ValueError, scipy.linalg.LinAlgError) as exc:
                 raise NetworkError(f'algebraic nodes cannot be eliminated: {exc}') from exc
-            if np.any(np.abs(np.diag(lu[0])) < 1e-14 * np.abs(K[np.ix_(a, a)]).max()):
+            if np.any(np.abs(np.diag(lu[0])) < 1e-14 * np.abs(K_aa).max()):
                 raise NetworkError('algebraic nodes form a group with no path to a capacity '
                                    'or a boundary: their temperature is undefined')
-            rhs = np.hstack([K[np.ix_(a, d)], W[a]])
-            sol = scipy.linalg.lu_solve(lu, rhs)
-            out_x = -sol[:, :d.size]   # T_a = out_x x + out_w w
-            out_w = sol[:, d.size:]
-            K_red = K[np.ix_(d, d)] - K[np.ix_(d, a)] @ sol[:, :d.size]
-            W_red = W[d] - K[np.ix_(d, a)] @ out_w
+            sol = scipy.linalg.lu_solve(lu, np.hstack([K[m:, :m], W[m:]]), check_finite=False)
+            out_x = -sol[:, :m]   # T_a = out_x x + out_w w
+            out_w = sol[:, m:]
+            K_red = K[:m, :m] - K[:m, m:] @ sol[:, :m]
+            W_red = W[:m] - K[:m, m:] @ out_w
         else:
-            out_x = np.zeros((0, d.size))
+            out_x = np.zeros((0, m))
             out_w = np.zeros((0, W.shape[1]))
-            K_red, W_red = K[np.ix_(d, d)], W[d]
+            K_red, W_red = K, W
         cap = self.capacity[d][:, None]
         A = -K_red / cap
         B = W_red / cap
@@ -340,17 +353,21 @@ class ThermalNetwork:
         if not dt_s > 0.0:
             raise NetworkError(f'time step {dt_s} s must be > 0')
         A, B = self._reduce()[:2]
-        if self._disc is not None and self._disc.dt_s == dt_s:
+        # steps taken from sample times differ in the last bits: treat them as one
+        if self._disc is not None and abs(self._disc.dt_s - dt_s) <= 1e-9 * dt_s:
             return self._disc
-        m = A.shape[0]
-        # Van Loan: expm([[A, I, 0], [0, 0, I], [0, 0, 0]] dt) holds
-        # Ad = e^{A dt}, F1 = int_0^dt e^{As} ds, F2 = int_0^dt (dt - s) e^{As} ds.
-        M = np.zeros((3 * m, 3 * m))
-        M[:m, :m] = A * dt_s
-        M[:m, m:2 * m] = np.eye(m) * dt_s
-        M[m:2 * m, 2 * m:] = np.eye(m) * dt_s
-        F = scipy.linalg.expm(M)
-        Ad, F1, F2 = F[:m, :m], F[:m, m:2 * m], F[:m, 2 * m:]
+        # Ad = e^{A dt}; F1 = int_0^dt e^{As} ds = A^-1 (Ad - I) and
+        # F2 = int_0^dt (dt - s) e^{As} ds = A^-1 (F1 - dt I) (by parts). A is
+        # invertible when every node has a path to a boundary; this costs one
+        # exponential of the reduced matrix and one LU, a third of Van Loan's 3m x 3m.
+        eye = np.eye(A.shape[0])
+        Ad = scipy.linalg.expm(A * dt_s)
+        try:
+            lu = scipy.linalg.lu_factor(A)
+        except (ValueError, scipy.linalg.LinAlgError) as exc:
+            raise NetworkError(f'a group of nodes has no path to a boundary: {exc}') from exc
+        F1 = scipy.linalg.lu_solve(lu, Ad - eye, check_finite=False)
+        F2 = scipy.linalg.lu_solve(lu, F1 - dt_s * eye, check_finite=False)
         self._disc = Discretisation(dt_s, Ad, F1 @ B, F1 / dt_s, (F2 @ B) / dt_s)
         return self._disc
 

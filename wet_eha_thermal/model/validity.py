@@ -45,6 +45,10 @@ class ValidityLog:
               note: str = '') -> None:
         """Flag the values of ``value`` (scalar or array) outside ``[low, high]``."""
         arr = np.asarray(value, dtype=float)
+        # the common case (all in range) costs two reductions; NaN marks a value
+        # the correlation did not use, and is never flagged
+        if arr.min() >= low and arr.max() <= high:
+            return
         outside = (arr < low) | (arr > high)
         if not np.any(outside):
             return

@@ -1,0 +1,453 @@
+"""
+Report of a duty-cycle simulation: temperature table, limits, CSV and PNG.
+
+The job behind ``wet-eha-thermal simulate`` turns a
+:class:`~wet_eha_thermal.simulation.SimulationResult` into a text table of
+end and peak temperatures, the time each temperature limit is (or would be)
+reached, an energy check, a CSV of every recorded history and a PNG plot.
+"""
+
+import csv
+from dataclasses import dataclass
+import math
+from pathlib import Path
+import re
+from typing import Dict, List, Optional, Sequence, Tuple
+import warnings
+
+import numpy as np
+
+from .config import Config
+from .model.motor import C_TO_K
+from .model.oil import OIL_GRADES
+
+#: Temperatures of the table, in print order.
+TABLE = ('winding_mean', 'winding_hotspot', 'frame', 'magnet', 'airgap_oil_outlet',
+         'motor_oil_outlet', 'pump_case', 'pump_outlet', 'chamber_a', 'chamber_b',
+         'accumulator')
+#: Printed names of the temperatures, where not the key with spaces.
+LABELS = {'winding_hotspot': 'winding hot-spot', 'magnet': 'magnet (hottest)',
+          'chamber_a': 'chamber A', 'chamber_b': 'chamber B'}
+#: Oil nodes whose hottest value at each recorded time is checked against the oil limit.
+OIL_NODES = ('motor_oil_outlet', 'pump_case', 'chamber_a', 'chamber_b', 'accumulator',
+             'airgap_oil_outlet')
+#: Oil temperature limit (degC) of the reference rig with MIL-PRF-5606:
+#: /work/shared/design/reference-eha.md ("oil limit 135 degC for 5606"), also the top
+#: of that grade's service range in :mod:`.model.oil`.
+OIL_LIMIT_C = 135.0
+#: Fraction of the recorded history, at its end, that the extrapolation fits.
+FIT_FRACTION = 1.0 / 3.0
+#: Peak-to-peak change (K) below which the fitted part of a history counts as flat.
+FLAT_K = 1e-3
+#: Unit suffixes that a heat-flow key may already carry (otherwise it is in W).
+_UNIT = re.compile(r'_(W|J|K|C|L_min|m3_s|Pa|MPa|kg_s)$')
+
+
+@dataclass
+class LimitCheck:
+    """
+    One temperature against its limit over a run (degC and s).
+
+    ``time_to_limit_s`` is None when the limit is not reached; ``method`` is
+    ``'in run'`` (crossed during the run), ``'extrapolated'`` (first-order
+    fit), ``'extrapolated, linear'`` (the fit found no settling),
+    ``'not reached'`` or ``'unknown'`` (history too short to fit).
+    ``settles_C`` and ``tau_s`` are the fitted settling value and time
+    constant when there is a first-order fit.
+    """
+
+    label: str
+    limit_C: float
+    end_C: float
+    peak_C: float
+    peak_time_s: float
+    time_to_limit_s: Optional[float]
+    method: str
+    settles_C: Optional[float] = None
+    tau_s: Optional[float] = None
+    note: str = ''
+
+    def describe(self) -> str:
+        """Return the outcome as text: when the limit is reached, or where it settles."""
+        fit = f'tau {self.tau_s:.0f} s' if self.tau_s is not None else ''
+        if self.method == 'in run':
+            text = f'reached at {_time_text(self.time_to_limit_s)} (in the run)'
+        elif self.method == 'unknown':
+            text = 'unknown (history too short to extrapolate)'
+        elif self.time_to_limit_s is not None:
+            extra = f'; settles at {self.settles_C:.1f} degC, {fit}' if fit else ''
+            how = ('extrapolated' if self.method == 'extrapolated'
+                   else 'extrapolated along a straight line: no settling seen yet')
+            text = f'reached at about {_time_text(self.time_to_limit_s)}{extra} ({how})'
+        elif self.settles_C is not None:
+            extra = f', {fit}' if fit else ''
+            text = f'not reached (settles at {self.settles_C:.1f} degC{extra}) (extrapolated)'
+        else:
+            text = 'not reached (not rising at the end of the run) (extrapolated)'
+        return text + (f'; {self.note}' if self.note else '')
+
+
+def _time_text(t_s: float) -> str:
+    if t_s < 3600.0:
+        return f'{t_s:.0f} s'
+    return f'{t_s:.0f} s ({t_s / 3600.0:.1f} h)'
+
+
+def _rise(x: np.ndarray, k: float) -> np.ndarray:
+    """Return (1 - exp(-k x)) / k, and x itself at k = 0 (the linear limit)."""
+    if abs(k) < 1e-12:
+        return x
+    return -np.expm1(-k * x) / k
+
+
+def fit_first_order(t_s: Sequence[float], T: Sequence[float]
+                    ) -> Optional[Tuple[float, float, float]]:
+    """
+    Fit T(t) = T_now + s (1 - exp(-k (t - t_now))) / k to a history; t_now = its last time.
+
+    This is the first-order response T(t) = T_inf - (T_inf - T_now)
+    exp(-(t - t_now)/tau) written with the slope ``s`` at ``t_now`` and the
+    rate ``k = 1/tau``, so that ``k = 0`` is the straight line of slope
+    ``s`` and the fit stays well posed when the history shows no bend yet.
+    ``k`` is kept >= 0 (a rise that still accelerates is fitted by the
+    straight line). Starting values come from a log-linear fit (dT/dt
+    regressed on T, exact for a first-order response), refined by
+    :func:`scipy.optimize.curve_fit`.
+
+    :return: ``(T_now, s, k)`` (K or degC as given, per s, 1/s), or None if
+        there are fewer than 3 points or the fit fails.
+    """
+    from scipy.optimize import curve_fit, OptimizeWarning
+
+    t = np.asarray(t_s, dtype=float)
+    y = np.asarray(T, dtype=float)
+    if t.size < 3:
+        return None
+    t_now = float(t[-1])
+    span = float(t[-1] - t[0])
+    if not span > 0.0:
+        return None
+    dydt = np.gradient(y, t)
+    b, a = np.polyfit(y, dydt, 1) if np.ptp(y) > 0.0 else (0.0, 0.0)
+    k_max = 50.0 / span
+    k0 = float(np.clip(-b, 0.0, k_max))
+    s0 = float(a + b * y[-1]) if k0 > 0.0 else float(np.polyfit(t, y, 1)[0])
+
+    def model(tt, y_now, s, k):
+        return y_now + s * _rise(tt - t_now, k)
+
+    scale = max(float(np.ptp(y)), 1e-6)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter('ignore', OptimizeWarning)  # no covariance: not needed
+            p, _ = curve_fit(model, t, y, p0=(float(y[-1]), s0, k0),
+                             bounds=([-np.inf, -np.inf, 0.0], [np.inf, np.inf, k_max]),
+                             x_scale=(scale, scale / span, 1.0 / span), max_nfev=2000)
+    except (RuntimeError, ValueError):
+        return None
+    if not np.all(np.isfinite(p)):
+        return None
+    return float(p[0]), float(p[1]), float(p[2])
+
+
+def check_limit(label: str, t_s: Sequence[float], T_C: Sequence[float], limit_C: float,
+                fit_fraction: float = FIT_FRACTION) -> LimitCheck:
+    """
+    Return end, peak and the time a history reaches ``limit_C``.
+
+    If the history reaches the limit during the run, the time is the first
+    crossing, interpolated linearly between the two recorded times around
+    it (method ``'in run'``). Otherwise it is extrapolated from the last
+    ``fit_fraction`` of the run (at least 3 records) by a first-order fit,
+    T(t) = T_inf - (T_inf - T_now) exp(-(t - t_now)/tau), see
+    :func:`fit_first_order`: when T_inf < limit the limit is not reached
+    and the history settles at T_inf; otherwise the limit is reached at
+    t_now + tau ln((T_inf - T_now)/(T_inf - limit)). A part that is flat
+    (within :data:`FLAT_K`) settles at its last value; a fit without a bend
+    (tau beyond 50 times the fitted span) gives the straight-line time
+    (``'extrapolated, linear'``), or "not rising" when the line falls.
+    The extrapolation assumes the duty goes on as at the end of the run and
+    one dominant time constant; it is a guide, not a prediction.
+    """
+    t = np.asarray(t_s, dtype=float)
+    y = np.asarray(T_C, dtype=float)
+    if t.size == 0:
+        raise ValueError(f'{label}: empty history')
+    i_peak = int(np.argmax(y))
+    base = {'label': label, 'limit_C': float(limit_C), 'end_C': float(y[-1]),
+            'peak_C': float(y[i_peak]), 'peak_time_s': float(t[i_peak])}
+    over = np.flatnonzero(y >= limit_C)
+    if over.size:
+        i = int(over[0])
+        t_hit = float(t[i])
+        if i > 0:
+            t_hit = float(t[i - 1] + (limit_C - y[i - 1]) / (y[i] - y[i - 1])
+                          * (t[i] - t[i - 1]))
+        return LimitCheck(**base, time_to_limit_s=t_hit, method='in run')
+    start = t[0] + (1.0 - fit_fraction) * (t[-1] - t[0])
+    sel = np.flatnonzero(t >= start)
+    if sel.size < 3:
+        sel = np.arange(max(0, t.size - 3), t.size)
+    tw, yw = t[sel], y[sel]
+    if tw.size >= 2 and np.ptp(yw) < FLAT_K:
+        return LimitCheck(**base, time_to_limit_s=None, method='not reached',
+                          settles_C=float(yw[-1]))
+    fit = fit_first_order(tw, yw)
+    if fit is None:
+        return LimitCheck(**base, time_to_limit_s=None, method='unknown')
+    y_now, s, k = fit
+    t_now = float(tw[-1])
+    span = float(tw[-1] - tw[0])
+    if k * span < 0.02:
+        # no bend in the fitted part (tau > 50 spans): straight line of slope s
+        if s <= 0.0:
+            return LimitCheck(**base, time_to_limit_s=None, method='not reached')
+        t_hit = t_now + max(limit_C - y_now, 0.0) / s
+        return LimitCheck(**base, time_to_limit_s=t_hit, method='extrapolated, linear')
+    tau = 1.0 / k
+    T_inf = y_now + s * tau
+    run = float(t[-1] - t[0])
+    note = 'settling uncertain (tau > 3x the run)' if tau > 3.0 * run else ''
+    if T_inf < limit_C:
+        return LimitCheck(**base, time_to_limit_s=None, method='not reached',
+                          settles_C=T_inf, tau_s=tau, note=note)
+    t_hit = t_now + tau * math.log(max(T_inf - y_now, 1e-12) / max(T_inf - limit_C, 1e-12))
+    return LimitCheck(**base, time_to_limit_s=max(t_hit, t_now), method='extrapolated',
+                      settles_C=T_inf, tau_s=tau, note=note)
+
+
+def oil_limit_C(cfg: Config) -> Tuple[float, str]:
+    """
+    Return the oil temperature limit (degC) and where it comes from.
+
+    A ``fluid.oil_limit_C`` in the configuration wins; otherwise
+    :data:`OIL_LIMIT_C` for MIL-PRF-5606 and the top of the service range
+    (:mod:`.model.oil`) for another grade.
+    """
+    own = getattr(cfg.fluid, 'oil_limit_C', None)
+    if own is not None:
+        return float(own), 'fluid.oil_limit_C'
+    if cfg.fluid.grade == 'MIL-PRF-5606':
+        return OIL_LIMIT_C, 'reference-eha.md'
+    grade = OIL_GRADES[cfg.fluid.grade]
+    return grade.T_max_K - C_TO_K, f'top of the {grade.name} service range'
+
+
+def temperatures_C(result) -> Dict[str, np.ndarray]:
+    """Return every recorded temperature history in degC."""
+    return {k: np.asarray(v, dtype=float) - C_TO_K for k, v in result.temperatures_K.items()}
+
+
+def hottest_oil_C(result) -> Tuple[np.ndarray, str]:
+    """Return the hottest of the :data:`OIL_NODES` at each recorded time, and the end's node."""
+    temps = temperatures_C(result)
+    names = [n for n in OIL_NODES if n in temps]
+    stack = np.vstack([temps[n] for n in names])
+    return np.max(stack, axis=0), names[int(np.argmax(stack[:, -1]))]
+
+
+def check_limits(result, cfg: Config) -> List[LimitCheck]:
+    """Check winding hot-spot, magnet and hottest oil of a run against their limits."""
+    temps = temperatures_C(result)
+    t = result.time_s
+    oil_C, _ = hottest_oil_C(result)
+    oil_lim, _ = oil_limit_C(cfg)
+    return [check_limit('winding hot-spot', t, temps['winding_hotspot'],
+                        cfg.motor.winding.insulation_limit_C),
+            check_limit('magnet (hottest)', t, temps['magnet'], cfg.motor.rotor.magnet_limit_C),
+            check_limit('oil (hottest node)', t, oil_C, oil_lim)]
+
+
+def _label(name: str) -> str:
+    return LABELS.get(name, name.replace('_', ' '))
+
+
+def format_table(result) -> str:
+    """Return the end and peak temperature of every :data:`TABLE` node as fixed-width text."""
+    temps = temperatures_C(result)
+    t = np.asarray(result.time_s, dtype=float)
+    head = f'{"temperature":<20} {"end":>6} {"peak":>6} {"peak at":>8}'
+    lines = [head, f'{"":<20} {"degC":>6} {"degC":>6} {"s":>8}', '-' * len(head)]
+    for name in TABLE:
+        if name not in temps:
+            continue
+        v = temps[name]
+        i = int(np.argmax(v))
+        lines.append(f'{_label(name):<20} {v[-1]:6.1f} {v[i]:6.1f} {t[i]:8.0f}')
+    return '\n'.join(lines)
+
+
+def format_limits(checks: List[LimitCheck]) -> str:
+    """Return the limits block as a fixed-width table, one row per checked temperature."""
+    width = max(18, max(len(c.label) for c in checks))
+    head = (f'{"":<{width}} {"limit":>5} {"end":>6} {"peak":>6} {"peak at":>8}  '
+            'limit reached')
+    lines = [head, f'{"":<{width}} {"degC":>5} {"degC":>6} {"degC":>6} {"s":>8}',
+             '-' * len(head)]
+    for c in checks:
+        lines.append(f'{c.label:<{width}} {c.limit_C:5.0f} {c.end_C:6.1f} {c.peak_C:6.1f} '
+                     f'{c.peak_time_s:8.0f}  {c.describe()}')
+    return '\n'.join(lines)
+
+
+def energy_check(result) -> Dict[str, float]:
+    """
+    Return the run's energy balance (J).
+
+    ``net_in`` = electrical input - load work, ``accounted`` = stored + to
+    ambient, ``residual`` = their difference, ``relative`` = residual over
+    ``|net_in|``.
+    """
+    e = result.model.energy()
+    net_in = float(result.electrical_J - result.load_work_J)
+    accounted = float(e['stored'] + e['to_ambient'])
+    residual = net_in - accounted
+    return {'electrical': float(result.electrical_J), 'load_work': float(result.load_work_J),
+            'net_in': net_in, 'stored': float(e['stored']),
+            'to_ambient': float(e['to_ambient']), 'accounted': accounted,
+            'residual': residual,
+            'relative': residual / abs(net_in) if net_in != 0.0 else math.nan}
+
+
+def format_energy(e: Dict[str, float]) -> str:
+    """Return the energy check as one line."""
+    return (f'Energy: electrical in {e["electrical"]:.4g} J - load work {e["load_work"]:.4g} J '
+            f'= {e["net_in"]:.4g} J; stored {e["stored"]:.4g} J + to ambient '
+            f'{e["to_ambient"]:.4g} J = {e["accounted"]:.4g} J; residual '
+            f'{e["residual"]:.3g} J ({e["relative"]:.2e} relative)')
+
+
+def heat_column(name: str) -> str:
+    """Return the CSV column of a heat-flow key: the key with ``_W`` unless it has a unit."""
+    return name if _UNIT.search(name) else f'{name}_W'
+
+
+def write_csv(result, path: Path) -> List[str]:
+    """Write time, every temperature (degC), input and heat flow per record; return the columns."""
+    cols: Dict[str, Sequence[float]] = {'time_s': result.time_s}
+    cols.update({f'{k}_C': v for k, v in temperatures_C(result).items()})
+    cols.update(result.inputs)
+    cols.update({heat_column(k): v for k, v in result.heat_W.items()})
+    names = list(cols)
+    with open(path, 'w', newline='') as f:
+        writer = csv.writer(f)
+        writer.writerow(names)
+        for i in range(len(result.time_s)):
+            # a run stopped early may lack the inputs of its last row: leave those blank
+            writer.writerow(['' if i >= len(cols[n]) else f'{float(cols[n][i]):.6g}'
+                             if n == 'time_s' else round(float(cols[n][i]), 4) for n in names])
+    return names
+
+
+def _top(values) -> float:
+    return float(np.max(values)) if values is not None and len(values) else 0.0
+
+
+def _window(t: np.ndarray, period_s: Optional[float]) -> int:
+    """Return how many records span one duty period (1 if unknown or at most one record)."""
+    if period_s is None or not math.isfinite(period_s) or t.size < 2:
+        return 1
+    step = float(np.median(np.diff(t)))
+    return max(1, min(int(round(period_s / step)), t.size)) if step > 0.0 else 1
+
+
+def _moving_mean(v: np.ndarray, n: int) -> np.ndarray:
+    """Return the trailing mean over ``n`` records (fewer at the start)."""
+    if n <= 1:
+        return v
+    c = np.concatenate(([0.0], np.cumsum(v)))
+    i = np.arange(1, v.size + 1)
+    lo = np.maximum(i - n, 0)
+    return (c[i] - c[lo]) / (i - lo)
+
+
+def _plot_input(ax, x, raw, mean, color, label, n):
+    """Plot an input: recorded values thin, the mean over one duty period thick."""
+    x = x[:raw.size]   # a run stopped early may lack the inputs of its last row
+    if n <= 1:
+        return ax.plot(x, raw, color=color, lw=1.4, label=label)
+    ax.plot(x, raw, color=color, lw=0.6, alpha=0.3)
+    return ax.plot(x, mean, color=color, lw=1.8, label=f'{label}\n(mean over a duty period)')
+
+
+def plot(result, cfg: Config, path: Path, title: str,
+         period_s: Optional[float] = None) -> None:
+    """
+    Plot a run to a PNG in three panels sharing the time axis.
+
+    Top: winding mean and hot-spot, magnet, frame; middle: oil
+    temperatures; bottom: RMS current and speed on twin axes, as recorded
+    (over the last step before each recorded time) and, when the duty's
+    ``period_s`` spans several records, their mean over one period. A
+    limit is drawn as a dashed line where it is within 30 K of the panel's
+    data.
+    """
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    temps = temperatures_C(result)
+    t = np.asarray(result.time_s, dtype=float)
+    scale, unit = (1.0, 's') if t[-1] <= 1200.0 else (60.0, 'min')
+    x = t / scale
+    oil_lim, _ = oil_limit_C(cfg)
+    panels = (
+        ('motor temperature (degC)',
+         (('winding_hotspot', 'winding hot-spot', 'C3', '-'),
+          ('winding_mean', 'winding mean', 'C1', '-'),
+          ('magnet', 'magnet (hottest)', 'C4', '-'),
+          ('frame', 'frame', 'C7', '-')),
+         ((cfg.motor.winding.insulation_limit_C, 'insulation limit', 'C3'),
+          (cfg.motor.rotor.magnet_limit_C, 'magnet limit', 'C4'))),
+        ('oil temperature (degC)',
+         (('airgap_oil_outlet', 'airgap oil outlet', 'C5', ':'),
+          ('motor_oil_outlet', 'motor oil outlet', 'C0', '-'),
+          ('pump_case', 'pump case', 'C2', '-'),
+          ('chamber_a', 'chamber A', 'C1', '-'),
+          ('chamber_b', 'chamber B', 'C6', '--'),
+          ('accumulator', 'accumulator', 'C9', '-')),
+         ((oil_lim, f'oil limit ({cfg.fluid.grade})', 'C2'),)),
+    )
+    fig, axes = plt.subplots(3, 1, figsize=(12, 10), sharex=True,
+                             gridspec_kw={'height_ratios': (3, 3, 2)})
+    for ax, (ylabel, series, limits) in zip(axes, panels):
+        top = -math.inf
+        for key, label, color, style in series:
+            if key in temps:
+                ax.plot(x, temps[key], style, color=color, lw=1.5, label=label)
+                top = max(top, float(np.max(temps[key])))
+        for value, label, color in limits:
+            if value - top <= 30.0:
+                ax.axhline(value, color=color, ls='--', lw=1.2, alpha=0.8,
+                           label=f'{label} {value:g} degC')
+        ax.set_ylabel(ylabel)
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8, loc='upper left', bbox_to_anchor=(1.01, 1.0))
+    ax = axes[2]
+    n = _window(t, period_s)
+    handles = []
+    current = result.inputs.get('current_A_rms')
+    if current is not None:
+        current = np.asarray(current, dtype=float)
+        handles += _plot_input(ax, x, current, np.sqrt(_moving_mean(current ** 2, n)), 'C3',
+                               'current, RMS', n)
+    ax.set_ylabel('current, RMS (A)', color='C3')
+    ax.tick_params(axis='y', colors='C3')
+    ax.set_ylim(0.0, 1.15 * max(_top(current), 1e-3))
+    ax.grid(True, alpha=0.3)
+    speed = result.inputs.get('speed_rpm')
+    if speed is not None:
+        speed = np.asarray(speed, dtype=float)
+        ax2 = ax.twinx()
+        handles += _plot_input(ax2, x, speed, _moving_mean(speed, n), 'C0', 'speed, mean |n|', n)
+        ax2.set_ylabel('speed, mean |n| (r/min)', color='C0')
+        ax2.tick_params(axis='y', colors='C0')
+        ax2.set_ylim(0.0, 1.15 * max(_top(speed), 1.0))
+    if handles:
+        ax.legend(handles=handles, fontsize=8, loc='upper left', bbox_to_anchor=(1.09, 1.0))
+    ax.set_xlabel(f'time ({unit})')
+    ax.set_xlim(0.0, x[-1])
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
