@@ -387,6 +387,7 @@ class Fluid:
     """Hydraulic oil."""
 
     grade: str = spec(choices=tuple(OIL_GRADES), doc='oil grade')
+    oil_limit_C: float = spec(0.0, 300.0, doc='highest oil temperature allowed in service')
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -404,6 +405,74 @@ class MapsJob:
 
 
 @dataclass(frozen=True, kw_only=True)
+class Channel:
+    """One sensor input of the estimator: how stale it may get and what values are plausible."""
+
+    timeout_s: float = positive('no sample for this long: stale, the fallback takes over')
+    low: float = spec(doc='smallest plausible value (SI unit of the channel)')
+    high: float = spec(doc='largest plausible value')
+
+    def check(self, key: str) -> None:
+        """Check the range is not empty."""
+        _below(key, 'low', self.low, 'high', self.high)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Channels:
+    """The estimator's sensor inputs (SI units: A RMS, rad/s, Pa absolute, m)."""
+
+    current_A: Channel
+    speed_rad_s: Channel
+    p_a_Pa: Channel
+    p_b_Pa: Channel
+    p_acc_Pa: Channel
+    position_m: Channel
+
+
+@dataclass(frozen=True, kw_only=True)
+class AlertLevels:
+    """Warn and critical thresholds of one estimated temperature."""
+
+    warn_C: float = spec(-60.0, 400.0)
+    critical_C: float = spec(-60.0, 400.0)
+    hysteresis_K: float = spec(0.0, 50.0)
+    min_duration_s: float = spec(0.0, 3600.0)
+    latch: bool = spec(default=True)
+
+    def check(self, key: str) -> None:
+        """Check warn is below critical."""
+        _below(key, 'warn_C', self.warn_C, 'critical_C', self.critical_C)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Alerts:
+    """Alert thresholds of the estimated temperatures (limits: reference-eha.md)."""
+
+    winding_hotspot: AlertLevels
+    magnet: AlertLevels
+    oil: AlertLevels
+
+
+@dataclass(frozen=True, kw_only=True)
+class EstimatorSettings:
+    """The live estimator: model step, averaging, fallbacks, forecast, uncertainty, alerts."""
+
+    step_s: float = spec(0.001, 1.0, doc='model step in sample time')
+    block_rate_Hz: float = spec(1.0, 5000.0, doc='grid on which samples are averaged per step')
+    ambient_C: float = spec(-60.0, 150.0, doc='used until an ambient temperature arrives')
+    coefficient_filter_s: float = spec(0.0, 600.0)
+    model_uncertainty_K: float = spec(0.0, 50.0, doc='1-sigma model uncertainty (est.)')
+    stale_uncertainty_K_per_s: float = spec(0.0, 10.0,
+                                            doc='added per second an input is on fallback')
+    forecast_window_s: float = spec(1.0, 3600.0, doc='recent duty repeated by the forecast')
+    forecast_horizon_s: float = spec(60.0, 86400.0)
+    forecast_step_s: float = spec(0.1, 60.0)
+    forecast_period_s: float = spec(1.0, 3600.0, doc='a new forecast starts this often')
+    channels: Channels
+    alerts: Alerts
+
+
+@dataclass(frozen=True, kw_only=True)
 class Config:
     """Whole configuration file."""
 
@@ -411,6 +480,7 @@ class Config:
     hydraulics: Hydraulics
     fluid: Fluid
     maps: MapsJob
+    estimator: EstimatorSettings
 
 
 def config_dir() -> Path:

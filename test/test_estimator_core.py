@@ -1,0 +1,175 @@
+"""The estimator core without ROS: averaging, sensor health, fallbacks, alerts, forecast."""
+
+import math
+
+import numpy as np
+import pytest
+from wet_eha_thermal.config import load_config
+from wet_eha_thermal.estimator.core import Estimator, INPUTS
+from wet_eha_thermal.model.kinetics import KineticModel, stage_duty, ThermalFeedback
+from wet_eha_thermal.model.motor import C_TO_K
+from wet_eha_thermal.simulation import feedback, simulate
+
+STEADY = {'speed_rad_s': 800.0, 'p_a_Pa': 3e6, 'p_b_Pa': 1e6, 'p_acc_Pa': 1e6,
+          'position_m': 0.0}
+
+
+@pytest.fixture(scope='module')
+def cfg():
+    return load_config()
+
+
+def feed(est, t0, seconds, rate_Hz=1000.0, current=lambda t: 15.0, skip=(), advance=True,
+         values=None):
+    """Feed every input at ``rate_Hz`` from ``t0`` (except those in ``skip``); return the end."""
+    values = dict(STEADY, **(values or {}))
+    n = int(round(seconds * rate_Hz))
+    out = []
+    for k in range(1, n + 1):
+        t = t0 + k / rate_Hz
+        for ch in INPUTS:
+            if ch in skip:
+                continue
+            est.add(ch, t, current(t) if ch == 'current_A' else values[ch])
+        if advance and k % 20 == 0:
+            out += est.advance()
+    return t0 + n / rate_Hz, out
+
+
+def test_current_is_averaged_as_mean_square(cfg):
+    # a 100 Hz ripple on the RMS current, sampled at 1 kHz with stamps on the step
+    # boundaries: the copper loss needs the mean of I^2 (15^2 + 10^2 / 2 = 275 A^2),
+    # not the square of the mean (225 A^2)
+    def winding(current):
+        est = Estimator(cfg)
+        feed(est, 0.0, 30.0, current=current)
+        return est.latest.temperatures_C['winding_mean']
+
+    got = winding(lambda t: 15.0 + 10.0 * math.sin(2 * math.pi * 100.0 * t))
+    right = winding(lambda t: math.sqrt(275.0))
+    wrong = winding(lambda t: 15.0)
+    assert right - wrong > 0.2                     # the distinction matters
+    # 20 samples per 20 ms step cover two whole periods: the sampled mean is exact
+    assert got == pytest.approx(right, abs=1e-6)
+
+
+def test_stale_input_falls_back_and_recovers(cfg):
+    est = Estimator(cfg)
+    t, _ = feed(est, 0.0, 2.0)
+    assert est.latest.stale == []
+    sigma0 = est.latest.uncertainty_K['winding_hotspot']
+    # the speed topic goes silent for 5 s: estimates keep coming on the held value
+    t2, out = feed(est, t, 5.0, skip=('speed_rad_s',))
+    assert len(out) >= 240                         # 50 Hz all along
+    assert 'speed_rad_s' in out[-1].stale
+    assert est.health['speed_rad_s'].stale_events == 1
+    assert out[-1].uncertainty_K['winding_hotspot'] > sigma0 + 0.2   # 0.05 K/s for ~5 s
+    t3, out = feed(est, t2, 1.0)
+    assert out[-1].stale == []
+    assert out[-1].uncertainty_K['winding_hotspot'] == pytest.approx(sigma0)
+    assert est.health['speed_rad_s'].stale_events == 1
+    stamps = [e.stamp_s for e in out]
+    assert all(b > a for a, b in zip(stamps, stamps[1:]))
+
+
+def test_estimates_continue_when_every_input_is_silent(cfg):
+    est = Estimator(cfg)
+    t, _ = feed(est, 0.0, 1.0)
+    out = []
+    for k in range(1, 101):                        # 2 s of clock, no samples
+        out += est.advance(now_s=t + 0.02 * k)
+    assert len(out) >= 95
+    assert set(out[-1].stale) == set(INPUTS)
+    assert math.isfinite(out[-1].temperatures_C['winding_hotspot'])
+
+
+def test_bad_samples_are_rejected_and_counted(cfg):
+    est = Estimator(cfg)
+    feed(est, 0.0, 0.5)
+    h = est.health['current_A']
+    assert not est.add('current_A', 0.6, float('nan'))
+    assert not est.add('current_A', 0.6, float('inf'))
+    assert not est.add('current_A', 0.6, -3.0)                # below the plausible range
+    assert not est.add('current_A', 0.4, 10.0)                # stamp going backwards
+    assert est.add('current_A', 0.6, 10.0)
+    assert (h.non_finite, h.out_of_range, h.backwards) == (2, 1, 1)
+    assert not est.add('speed_rad_s', 0.1, 500.0)             # behind the model: counted
+    assert est.health['speed_rad_s'].rejected == 1
+    with pytest.raises(KeyError):
+        est.add('torque', 0.7, 1.0)
+
+
+def test_implausible_combinations_are_counted(cfg):
+    est = Estimator(cfg)
+    feed(est, 0.0, 1.0, current=lambda t: 0.0)                # 800 rad/s with no current
+    assert est.implausible_counts['speed_without_current'] >= 45
+    assert 'speed_without_current' in est.latest.implausible
+    est2 = Estimator(cfg)
+    feed(est2, 0.0, 1.0, values={'speed_rad_s': 0.0, 'position_m': 0.0})
+    for k in range(1, 501):                                  # 20 mm/s of piston with no pump
+        t = 1.0 + k / 1000
+        sample = dict(STEADY, current_A=5.0, speed_rad_s=0.0, position_m=0.02 * (t - 1.0))
+        for ch in INPUTS:
+            est2.add(ch, t, sample[ch])
+        if k % 20 == 0:
+            est2.advance()
+    assert est2.implausible_counts['flow_without_speed'] >= 20
+
+
+def test_alerts_follow_the_estimate_and_acknowledge(cfg, tmp_path):
+    low = load_config(overrides={'estimator.alerts.winding_hotspot.warn_C': 21.0,
+                                 'estimator.alerts.winding_hotspot.critical_C': 400.0})
+    est = Estimator(low)
+    _, out = feed(est, 0.0, 20.0, current=lambda t: 30.0)
+    raised = [e for x in out for e in x.alert_events if e.kind == 'raised']
+    assert raised and raised[0].quantity == 'winding_hotspot'
+    assert est.latest.alert_level == 1
+    acks = est.acknowledge('winding_hotspot')
+    assert acks and acks[0].kind == 'acknowledged'
+
+
+def test_forecast_matches_a_simulated_run_to_the_limit(cfg):
+    # stage 2 heats the oil past 135 degC within the hour: run it in full, then let
+    # the estimator see its first minute and forecast from the repeated duty
+    full = simulate(cfg, stage_duty(cfg, 2), 4000.0, record_every_s=1.0)
+    t = np.array(full.time_s)
+    oil = np.max([np.array(full.temperatures_K[k]) for k in
+                  ('airgap_oil_outlet', 'motor_oil_outlet', 'pump_case', 'chamber_a',
+                   'chamber_b', 'accumulator')], axis=0) - C_TO_K
+    magnet = np.array(full.temperatures_K['magnet']) - C_TO_K
+    truth = {'oil': t[np.argmax(oil >= cfg.fluid.oil_limit_C)],
+             'magnet': t[np.argmax(magnet >= cfg.motor.rotor.magnet_limit_C)]}
+    est = Estimator(cfg)
+    kin = KineticModel(cfg, est.model.oil)
+    duty = stage_duty(cfg, 2)
+    for k in range(300):                         # 60 s at 200 Hz, fed back like the rig
+        ts = k * 0.2 + np.arange(1, 41) / 200.0
+        fb = feedback(est.model) if est.t_model is not None else ThermalFeedback.uniform(
+            cfg.estimator.ambient_C + C_TO_K)
+        s = kin.sample(duty, ts, fb)
+        for i in range(ts.size):
+            for ch in INPUTS:
+                est.add(ch, ts[i], float(getattr(s, ch)[i]))
+        est.advance()
+    for _ in range(2000):
+        est.background(0.05)
+        if est._forecast_stamp is not None:
+            break
+    start = est._forecast_stamp
+    assert start == pytest.approx(60.0, abs=0.1)
+    for q in ('oil', 'magnet'):
+        predicted = start + est._forecast_result[q]
+        # the forecast repeats the last minute at 2 s steps (the run used 1 s): 3 %
+        assert predicted == pytest.approx(truth[q], rel=0.03), q
+    assert est.forecast_failures == 0
+
+
+def test_margin_current_brings_the_hotspot_to_its_limit(cfg):
+    est = Estimator(cfg)
+    feed(est, 0.0, 2.0, rate_Hz=200.0)
+    amps = est.margin_current()
+    assert 10.0 < amps < 200.0
+    # independent check: the motor alone in steady state at that current
+    mot = est._margin_motor
+    assert mot.outputs()['winding_hotspot'] - C_TO_K == pytest.approx(
+        cfg.motor.winding.insulation_limit_C, abs=0.1)

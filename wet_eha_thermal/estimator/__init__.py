@@ -1,0 +1,1 @@
+"""Estimator core: samples in, estimates and alerts out (no ROS import)."""

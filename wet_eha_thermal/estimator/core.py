@@ -1,0 +1,466 @@
+"""
+The live estimator without ROS: timestamped samples in, estimates and alerts out.
+
+Samples of the six inputs arrive one by one, at any rate and in any
+interleaving (``add``). ``advance`` steps the coupled thermal model over every
+complete step of ``step_s`` in *sample time* (the stamps, never the wall
+clock), so a replayed log gives the same estimates as the live run. Inside a
+step each input is averaged on a grid of ``block_rate_Hz``: current as the
+mean of I^2 (copper loss is I^2 R: the square of a mean would alias), speed
+and pressures as means, position interpolated (the actuator flow is its
+difference quotient); the model then forms the flow-pressure products and
+losses per grid interval.
+
+Sensor health: a non-finite or out-of-range value, or a stamp going backwards,
+is rejected and counted; an input with no sample for its ``timeout_s`` is
+stale. The estimator never waits for a stale input: it keeps stepping on the
+fallback (the last good value held; an input never seen takes its resting
+value: no current, no speed, accumulator pressure, mid-stroke), says so in
+every estimate, and widens the uncertainty for as long as it lasts.
+Implausible combinations (speed with no current; actuator flow with no
+speed) are counted per step.
+
+``background(budget_s)`` does the slow work in slices that fit a budget: a
+forecast that repeats the last ``forecast_window_s`` of duty to find when the
+winding, the magnets and the oil reach their limits, and the thermal margin
+(the largest continuous current at the present oil temperature).
+"""
+
+from collections import deque
+import copy
+from dataclasses import dataclass, field
+import math
+import time
+from typing import Deque, Dict, List, Optional
+
+import numpy as np
+
+from .alerts import AlertEvent, AlertManager, rules_from_config
+from ..config import Config
+from ..model.eha import EHAModel, SampleBlock
+from ..model.motor import C_TO_K, MotorInputs, WetMotor
+
+INPUTS = ('current_A', 'speed_rad_s', 'p_a_Pa', 'p_b_Pa', 'p_acc_Pa', 'position_m')
+OIL_OUTPUTS = ('airgap_oil_outlet', 'motor_oil_outlet', 'pump_case', 'chamber_a', 'chamber_b',
+               'accumulator')
+
+
+@dataclass
+class ChannelHealth:
+    """Counters and state of one input."""
+
+    received: int = 0
+    accepted: int = 0
+    non_finite: int = 0
+    out_of_range: int = 0
+    backwards: int = 0
+    late: int = 0            # arrived after the model had stepped past its stamp
+    stale_events: int = 0    # times the input went stale
+    stale: bool = False
+    stale_since_s: Optional[float] = None
+    last_stamp_s: Optional[float] = None
+    last_value: Optional[float] = None
+
+    @property
+    def rejected(self) -> int:
+        """Return the number of samples not used."""
+        return self.non_finite + self.out_of_range + self.backwards + self.late
+
+
+@dataclass
+class Estimate:
+    """One model step's output: temperatures (degC), uncertainty (K, 1 sigma), heat flows (W)."""
+
+    stamp_s: float
+    temperatures_C: Dict[str, float]
+    uncertainty_K: Dict[str, float]
+    heat_W: Dict[str, float]
+    limits_C: Dict[str, float]
+    time_to_limit_s: Dict[str, Optional[float]]   # None: not within the forecast horizon
+    forecast_stamp_s: Optional[float]              # when that forecast started (sample time)
+    margin_current_A: Optional[float]
+    alert_level: int
+    alert_events: List[AlertEvent]
+    stale: List[str]
+    implausible: List[str]
+    step: int
+
+
+@dataclass
+class _Forecast:
+    model: EHAModel
+    start_s: float
+    duty: Dict[str, np.ndarray]   # the recent samples; 'dx_m' position increments, drift-free
+    ambient_K: float
+    t_s: float = 0.0
+    k: int = 0
+    crossed: Dict[str, Optional[float]] = field(default_factory=dict)
+
+
+class Estimator:
+    """Turn timestamped samples into temperature estimates, alerts and forecasts."""
+
+    def __init__(self, cfg: Config, model: Optional[EHAModel] = None) -> None:
+        self.cfg = cfg
+        s = cfg.estimator
+        self.settings = s
+        self.model = model if model is not None else EHAModel(
+            cfg, coefficient_filter_s=s.coefficient_filter_s)
+        self.channel_cfg = {name: getattr(s.channels, name) for name in INPUTS}
+        self.health = {name: ChannelHealth() for name in INPUTS}
+        self._buf: Dict[str, List[tuple]] = {name: [] for name in INPUTS}
+        self._prev: Dict[str, Optional[tuple]] = dict.fromkeys(INPUTS)
+        self.rest = {'current_A': 0.0, 'speed_rad_s': 0.0,
+                     'p_a_Pa': cfg.hydraulics.accumulator.pressure_Pa,
+                     'p_b_Pa': cfg.hydraulics.accumulator.pressure_Pa,
+                     'p_acc_Pa': cfg.hydraulics.accumulator.pressure_Pa, 'position_m': 0.0}
+        self.ambient_K = s.ambient_C + C_TO_K
+        self.measured_C: Dict[str, tuple] = {}
+        self.alerts = AlertManager(rules_from_config({
+            q: vars(getattr(s.alerts, q)) for q in ('winding_hotspot', 'magnet', 'oil')}))
+        self.limits_C = {'winding_hotspot': cfg.motor.winding.insulation_limit_C,
+                         'magnet': cfg.motor.rotor.magnet_limit_C, 'oil': cfg.fluid.oil_limit_C}
+        self.n_grid = max(1, int(round(s.step_s * s.block_rate_Hz)))
+        self._eps = 1e-6 * s.step_s / self.n_grid   # stamps this close count as equal
+        self._t_origin = 0.0
+        self.t_model: Optional[float] = None
+        self.steps = 0
+        self.latest: Optional[Estimate] = None
+        self.implausible_counts = {'speed_without_current': 0, 'flow_without_speed': 0}
+        self._window: Deque[SampleBlock] = deque(maxlen=max(1, int(round(
+            s.forecast_window_s / s.step_s))))
+        self._forecast: Optional[_Forecast] = None
+        self._forecast_result: Dict[str, Optional[float]] = {}
+        self._forecast_stamp: Optional[float] = None
+        self._next_forecast_s: Optional[float] = None
+        self._margin: Optional[float] = None
+        self._margin_motor = WetMotor(cfg.motor, self.model.oil)
+        self._next_margin_s: Optional[float] = None
+        self._margin_job = None
+        self.forecast_failures = 0
+        self.forecast_error = ''
+
+    # ----------------------------------------------------------------- input
+    def add(self, channel: str, stamp_s: float, value: float) -> bool:
+        """Take one sample of an input (SI units); return whether it was accepted."""
+        h = self.health[channel]          # KeyError names an unknown channel
+        h.received += 1
+        c = self.channel_cfg[channel]
+        if not (math.isfinite(value) and math.isfinite(stamp_s)):
+            h.non_finite += 1
+            return False
+        if not c.low <= value <= c.high:
+            h.out_of_range += 1
+            return False
+        if h.last_stamp_s is not None and stamp_s <= h.last_stamp_s:
+            h.backwards += 1
+            return False
+        if self.t_model is not None and stamp_s <= self.t_model + self._eps:
+            h.late += 1
+            return False
+        h.accepted += 1
+        h.last_stamp_s, h.last_value = stamp_s, value
+        self._buf[channel].append((stamp_s, value))
+        return True
+
+    def add_ambient(self, stamp_s: float, value_C: float) -> bool:
+        """Take an ambient temperature (degC) for the housings' heat loss."""
+        if not (math.isfinite(value_C) and -60.0 <= value_C <= 150.0):
+            return False
+        self.ambient_K = value_C + C_TO_K
+        return True
+
+    def add_measured(self, name: str, stamp_s: float, value_C: float) -> bool:
+        """Keep a measured temperature (degC), reported beside the estimate of ``name``."""
+        if not math.isfinite(value_C):
+            return False
+        self.measured_C[name] = (stamp_s, value_C)
+        return True
+
+    def acknowledge(self, quantity: Optional[str] = None) -> List[AlertEvent]:
+        """Acknowledge latched alerts (all, or one quantity)."""
+        stamp = self.t_model if self.t_model is not None else 0.0
+        return self.alerts.acknowledge(quantity, stamp_s=stamp)
+
+    # ------------------------------------------------------------- stepping
+    def _reference_time(self, now_s: Optional[float]) -> Optional[float]:
+        stamps = [h.last_stamp_s for h in self.health.values() if h.last_stamp_s is not None]
+        if now_s is not None:
+            stamps.append(now_s)
+        return max(stamps) if stamps else None
+
+    def _update_staleness(self, ref: float) -> List[str]:
+        stale = []
+        for name, h in self.health.items():
+            limit = self.channel_cfg[name].timeout_s
+            is_stale = h.last_stamp_s is None or ref - h.last_stamp_s > limit
+            if is_stale and not h.stale:
+                h.stale_events += 1
+                h.stale_since_s = (h.last_stamp_s + limit) if h.last_stamp_s is not None \
+                    else ref
+            if not is_stale:
+                h.stale_since_s = None
+            h.stale = is_stale
+            if is_stale:
+                stale.append(name)
+        return stale
+
+    def advance(self, now_s: Optional[float] = None) -> List[Estimate]:
+        """
+        Step the model through every complete step that the samples allow; return the estimates.
+
+        The model may step to the oldest latest stamp among the fresh inputs.
+        ``now_s`` (a clock in the same time base, e.g. the ROS clock) lets
+        silent inputs go stale and the model keep stepping without them.
+        """
+        ref = self._reference_time(now_s)
+        if ref is None:
+            return []
+        stale = self._update_staleness(ref)
+        fresh = [n for n in INPUTS if n not in stale]
+        horizon = min(self.health[n].last_stamp_s for n in fresh) if fresh else ref
+        if self.t_model is None:
+            self._start(horizon)
+            return []
+        out = []
+        # step ends from an integer count: a sum of dt drifts, and a sample stamped on
+        # a boundary would then land in the neighbouring step (a phase-locked ripple
+        # would bias the mean of I^2)
+        while self._step_end(self.steps + 1) <= horizon + self._eps:
+            out.append(self._step(self._step_end(self.steps), self._step_end(self.steps + 1),
+                                  stale))
+        return out
+
+    def _step_end(self, k: int) -> float:
+        """Return the sample time (s) at which step ``k`` ends (step 0 ends at the start)."""
+        return self._t_origin + k * self.settings.step_s
+
+    def _start(self, t0: float) -> None:
+        """Initialise the model at ambient with the inputs' values at ``t0``."""
+        self.t_model = self._t_origin = t0
+        values = {n: self._value_at(n, t0) for n in INPUTS}
+        first = SampleBlock(np.array([t0]), *(np.array([values[n]]) for n in INPUTS))
+        self.model.initialise(self.ambient_K, first)
+        for n in INPUTS:
+            self._drop_until(n, t0)
+
+    def _value_at(self, name: str, t: float) -> float:
+        """Return the last value at or before ``t`` (fallback: last good, else at rest)."""
+        best = self._prev[name]
+        for s in self._buf[name]:
+            if s[0] <= t:
+                best = s
+        if best is not None:
+            return best[1]
+        h = self.health[name]
+        return h.last_value if h.last_value is not None else self.rest[name]
+
+    def _drop_until(self, name: str, t: float) -> None:
+        buf = self._buf[name]
+        k = 0
+        while k < len(buf) and buf[k][0] <= t + self._eps:
+            k += 1
+        if k:
+            self._prev[name] = buf[k - 1]
+            del buf[:k]
+
+    def _grid_values(self, name: str, t0: float, t1: float, grid: np.ndarray) -> np.ndarray:
+        """Average one input onto the grid intervals of (t0, t1] (I^2 for the current)."""
+        buf = [s for s in self._buf[name] if s[0] <= t1 + self._eps]
+        prev = self._prev[name]
+        start = prev[1] if prev is not None else self._value_at(name, t0)
+        n = grid.size
+        if not buf:
+            return np.full(n, start)
+        ts = np.array([s[0] for s in buf])
+        vs = np.array([s[1] for s in buf])
+        if name == 'position_m':
+            # position at the grid times: its differences are the actuator flow
+            t_all = np.concatenate([[prev[0] if prev is not None else t0], ts])
+            v_all = np.concatenate([[start], vs])
+            return np.interp(grid, t_all, v_all)
+        if name == 'current_A':
+            vs = vs * vs
+            start = start * start
+        h = (t1 - t0) / n
+        idx = np.clip(np.ceil((ts - t0 - self._eps) / h).astype(int) - 1, 0, n - 1)
+        sums = np.bincount(idx, weights=vs, minlength=n)
+        counts = np.bincount(idx, minlength=n)
+        out = np.empty(n)
+        last = start
+        for j in range(n):   # empty grid intervals hold the previous value
+            if counts[j]:
+                last = sums[j] / counts[j]
+            out[j] = last
+        return np.sqrt(out) if name == 'current_A' else out
+
+    def _step(self, t0: float, t1: float, stale: List[str]) -> Estimate:
+        grid = t0 + (t1 - t0) * np.arange(1, self.n_grid + 1) / self.n_grid
+        values = {n: self._grid_values(n, t0, t1, grid) for n in INPUTS}
+        block = SampleBlock(grid, *(values[n] for n in INPUTS))
+        self.model.step(block, self.ambient_K)
+        for n in INPUTS:
+            self._drop_until(n, t1)
+        self.t_model = t1
+        self.steps += 1
+        self._window.append(block)
+        implausible = self._plausibility(values, t1 - t0)
+        temps = {k: v - C_TO_K for k, v in self.model.outputs().items()}
+        temps['oil'] = max(temps[k] for k in OIL_OUTPUTS)
+        events = self.alerts.update(t1, {q: temps[q] for q in self.limits_C})
+        worst_stale = max((t1 - self.health[n].stale_since_s for n in stale
+                           if self.health[n].stale_since_s is not None), default=0.0)
+        sigma = self.settings.model_uncertainty_K \
+            + self.settings.stale_uncertainty_K_per_s * max(worst_stale, 0.0)
+        est = Estimate(
+            stamp_s=t1, temperatures_C=temps, uncertainty_K={k: sigma for k in temps},
+            heat_W=dict(self.model.heat_W), limits_C=dict(self.limits_C),
+            time_to_limit_s=dict(self._forecast_result), forecast_stamp_s=self._forecast_stamp,
+            margin_current_A=self._margin, alert_level=int(self.alerts.worst()),
+            alert_events=events, stale=list(stale), implausible=implausible, step=self.steps)
+        self.latest = est
+        return est
+
+    def _plausibility(self, values: Dict[str, np.ndarray], dt: float) -> List[str]:
+        """Count physically implausible combinations of the step's inputs."""
+        found = []
+        speed = float(np.mean(np.abs(values['speed_rad_s'])))
+        current = float(np.sqrt(np.mean(values['current_A'] ** 2)))
+        x = values['position_m']
+        flow = abs(x[-1] - x[0]) / dt * self.cfg.hydraulics.actuator.area_m2
+        if speed > 200.0 and current < 0.05:          # spinning oil needs torque
+            found.append('speed_without_current')
+        if flow > 0.5 / 60000 and speed < 20.0:        # 0.5 L/min moved, pump nearly still
+            found.append('flow_without_speed')
+        for f in found:
+            self.implausible_counts[f] += 1
+        return found
+
+    # ----------------------------------------------------------- background
+    def background(self, budget_s: float = 0.005) -> None:
+        """Do forecast and margin work for at most about ``budget_s`` of wall time."""
+        if self.t_model is None or not self._window:
+            return
+        deadline = time.perf_counter() + budget_s
+        s = self.settings
+        # the margin takes one steady solve (~7 ms) per call, between forecast slices
+        if self._margin_job is None and (self._next_margin_s is None
+                                         or self.t_model >= self._next_margin_s):
+            self._margin_job = self._margin_steps()
+            self._next_margin_s = self.t_model + s.forecast_period_s
+        if self._margin_job is not None:
+            try:
+                next(self._margin_job)
+            except StopIteration as done:
+                self._margin = done.value
+                self._margin_job = None
+        if self._forecast is None and (self._next_forecast_s is None
+                                       or self.t_model >= self._next_forecast_s):
+            self._start_forecast()
+            self._next_forecast_s = self.t_model + s.forecast_period_s
+        while self._forecast is not None and time.perf_counter() < deadline:
+            self._forecast_step()
+
+    def _start_forecast(self) -> None:
+        """Copy the model and take the recent duty to repeat."""
+        blocks = list(self._window)
+        duty = {a: np.concatenate([getattr(b, a) for b in blocks])
+                for a in ('current_A', 'speed_rad_s', 'p_a_Pa', 'p_b_Pa', 'p_acc_Pa')}
+        x = np.concatenate([b.position_m for b in blocks])
+        # repeat the motion, not the positions: increments with the window's net drift
+        # removed, so the repeated duty is periodic and stays inside the stroke
+        dx = np.diff(x, prepend=x[0])
+        duty['dx_m'] = dx - dx.mean()
+        self._forecast = _Forecast(model=copy.deepcopy(self.model), start_s=self.t_model,
+                                   duty=duty, ambient_K=self.ambient_K,
+                                   crossed=dict.fromkeys(self.limits_C))
+
+    def _forecast_step(self) -> None:
+        """Advance the forecast by one ``forecast_step_s`` of repeated duty."""
+        try:
+            self._forecast_step_unguarded()
+        except (ArithmeticError, ValueError, RuntimeError) as exc:
+            # a forecast is advice: give up on this one, never on the estimator
+            self.forecast_failures += 1
+            self.forecast_error = str(exc)
+            self._forecast = None
+
+    def _forecast_step_unguarded(self) -> None:
+        f = self._forecast
+        s = self.settings
+        n_all = f.duty['dx_m'].size
+        n = max(1, int(round(s.forecast_step_s / s.step_s * self.n_grid)))
+        idx = (f.k + np.arange(n)) % n_all
+        f.k = (f.k + n) % n_all
+        span = n * s.step_s / self.n_grid
+        t = f.model.time_s + (np.arange(1, n + 1) / n) * span
+        x = f.model._last[1] + np.cumsum(f.duty['dx_m'][idx])
+        block = SampleBlock(t, *(f.duty[a][idx] for a in ('current_A', 'speed_rad_s', 'p_a_Pa',
+                                                          'p_b_Pa', 'p_acc_Pa')), x)
+        f.model.step(block, f.ambient_K)
+        f.t_s += span
+        temps = {k: v - C_TO_K for k, v in f.model.outputs().items()}
+        temps['oil'] = max(temps[k] for k in OIL_OUTPUTS)
+        for q, lim in self.limits_C.items():
+            if f.crossed[q] is None and temps[q] >= lim:
+                f.crossed[q] = f.t_s
+        if f.t_s >= s.forecast_horizon_s or all(v is not None for v in f.crossed.values()):
+            # a quantity already past its limit now has zero time left
+            now = self.latest.temperatures_C if self.latest is not None else {}
+            self._forecast_result = {q: (0.0 if now.get(q, -1e9) >= self.limits_C[q] else v)
+                                     for q, v in f.crossed.items()}
+            self._forecast_stamp = f.start_s
+            self._forecast = None
+
+    def margin_current(self) -> Optional[float]:
+        """
+        Return the largest continuous current (A RMS) at the present oil temperature and duty.
+
+        The motor alone in steady state with its present cooling oil (the pump
+        case temperature and the motor's flow) and the recent mean speed: the
+        current whose steady winding hot-spot reaches the insulation limit,
+        by secant iterations on I^2 (the rise is nearly linear in I^2).
+        """
+        job = self._margin_steps()
+        while True:
+            try:
+                next(job)
+            except StopIteration as done:
+                return done.value
+
+    def _margin_steps(self):
+        """Compute :meth:`margin_current` one steady solve per iteration (a generator)."""
+        if not self._window:
+            return None
+        m, mot = self.model, self._margin_motor
+        speeds = np.concatenate([b.speed_rad_s for b in self._window])
+        u = MotorInputs(current_sq_mean_A2=0.0, speed_rad_s=np.abs(speeds).mean(),
+                        oil_inlet_K=float(m.T_hyd[m.circuit.index('case')]),
+                        oil_flow_m3_s=m.motor._refreshed_at[1] if m.motor._refreshed_at else 0.0,
+                        ambient_K=self.ambient_K)
+        target = self.limits_C['winding_hotspot'] + C_TO_K
+
+        def hot(i_sq: float) -> float:
+            u.current_sq_mean_A2 = i_sq
+            try:
+                mot.steady_state(u)
+            except RuntimeError:      # no steady state: far past any limit
+                return math.inf
+            return mot.outputs()['winding_hotspot']
+
+        a, fa = 0.0, hot(0.0)
+        yield
+        if fa >= target:
+            return 0.0
+        b = (self.cfg.motor.max_continuous_current_A) ** 2
+        fb = hot(b)
+        for _ in range(12):
+            yield
+            if abs(fb - target) < 0.05:
+                break
+            if not math.isfinite(fb):         # runaway: halve the step back
+                b = 0.5 * (a + b)
+            else:
+                a, fa, b = b, fb, max(b + (target - fb) * (b - a) / (fb - fa), 0.0)
+            fb = hot(b)
+        return float(math.sqrt(b))

@@ -1,0 +1,1 @@
+"""Thin rclpy nodes over the estimator core and the simulated rig (the only ROS imports)."""

@@ -1,0 +1,76 @@
+"""
+Topic names, message types and QoS shared by the estimator, the simulated rig and the tools.
+
+Inputs (what the rig publishes; SI units, as the messages define them):
+
+| input | default topic | type | unit |
+| --- | --- | --- | --- |
+| phase current | /eha/current | std_msgs/Float64 | A RMS |
+| motor speed | /eha/speed | std_msgs/Float64 | rad/s (signed) |
+| port A pressure | /eha/pressure_a | sensor_msgs/FluidPressure | Pa absolute |
+| port B pressure | /eha/pressure_b | sensor_msgs/FluidPressure | Pa absolute |
+| accumulator pressure | /eha/pressure_acc | sensor_msgs/FluidPressure | Pa absolute |
+| actuator position (LVDT) | /eha/position | std_msgs/Float64 | m |
+| ambient temperature | /eha/ambient | sensor_msgs/Temperature | degC |
+| thermocouples | /eha/measured/<name> | sensor_msgs/Temperature | degC |
+
+A Float64 carries no stamp: its sample time is the receiving node's clock (the
+ROS clock, so /clock under use_sim_time). Messages with a header use its stamp,
+or the clock when the stamp is zero.
+
+Outputs of the estimator: /eha/estimate/<name> (sensor_msgs/Temperature, degC,
+variance = uncertainty^2) for every name in ``ESTIMATES``; /eha/state
+(std_msgs/Float64MultiArray: the model's state vector in K, layout labels name
+the blocks); /diagnostics (diagnostic_msgs/DiagnosticArray, 1 Hz); /eha/alerts
+(std_msgs/String holding JSON, transient-local so a late subscriber gets the
+last one); acknowledgements on /eha/alerts/ack (std_msgs/String: a quantity, or
+empty for all).
+"""
+
+from rclpy.qos import (DurabilityPolicy, HistoryPolicy, qos_profile_sensor_data, QoSProfile,
+                       ReliabilityPolicy)
+
+PREFIX = '/eha'
+INPUT_TOPICS = {
+    'current_A': f'{PREFIX}/current',
+    'speed_rad_s': f'{PREFIX}/speed',
+    'p_a_Pa': f'{PREFIX}/pressure_a',
+    'p_b_Pa': f'{PREFIX}/pressure_b',
+    'p_acc_Pa': f'{PREFIX}/pressure_acc',
+    'position_m': f'{PREFIX}/position',
+}
+PRESSURE_INPUTS = ('p_a_Pa', 'p_b_Pa', 'p_acc_Pa')   # sensor_msgs/FluidPressure; others Float64
+AMBIENT_TOPIC = f'{PREFIX}/ambient'
+MEASURED_PREFIX = f'{PREFIX}/measured'
+ESTIMATE_PREFIX = f'{PREFIX}/estimate'
+STATE_TOPIC = f'{PREFIX}/state'
+ALERT_TOPIC = f'{PREFIX}/alerts'
+ACK_TOPIC = f'{PREFIX}/alerts/ack'
+DIAGNOSTICS_TOPIC = '/diagnostics'
+ESTIMATES = ('winding_mean', 'winding_hotspot', 'frame', 'magnet', 'airgap_oil_outlet',
+             'motor_oil_outlet', 'pump_case', 'pump_outlet', 'chamber_a', 'chamber_b',
+             'accumulator', 'oil')
+# thermocouples of the reference rig (reference-eha.md) and the estimate each one measures
+THERMOCOUPLES = {'winding': 'winding_mean', 'frame': 'frame', 'pump_inlet': 'pump_outlet',
+                 'pump_case': 'pump_case', 'chamber_a': 'chamber_a', 'chamber_b': 'chamber_b',
+                 'motor_oil_outlet': 'motor_oil_outlet'}
+
+
+def input_qos(kind: str, depth: int = 100) -> QoSProfile:
+    """Return the QoS of the sensor inputs: 'sensor_data' (best effort) or 'reliable'."""
+    if kind == 'sensor_data':
+        q = QoSProfile(**{k: getattr(qos_profile_sensor_data, k) for k in
+                          ('history', 'reliability', 'durability')}, depth=depth)
+        return q
+    if kind == 'reliable':
+        return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
+                          reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.VOLATILE)
+    raise ValueError(f'qos {kind!r}: expected sensor_data or reliable')
+
+
+def latched_qos() -> QoSProfile:
+    """Return the QoS of the alert topic: reliable, transient local, last message kept."""
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                      reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
