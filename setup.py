@@ -29,6 +29,8 @@ setup(
     entry_points={
         'console_scripts': [
             'wet-eha-thermal = wet_eha_thermal.cli:main',
+            'wet-eha-thermal-estimator = wet_eha_thermal.ros.estimator_node:main',
+            'wet-eha-thermal-rig = wet_eha_thermal.ros.sim_rig_node:main',
         ],
     },
 )

@@ -176,6 +176,44 @@ def _simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check_live_args(args: argparse.Namespace) -> None:
+    """Raise :class:`BadArgument` for the first out-of-range option of ``live``."""
+    from .model.kinetics import STAGES
+
+    if args.stage is not None and args.stage not in STAGES:
+        raise BadArgument(f'--stage {args.stage}: unknown stage; valid stages: '
+                          f'{", ".join(str(k) for k in STAGES)}')
+    if not (math.isfinite(args.duration) and args.duration > 0.0):
+        raise BadArgument(f'--duration {args.duration:g}: must be a number of seconds > 0')
+    if not (math.isfinite(args.rate_Hz) and 50.0 <= args.rate_Hz <= 10000.0):
+        raise BadArgument(f'--rate-Hz {args.rate_Hz:g}: must be 50..10000 Hz')
+
+
+def _live(args: argparse.Namespace) -> int:
+    from .model.kinetics import load_duty_csv, stage_duty
+
+    _check_live_args(args)
+    # check the configuration and the duty here, so that a mistake is one line, not two
+    # children failing
+    cfg = load_config(args.config)
+    act = cfg.hydraulics.actuator
+    if args.duty is not None:
+        load_duty_csv(args.duty, act.area_m2, act.half_stroke_m)
+    stage = None if args.duty is not None else (args.stage or 6)
+    if stage is not None:
+        stage_duty(cfg, stage)
+    from .ros import live
+
+    try:
+        domain = live.domain_from_env()
+    except ValueError as exc:
+        raise BadArgument(str(exc)) from None
+    opts = live.LiveOptions(stage=stage, duty=args.duty, duration_s=args.duration,
+                            rate_Hz=args.rate_Hz, config=args.config, noise=not args.no_noise,
+                            executor=args.executor)
+    return live.run(opts, domain=domain)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of all commands."""
     parser = argparse.ArgumentParser(
@@ -222,6 +260,30 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--out', default='out/simulate', help='output folder (default: %(default)s)')
     p.add_argument('--fluid', default=None, help='oil grade (MIL-PRF-5606 or MIL-PRF-83282)')
     p.set_defaults(func=_simulate)
+
+    p = sub.add_parser('live', help='the live digital twin: estimator on the simulated rig',
+                       description='Run the live digital twin: the simulated rig (ROS 2 node '
+                                   'eha_sim_rig) publishes the sensor topics of a stage or a duty '
+                                   'file, the estimator (eha_thermal_estimator) follows them, and '
+                                   'a status line shows the estimated temperatures, margin, time '
+                                   'to limit, alerts and stale inputs. Ends after --duration or '
+                                   'on Ctrl-C with a summary. Both nodes run on a private ROS '
+                                   'domain (from the process id, or $WET_EHA_LIVE_DOMAIN_ID).')
+    which = p.add_mutually_exclusive_group()
+    which.add_argument('--stage', type=int, default=None,
+                       help='reference stage number (1-6; default 6)')
+    which.add_argument('--duty', type=Path, metavar='FILE.csv',
+                       help='duty table: time_s, flow_L_min, load_MPa (repeats periodically)')
+    p.add_argument('--duration', type=float, default=60.0,
+                   help='how long to run, s (default: %(default)g)')
+    p.add_argument('--rate-Hz', type=float, default=1000.0,
+                   help='sensor sample rate of the rig, Hz (default: %(default)g)')
+    p.add_argument('--config', type=Path, default=None,
+                   help='YAML configuration of rig and estimator (default: the reference rig)')
+    p.add_argument('--no-noise', action='store_true', help='publish noise-free sensor values')
+    p.add_argument('--executor', choices=('events', 'single'), default='events',
+                   help='rclpy executor of both nodes (default: %(default)s)')
+    p.set_defaults(func=_live)
     return parser
 
 

@@ -14,7 +14,7 @@ from typing import Callable, Dict, List, Optional
 import numpy as np
 
 from .config import Config
-from .model.eha import EHAModel, SampleBlock
+from .model.eha import EHAModel
 from .model.kinetics import Duty, KineticModel, ThermalFeedback
 from .model.motor import C_TO_K
 
@@ -90,7 +90,7 @@ def simulate(cfg: Config, duty: Duty, duration_s: float, dt_s: float = 1.0,
         start_K = (initial_C if initial_C is not None else ambient_C) + C_TO_K
         model.T_hyd = np.full(model.circuit.n, start_K)
         first = kin.sample(duty, np.array([0.0]), ThermalFeedback.uniform(start_K))
-        model.initialise(start_K, _block(first))
+        model.initialise(start_K, first)
     t_start = model.time_s
     res = SimulationResult(model=model)
     frac = np.arange(1, n_sub + 1) / n_sub
@@ -100,7 +100,7 @@ def simulate(cfg: Config, duty: Duty, duration_s: float, dt_s: float = 1.0,
     for k in range(steps):
         t = t_start + (k + frac) * dt_s
         s = kin.sample(duty, t, feedback(model))
-        model.step(_block(s), amb_K)
+        model.step(s, amb_K)
         hottest = max(model.outputs().items(), key=lambda kv: kv[1])
         if hottest[1] - C_TO_K > RUNAWAY_C:
             res.append(float(t[-1]), model.outputs(), {}, dict(model.heat_W))
@@ -126,8 +126,3 @@ def simulate(cfg: Config, duty: Duty, duration_s: float, dt_s: float = 1.0,
         if progress is not None and (k % report_every == 0 or k == steps - 1):
             progress(k + 1, steps, f't = {t[-1]:.0f} s')
     return res
-
-
-def _block(s) -> SampleBlock:
-    return SampleBlock(s.t_s, s.current_A, s.speed_rad_s, s.p_a_Pa, s.p_b_Pa, s.p_acc_Pa,
-                       s.position_m)

@@ -194,7 +194,7 @@ class Estimator:
         for name, h in self.health.items():
             limit = self.channel_cfg[name].timeout_s
             is_stale = h.last_stamp_s is None or ref - h.last_stamp_s > limit
-            if is_stale and not h.stale:
+            if is_stale and not h.stale and h.last_stamp_s is not None:
                 h.stale_events += 1
                 h.stale_since_s = (h.last_stamp_s + limit) if h.last_stamp_s is not None \
                     else ref
@@ -364,9 +364,12 @@ class Estimator:
     def _start_forecast(self) -> None:
         """Copy the model and take the recent duty to repeat."""
         blocks = list(self._window)
-        duty = {a: np.concatenate([getattr(b, a) for b in blocks])
-                for a in ('current_A', 'speed_rad_s', 'p_a_Pa', 'p_b_Pa', 'p_acc_Pa')}
-        x = np.concatenate([b.position_m for b in blocks])
+        # one sample per model step (the step's means; I^2 for the current): a forecast
+        # step of seconds then costs about a millisecond
+        duty = {a: np.array([getattr(b, a).mean() for b in blocks])
+                for a in ('speed_rad_s', 'p_a_Pa', 'p_b_Pa', 'p_acc_Pa')}
+        duty['current_A'] = np.array([math.sqrt(np.mean(b.current_A ** 2)) for b in blocks])
+        x = np.array([b.position_m[-1] for b in blocks])
         # repeat the motion, not the positions: increments with the window's net drift
         # removed, so the repeated duty is periodic and stays inside the stroke
         dx = np.diff(x, prepend=x[0])
@@ -389,10 +392,10 @@ class Estimator:
         f = self._forecast
         s = self.settings
         n_all = f.duty['dx_m'].size
-        n = max(1, int(round(s.forecast_step_s / s.step_s * self.n_grid)))
+        n = max(1, int(round(s.forecast_step_s / s.step_s)))
         idx = (f.k + np.arange(n)) % n_all
         f.k = (f.k + n) % n_all
-        span = n * s.step_s / self.n_grid
+        span = n * s.step_s
         t = f.model.time_s + (np.arange(1, n + 1) / n) * span
         x = f.model._last[1] + np.cumsum(f.duty['dx_m'][idx])
         block = SampleBlock(t, *(f.duty[a][idx] for a in ('current_A', 'speed_rad_s', 'p_a_Pa',
@@ -440,27 +443,28 @@ class Estimator:
                         ambient_K=self.ambient_K)
         target = self.limits_C['winding_hotspot'] + C_TO_K
 
-        def hot(i_sq: float) -> float:
+        def hot(i_sq: float):
+            """Yield per fixed-point iteration; return the steady hot-spot (K), inf if none."""
             u.current_sq_mean_A2 = i_sq
             try:
-                mot.steady_state(u)
+                yield from mot.steady_state_steps(u, tol_K=1e-4, max_iter=60)
             except RuntimeError:      # no steady state: far past any limit
+                mot.T = None          # do not start the next solve from a runaway
                 return math.inf
             return mot.outputs()['winding_hotspot']
 
-        a, fa = 0.0, hot(0.0)
-        yield
+        a = 0.0
+        fa = yield from hot(a)
         if fa >= target:
             return 0.0
         b = (self.cfg.motor.max_continuous_current_A) ** 2
-        fb = hot(b)
+        fb = yield from hot(b)
         for _ in range(12):
-            yield
             if abs(fb - target) < 0.05:
                 break
             if not math.isfinite(fb):         # runaway: halve the step back
                 b = 0.5 * (a + b)
             else:
                 a, fa, b = b, fb, max(b + (target - fb) * (b - a) / (fb - fa), 0.0)
-            fb = hot(b)
+            fb = yield from hot(b)
         return float(math.sqrt(b))

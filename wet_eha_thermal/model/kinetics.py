@@ -25,6 +25,7 @@ from typing import Callable, Dict, List, Optional, Tuple, Union
 
 import numpy as np
 
+from .eha import SampleBlock
 from .fluid_power import (displacement_per_rad, laminar_leakage, line_pressure_drop,
                           pump_friction_torque)
 from .losses import copper_resistance
@@ -390,13 +391,13 @@ class ThermalFeedback:
 
 # --------------------------------------------------------------------- samples
 @dataclass
-class Samples:
+class Samples(SampleBlock):
     """
     Kinetic signals at the sample times, one array element per sample (SI units).
 
-    Sensor channels (what the rig measures): ``t_s``, ``current_A`` (RMS
-    phase current), ``speed_rad_s`` (signed), ``p_a_Pa``, ``p_b_Pa``
-    (actuator chamber ports), ``p_acc_Pa``, ``position_m`` (LVDT).
+    The sensor channels (what the rig measures) are those of the
+    :class:`SampleBlock` it extends, so a block of samples drives the thermal
+    model as the rig's sensors do.
 
     Truth: ``flow_m3_s`` (actuator flow into A), ``load_power_W`` = (p_a -
     p_b) flow (work rate delivered to the load, signed), ``port_a_Pa``,
@@ -413,13 +414,6 @@ class Samples:
     + q_external (p_acc - p_low) + 2 flow (port_a - p_a).
     """
 
-    t_s: np.ndarray
-    current_A: np.ndarray
-    speed_rad_s: np.ndarray
-    p_a_Pa: np.ndarray
-    p_b_Pa: np.ndarray
-    p_acc_Pa: np.ndarray
-    position_m: np.ndarray
     flow_m3_s: np.ndarray
     load_power_W: np.ndarray
     port_a_Pa: np.ndarray

@@ -444,6 +444,21 @@ class WetMotor:
         Raises RuntimeError when the coefficients do not settle (for example a
         thermal runaway where copper loss grows faster than the cooling).
         """
+        steps = self.steady_state_steps(u, tol_K, max_iter)
+        while True:
+            try:
+                next(steps)
+            except StopIteration as done:
+                return done.value
+
+    def steady_state_steps(self, u: MotorInputs, tol_K: float = 1e-6, max_iter: int = 200):
+        """
+        Solve the steady state as :meth:`steady_state`, yielding after each iteration.
+
+        A generator whose return value is the temperature vector: a caller with
+        a time budget (the live estimator's margin) spreads the solve over
+        several calls of about a millisecond each.
+        """
         T = np.full(self.net.n, u.oil_inlet_K) if self.T is None else self.T.copy()
         Tb = self.boundaries(u)
         for it in range(max_iter):
@@ -454,6 +469,7 @@ class WetMotor:
             T = T_new
             if change < tol_K:
                 break
+            yield
         else:
             raise RuntimeError(f'steady state did not converge in {max_iter} iterations '
                                f'(last change {change:.3g} K)')

@@ -1,0 +1,325 @@
+"""
+The rclpy estimator node, in this process: estimates, diagnostics, stale inputs, alerts.
+
+A probe node publishes synthetic sensor topics (20 A, 800 rad/s, 1 MPa, a
+fixed position, one sample per channel and millisecond, paced to the wall
+clock) and listens to the estimator's outputs; both spin in one
+EventsExecutor with timeouts, so no test can hang.
+"""
+
+import json
+import math
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray
+import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.exceptions import InvalidParameterValueException
+from rclpy.experimental import EventsExecutor
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile
+from rclpy.task import Future
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import FluidPressure, Temperature
+from std_msgs.msg import Float64, String
+from wet_eha_thermal.config import default_config_path
+from wet_eha_thermal.ros import topics
+from wet_eha_thermal.ros.estimator_node import EstimatorNode
+import yaml
+
+# our own domain, this machine only; set before rclpy.init (and inherited by the subprocesses)
+DOMAIN_ID = 100 + os.getpid() % 100
+os.environ['ROS_DOMAIN_ID'] = str(DOMAIN_ID)
+os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+
+ROOT = Path(__file__).resolve().parents[1]
+OK, WARN, ERROR, STALE = 0, 1, 2, 3
+VALUES = {'current_A': 20.0, 'speed_rad_s': 800.0, 'p_a_Pa': 1.0e6, 'p_b_Pa': 1.0e6,
+          'p_acc_Pa': 1.0e6, 'position_m': 0.002}
+
+
+@pytest.fixture(scope='module')
+def context():
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=DOMAIN_ID)
+    yield ctx
+    rclpy.try_shutdown(context=ctx)
+
+
+class Rig:
+    """The estimator under test, a probe node that feeds it and listens, one executor."""
+
+    def __init__(self, context, overrides=(), sim_time=False):
+        self.node = EstimatorNode(context=context, parameter_overrides=[
+            Parameter('diagnostics_rate_Hz', value=5.0), *overrides])
+        self.probe = rclpy.create_node('estimator_test_probe', context=context)
+        self.clock_ns = 1000 * 10**9 if sim_time else None
+        in_qos = topics.input_qos('sensor_data', 100)
+        self.pubs = {name: self.probe.create_publisher(
+            FluidPressure if name in topics.PRESSURE_INPUTS else Float64, topic, in_qos)
+            for name, topic in topics.INPUT_TOPICS.items()}
+        self.clock_pub = self.probe.create_publisher(Clock, '/clock', 10)
+        self.ack_pub = self.probe.create_publisher(String, topics.ACK_TOPIC, QoSProfile(depth=10))
+        self.estimates = {'winding_hotspot': [], 'winding_mean': [], 'oil': []}
+        for name, store in self.estimates.items():
+            self.probe.create_subscription(Temperature, f'{topics.ESTIMATE_PREFIX}/{name}',
+                                           store.append, 100)
+        self.diagnostics = []
+        self.probe.create_subscription(DiagnosticArray, topics.DIAGNOSTICS_TOPIC,
+                                       self.diagnostics.append, 10)
+        self.executor = EventsExecutor(context=context)
+        self.executor.add_node(self.node)
+        self.executor.add_node(self.probe)
+        self._never = Future()
+
+    def close(self):
+        self.executor.shutdown()
+        self.node.destroy_node()
+        self.probe.destroy_node()
+
+    def publish_samples(self, skip=(), current=None):
+        if self.clock_ns is not None:
+            self.clock_ns += 1_000_000
+            self.clock_pub.publish(Clock(clock=_time(self.clock_ns)))
+            self.spin(0.0002)
+            stamp = _time(self.clock_ns)
+        else:
+            stamp = self.probe.get_clock().now().to_msg()
+        for name, pub in self.pubs.items():
+            if name in skip:
+                continue
+            value = current if (name == 'current_A' and current is not None) \
+                else VALUES[name]
+            if name in topics.PRESSURE_INPUTS:
+                msg = FluidPressure(fluid_pressure=value)
+                msg.header.stamp = stamp
+            else:
+                msg = Float64(data=value)
+            pub.publish(msg)
+
+    def spin(self, seconds):
+        self.executor.spin_until_future_complete(self._never, timeout_sec=seconds)
+
+    def feed(self, seconds, until=None, skip=()):
+        """Publish at 1 kHz for ``seconds`` or until ``until()``; return whether it held."""
+        end = time.monotonic() + seconds
+        next_t = time.monotonic()
+        while time.monotonic() < end:
+            now = time.monotonic()
+            if now >= next_t:
+                self.publish_samples(skip)
+                next_t = max(next_t + 0.001, now - 0.005)   # no bursts after a stall
+            self.spin(0.0005)
+            if until is not None and until():
+                return True
+        return until is None
+
+    def status(self, name):
+        """Return the named status of the last diagnostics received (None before any)."""
+        if not self.diagnostics:
+            return None
+        for s in self.diagnostics[-1].status:
+            if s.name == f'wet_eha_thermal: {name}':
+                return s
+        raise KeyError(name)
+
+    def level(self, name):
+        s = self.status(name)
+        return None if s is None else s.level[0]
+
+    def values(self, name):
+        return {kv.key: kv.value for kv in self.status(name).values}
+
+    def all_ok(self):
+        return self.diagnostics and all(s.level[0] == OK for s in self.diagnostics[-1].status)
+
+
+def _time(ns):
+    return rclpy.time.Time(nanoseconds=ns).to_msg()
+
+
+def _stamps(msgs):
+    return [m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for m in msgs]
+
+
+@pytest.fixture
+def rig(context):
+    r = Rig(context)
+    yield r
+    r.close()
+
+
+def test_estimates_diagnostics_stale_speed_and_nan(rig):
+    # fresh inputs: every status OK, estimates rising with strictly increasing stamps
+    assert rig.feed(6.0, until=lambda: rig.all_ok() and len(rig.estimates['oil']) > 40), \
+        [(s.name, s.level, s.message) for s in rig.diagnostics[-1].status]
+    for name, msgs in rig.estimates.items():
+        stamps = _stamps(msgs)
+        assert all(b > a for a, b in zip(stamps, stamps[1:])), name
+        assert all(15.0 < m.temperature < 80.0 for m in msgs), name
+        # sigma 4 K, more while an input is on its fallback (inputs may start one by one)
+        assert all(m.variance >= 4.0 ** 2 - 1e-9 for m in msgs), name
+        assert msgs[-1].variance == pytest.approx(4.0 ** 2), name
+    hot = rig.estimates['winding_hotspot']
+    assert hot[-1].temperature > hot[0].temperature and hot[-1].temperature > 20.05
+    assert rig.level('estimate') == OK
+    ttl = rig.values('estimate')['time_to_limit winding_hotspot [s]']
+    assert ttl in ('pending', 'beyond horizon')
+
+    # the speed topic falls silent: STALE with the held value, estimates keep coming
+    n_before = len(hot)
+    episodes = int(rig.values('input speed_rad_s')['stale_events'])   # 1 if it started late
+    assert rig.feed(3.0, skip={'speed_rad_s'},
+                    until=lambda: rig.level('input speed_rad_s') == STALE)
+    rig.feed(0.6, skip={'speed_rad_s'})
+    speed = rig.status('input speed_rad_s')
+    assert speed.level[0] == STALE
+    assert speed.message.startswith('stale: holding last value 800 since ')
+    assert speed.hardware_id == 'wet-eha-rig'
+    assert rig.level('estimate') == OK
+    assert 'on fallback: speed_rad_s' in rig.status('estimate').message
+    assert rig.level('input current_A') == OK
+    stamps = _stamps(hot)
+    assert len(hot) > n_before + 5 and stamps[-1] - stamps[n_before - 1] > 0.25
+    assert all(b > a for a, b in zip(stamps, stamps[1:]))
+    assert hot[-1].variance > 4.0 ** 2           # the uncertainty grows on the fallback
+
+    # it comes back: OK again, the stale episode counted
+    assert rig.feed(3.0, until=lambda: rig.level('input speed_rad_s') == OK)
+    assert int(rig.values('input speed_rad_s')['stale_events']) > episodes
+    assert rig.feed(2.0, until=lambda: rig.estimates['oil'][-1].variance == 4.0 ** 2)
+
+    # one NaN current sample: counted, the input WARNs for one report
+    rig.publish_samples(current=math.nan)
+    assert rig.feed(2.0, until=lambda: rig.level('input current_A') == WARN)
+    assert rig.values('input current_A')['non_finite'] == '1'
+    assert rig.feed(2.0, until=lambda: rig.level('input current_A') == OK)
+
+
+def test_latched_alert_and_acknowledge(context, tmp_path):
+    cfg = yaml.safe_load(default_config_path().read_text())
+    cfg['estimator']['alerts']['winding_hotspot'].update(
+        warn_C=20.1, critical_C=200.0, hysteresis_K=0.0, min_duration_s=0.0, latch=True)
+    path = tmp_path / 'low_warn.yaml'
+    path.write_text(yaml.safe_dump(cfg))
+    rig = Rig(context, [Parameter('config_file', value=str(path))])
+    try:
+        assert rig.feed(8.0, until=lambda: rig.node.est.alerts.worst() >= WARN)
+        assert rig.feed(2.0, until=lambda: rig.level('estimate') == WARN)
+        # a subscriber created after the alert still gets it (transient local)
+        late = []
+        sub = rig.probe.create_subscription(String, topics.ALERT_TOPIC,
+                                            lambda m: late.append(json.loads(m.data)),
+                                            topics.latched_qos())
+        assert rig.feed(3.0, until=lambda: late)
+        assert late[-1]['level_name'] == 'WARN'
+        assert late[-1]['hardware_id'] == 'wet-eha-rig'
+        hot = late[-1]['quantities']['winding_hotspot']
+        assert hot['reported'] == 'WARN' and not hot['acknowledged']
+        assert 'winding_hotspot WARN' in late[-1]['message']
+        # acknowledging changes the summary: still active, now acknowledged
+        n = len(late)
+        rig.ack_pub.publish(String(data='winding_hotspot'))
+        assert rig.feed(3.0, until=lambda: len(late) > n)
+        assert late[-1]['quantities']['winding_hotspot']['acknowledged']
+        assert '(acknowledged)' in late[-1]['message']
+        assert any('acknowledged' in e for e in late[-1]['events'])
+        # an unknown quantity is logged and ignored, never raised
+        rig.ack_pub.publish(String(data='no_such_quantity'))
+        rig.feed(0.3)
+        rig.probe.destroy_subscription(sub)
+    finally:
+        rig.close()
+
+
+def test_use_sim_time_stamps_follow_clock(context):
+    rig = Rig(context, [Parameter('use_sim_time', value=True)], sim_time=True)
+    try:
+        def enough():
+            return len(rig.estimates['oil']) >= 10
+
+        end = time.monotonic() + 8.0
+        while time.monotonic() < end and not enough():
+            rig.publish_samples()
+            rig.spin(0.0003)
+        stamps = _stamps(rig.estimates['oil'])
+        assert len(stamps) >= 10
+        assert all(b > a for a, b in zip(stamps, stamps[1:]))
+        assert 1000.0 < stamps[0] and stamps[-1] <= rig.clock_ns * 1e-9 + 1e-9
+    finally:
+        rig.close()
+
+
+def test_params_file_and_ranges(context):
+    params = ROOT / 'config' / 'estimator.params.yaml'
+    node = EstimatorNode(context=context, cli_args=[
+        '--ros-args', '--params-file', str(params), '-p', 'publish_rate_Hz:=20'])
+    try:
+        assert node.get_parameter('publish_rate_Hz').value == 20.0
+        assert node.get_parameter('qos').value == 'sensor_data'
+        assert node.get_parameter('executor').value == 'events'
+        assert node.publish_timer.timer_period_ns == 50_000_000
+        d = node.describe_parameter('publish_rate_Hz')
+        assert d.floating_point_range[0].to_value == 500.0 and d.description
+    finally:
+        node.destroy_node()
+    with pytest.raises(InvalidParameterValueException):
+        EstimatorNode(context=context,
+                      parameter_overrides=[Parameter('publish_rate_Hz', value=1000.0)])
+
+
+def _run_main(*args, wait_s=None):
+    env = dict(os.environ, OPENBLAS_NUM_THREADS='1', PYTHONUNBUFFERED='1')
+    proc = subprocess.Popen([sys.executable, '-m', 'wet_eha_thermal.ros.estimator_node', *args],
+                            cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    if wait_s is not None:
+        time.sleep(wait_s)
+        proc.send_signal(signal.SIGINT)
+    try:
+        out, err = proc.communicate(timeout=15)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        out, err = proc.communicate()
+        pytest.fail(f'the node did not stop: {err}')
+    return proc.returncode, out + err
+
+
+def test_main_runs_and_stops_cleanly_on_ctrl_c():
+    rc, text = _run_main('--executor', 'events', '--ros-args', '--params-file',
+                         'config/estimator.params.yaml', '-p', 'publish_rate_Hz:=20',
+                         '-p', 'topic_prefix:=/eha_main_test', wait_s=3.0)
+    assert rc == 0, text
+    assert 'spinning with the events executor' in text and 'Traceback' not in text
+    rc, text = _run_main('--ros-args', '-p', 'qos:=fast')
+    assert rc == 2 and 'qos' in text and 'Traceback' not in text
+
+
+def test_model_failure_keeps_publishing_and_reports_error(rig):
+    assert rig.feed(5.0, until=lambda: len(rig.estimates['oil']) > 10)
+
+    def broken(now_s=None):
+        raise FloatingPointError('injected')
+
+    def broken_add(*args):
+        raise RuntimeError('injected')
+
+    rig.node.est.advance = broken
+    rig.node.est.add = broken_add
+    n = len(rig.estimates['oil'])
+    assert rig.feed(3.0, until=lambda: rig.level('estimate') == ERROR
+                    and len(rig.estimates['oil']) > n + 10)
+    assert 'model step failed' in rig.status('estimate').message
+    stamps = _stamps(rig.estimates['oil'])
+    assert all(b > a for a, b in zip(stamps, stamps[1:]))
+    assert int(rig.values('input current_A')['callback_errors']) > 0
+    # a rate change at run time takes effect; read-only parameters refuse
+    assert rig.node.set_parameters([Parameter('publish_rate_Hz', value=10.0)])[0].successful
+    assert rig.node.publish_timer.timer_period_ns == 100_000_000
+    assert not rig.node.set_parameters([Parameter('qos', value='reliable')])[0].successful

@@ -1,0 +1,71 @@
+"""End-to-end test of ``wet-eha-thermal live``: rig, estimator and status in one command."""
+
+import os
+from pathlib import Path
+import re
+import subprocess
+import sys
+import time
+import uuid
+
+import pytest
+
+BIN = Path(sys.executable).parent / 'wet-eha-thermal'
+
+
+def _command(*args):
+    if BIN.exists():
+        return [str(BIN), *args]
+    return [sys.executable, '-m', 'wet_eha_thermal.cli', *args]
+
+
+def _env(mark: str):
+    env = dict(os.environ, WET_EHA_TEST_MARK=mark, OPENBLAS_NUM_THREADS='1',
+               ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    env.pop('WET_EHA_LIVE_DOMAIN_ID', None)     # a private domain from the pid
+    return env
+
+
+def _marked_processes(mark: str):
+    """Return the pids of live processes whose environment holds ``mark``."""
+    found = []
+    needle = f'WET_EHA_TEST_MARK={mark}'.encode()
+    for entry in Path('/proc').iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            if needle in (entry / 'environ').read_bytes().split(b'\0'):
+                state = (entry / 'stat').read_text().rsplit(')', 1)[1].split()[0]
+                if state != 'Z':
+                    found.append(int(entry.name))
+        except OSError:
+            continue
+    return found
+
+
+@pytest.mark.skipif(not Path('/proc/self/environ').exists(), reason='needs /proc')
+def test_live_runs_and_cleans_up():
+    mark = uuid.uuid4().hex
+    res = subprocess.run(_command('live', '--duration', '8'), env=_env(mark),
+                         capture_output=True, text=True, timeout=60)
+    assert res.returncode == 0, res.stdout + res.stderr
+    out = res.stdout
+    assert 'winding hot-spot' in out and 'margin' in out and 'alerts' in out, out
+    assert 'Live twin summary' in out, out
+    m = re.search(r'estimates\s+(\d+) received', out)
+    assert m and int(m.group(1)) > 100, out
+    assert 'rig             exited cleanly' in out, out
+    assert 'estimator       exited cleanly' in out, out
+    deadline = time.monotonic() + 2.0
+    while _marked_processes(mark) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert _marked_processes(mark) == []
+
+
+def test_live_bad_stage_is_one_error_line():
+    res = subprocess.run(_command('live', '--stage', '9'), env=_env(uuid.uuid4().hex),
+                         capture_output=True, text=True, timeout=30)
+    assert res.returncode == 2
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith('error: --stage 9'), res.stderr
+    assert res.stdout == ''

@@ -1,0 +1,551 @@
+"""
+The live estimator as a ROS 2 node: sensor topics in; estimates, diagnostics and alerts out.
+
+The node wraps :class:`wet_eha_thermal.estimator.core.Estimator`. Every
+sample goes to the core with its stamp (a Float64 has none: it takes the
+node's ROS clock, so /clock under use_sim_time). A timer at
+``publish_rate_Hz`` calls ``advance(now)`` with the ROS clock, so the model
+keeps stepping on its fallbacks when inputs fall silent, and publishes the
+newest estimate: one sensor_msgs/Temperature per name in
+``topics.ESTIMATES`` (stamped with the estimate's sample time, strictly
+increasing), the state vector, and the alert summary whenever it changes
+(latched). The rest of each tick's budget goes to the forecast and margin.
+A second timer publishes /diagnostics. No callback ever raises: a failure is
+logged, counted and shown in the diagnostics.
+
+Run it with ``wet-eha-thermal-estimator --ros-args --params-file
+config/estimator.params.yaml`` or ``python -m wet_eha_thermal.ros.estimator_node``.
+"""
+
+import argparse
+import functools
+import json
+import math
+import sys
+from typing import Dict, List, Optional
+
+from builtin_interfaces.msg import Time as TimeMsg
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
+                                ParameterType, SetParametersResult)
+import rclpy
+from rclpy.exceptions import NameValidationException, ParameterException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile
+from rclpy.task import Future
+from rclpy.utilities import remove_ros_args
+from sensor_msgs.msg import FluidPressure, Temperature
+from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension, String
+from wet_eha_thermal.config import ConfigError, load_config
+from wet_eha_thermal.estimator.core import Estimate, Estimator, INPUTS
+from wet_eha_thermal.ros import topics
+
+NODE_NAME = 'eha_thermal_estimator'
+EXECUTORS = ('events', 'single')
+LIMITED = ('winding_hotspot', 'magnet', 'oil')   # quantities with limits and a forecast
+_LEVEL_NAMES = {0: 'OK', 1: 'WARN', 2: 'ERROR', 3: 'STALE'}
+
+
+def _float_param(description: str, low: float, high: float,
+                 read_only: bool = False) -> ParameterDescriptor:
+    return ParameterDescriptor(
+        type=ParameterType.PARAMETER_DOUBLE, description=description, read_only=read_only,
+        floating_point_range=[FloatingPointRange(from_value=low, to_value=high, step=0.0)])
+
+
+def _int_param(description: str, low: int, high: int,
+               read_only: bool = False) -> ParameterDescriptor:
+    return ParameterDescriptor(
+        type=ParameterType.PARAMETER_INTEGER, description=description, read_only=read_only,
+        integer_range=[IntegerRange(from_value=low, to_value=high, step=1)])
+
+
+def _str_param(description: str, read_only: bool = True) -> ParameterDescriptor:
+    return ParameterDescriptor(type=ParameterType.PARAMETER_STRING, description=description,
+                               read_only=read_only)
+
+
+# name -> (default, descriptor); ranges are enforced by rclpy, also for --params-file values
+PARAMETERS = {
+    'config_file': ('', _str_param(
+        'estimator configuration YAML (the estimator: section and the rig); '
+        "'' = the shipped config/reference_eha.yaml")),
+    'qos': ('sensor_data', _str_param(
+        "QoS of the sensor subscriptions: 'sensor_data' (best effort) or 'reliable'")),
+    'qos_depth': (100, _int_param('history depth of the sensor subscriptions', 1, 10000,
+                                  read_only=True)),
+    'publish_rate_Hz': (50.0, _float_param(
+        'rate of the estimate, state and alert publication (and of advance(now))', 1.0, 500.0)),
+    'background_budget_ms': (2.0, _float_param(
+        'wall time per publish tick given to the forecast and the margin', 0.0, 50.0)),
+    'diagnostics_rate_Hz': (1.0, _float_param('rate of /diagnostics', 0.1, 10.0)),
+    'hardware_id': ('wet-eha-rig', _str_param('hardware_id of the diagnostic statuses')),
+    'frame_id': ('eha', _str_param('frame_id of the published temperatures')),
+    'topic_prefix': (topics.PREFIX, _str_param(
+        "replaces '/eha' in every topic name (not /diagnostics)")),
+    'executor': ('events', _str_param(
+        "executor used by main(): 'events' (rclpy.experimental.EventsExecutor) or 'single' "
+        '(SingleThreadedExecutor); the --executor option overrides it')),
+}
+
+
+def _stamp_msg(ns: int) -> TimeMsg:
+    return TimeMsg(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def _stamp_s(stamp: TimeMsg) -> float:
+    return stamp.sec + 1e-9 * stamp.nanosec
+
+
+def _fmt(value: Optional[float], spec: str = '.2f', none: str = 'pending') -> str:
+    if value is None:
+        return none
+    return format(value, spec)
+
+
+def _json_safe(value):
+    """Return ``value`` with enums as ints and non-finite floats as None, for strict JSON."""
+    if isinstance(value, dict):
+        return {str(k): _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, bool) or value is None or isinstance(value, str):
+        return value
+    if isinstance(value, int):
+        return int(value)
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    return str(value)
+
+
+class EstimatorNode(Node):
+    """Thermal estimator node: subscribes to the rig's sensors, publishes estimates."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        self._accept_whole_numbers()
+        for name, (default, descriptor) in PARAMETERS.items():
+            self.declare_parameter(name, default, descriptor)
+        p = {name: self.get_parameter(name).value for name in PARAMETERS}
+        if p['executor'] not in EXECUTORS:
+            raise ValueError(f"parameter executor = {p['executor']!r}: expected one of "
+                             f'{", ".join(EXECUTORS)}')
+        self.cfg = load_config(p['config_file'] or None)
+        self.est = Estimator(self.cfg)
+        self.hardware_id = p['hardware_id']
+        self.frame_id = p['frame_id']
+        self.prefix = p['topic_prefix'].rstrip('/')
+        in_qos = topics.input_qos(p['qos'], p['qos_depth'])   # ValueError names a bad kind
+        out_qos = QoSProfile(depth=10)                         # reliable, volatile
+
+        # counters the diagnostics report besides the core's
+        self.callback_errors: Dict[str, int] = {}
+        self.waiting_for_clock = 0
+        self.model_errors = 0
+        self.model_error = ''
+        self.model_failing = False
+        self.background_errors = 0
+        self.published = 0
+        self._last_ns: Optional[int] = None          # stamp of the last published estimate
+        self._last_published: Optional[Estimate] = None
+        self._alert_key = None
+        self._pending_events: List[str] = []
+        self._diag_prev = dict.fromkeys(INPUTS, 0)      # rejected counts at the last diagnostics
+        self._implausible_prev = 0
+        self.topic_names: Dict[str, str] = {}
+
+        # inputs
+        for name in INPUTS:
+            topic = self._topic(topics.INPUT_TOPICS[name])
+            if name in topics.PRESSURE_INPUTS:
+                cb = functools.partial(self._on_pressure, name)
+                self.create_subscription(FluidPressure, topic, cb, in_qos)
+            else:
+                cb = functools.partial(self._on_float, name)
+                self.create_subscription(Float64, topic, cb, in_qos)
+            self.topic_names[name] = topic
+        self.create_subscription(Temperature, self._topic(topics.AMBIENT_TOPIC),
+                                 self._on_ambient, in_qos)
+        for tc in topics.THERMOCOUPLES:
+            self.create_subscription(Temperature, self._topic(f'{topics.MEASURED_PREFIX}/{tc}'),
+                                     functools.partial(self._on_measured, tc), in_qos)
+        self.create_subscription(String, self._topic(topics.ACK_TOPIC), self._on_ack,
+                                 QoSProfile(depth=10))
+
+        # outputs
+        self.estimate_pubs = {
+            name: self.create_publisher(Temperature,
+                                        self._topic(f'{topics.ESTIMATE_PREFIX}/{name}'), out_qos)
+            for name in topics.ESTIMATES}
+        self.state_pub = self.create_publisher(Float64MultiArray,
+                                               self._topic(topics.STATE_TOPIC), out_qos)
+        self.alert_pub = self.create_publisher(String, self._topic(topics.ALERT_TOPIC),
+                                               topics.latched_qos())
+        self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS_TOPIC,
+                                              QoSProfile(depth=10))
+
+        self.budget_s = p['background_budget_ms'] * 1e-3
+        self.publish_timer = self.create_timer(1.0 / p['publish_rate_Hz'], self._on_tick)
+        self.diag_timer = self.create_timer(1.0 / p['diagnostics_rate_Hz'], self._on_diagnostics)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self._publish_alerts(force=True)
+        self.get_logger().info(
+            f"estimating {len(topics.ESTIMATES)} temperatures at {p['publish_rate_Hz']:g} Hz "
+            f"from {self.prefix or '/'}/* ({p['qos']} QoS, depth {p['qos_depth']}); config "
+            f"{p['config_file'] or 'reference_eha.yaml (shipped)'}")
+
+    # ------------------------------------------------------------- helpers
+    def _accept_whole_numbers(self) -> None:
+        """Read ``-p publish_rate_Hz:=20`` (an integer to YAML) as 20.0 for double parameters."""
+        overrides = getattr(self, '_parameter_overrides', None)   # rclpy keeps them here
+        if not isinstance(overrides, dict):
+            return
+        for name, (default, _) in PARAMETERS.items():
+            given = overrides.get(name)
+            if isinstance(default, float) and given is not None \
+                    and given.type_ == Parameter.Type.INTEGER:
+                overrides[name] = Parameter(name, Parameter.Type.DOUBLE, float(given.value))
+
+    def _topic(self, name: str) -> str:
+        """Return ``name`` with the topic prefix in place of topics.PREFIX."""
+        if name.startswith(topics.PREFIX):
+            return self.prefix + name[len(topics.PREFIX):]
+        return name
+
+    def _now_s(self) -> Optional[float]:
+        """Return the ROS clock in seconds, or None while sim time has not started."""
+        ns = self.get_clock().now().nanoseconds
+        return ns * 1e-9 if ns > 0 else None
+
+    def _header_s(self, stamp: TimeMsg) -> Optional[float]:
+        if stamp.sec == 0 and stamp.nanosec == 0:
+            return self._now_s()
+        return _stamp_s(stamp)
+
+    def _failed(self, where: str, exc: BaseException) -> None:
+        self.callback_errors[where] = self.callback_errors.get(where, 0) + 1
+        self.get_logger().error(f'{where}: {type(exc).__name__}: {exc}',
+                                throttle_duration_sec=5.0)
+
+    # ----------------------------------------------------------- callbacks
+    def _on_float(self, channel: str, msg: Float64) -> None:
+        try:
+            now = self._now_s()
+            if now is None:
+                self.waiting_for_clock += 1
+                return
+            self.est.add(channel, now, float(msg.data))
+        except Exception as exc:  # noqa: B902 - a callback never raises
+            self._failed(channel, exc)
+
+    def _on_pressure(self, channel: str, msg: FluidPressure) -> None:
+        try:
+            t = self._header_s(msg.header.stamp)
+            if t is None:
+                self.waiting_for_clock += 1
+                return
+            self.est.add(channel, t, float(msg.fluid_pressure))
+        except Exception as exc:  # noqa: B902
+            self._failed(channel, exc)
+
+    def _on_ambient(self, msg: Temperature) -> None:
+        try:
+            t = self._header_s(msg.header.stamp)
+            if t is not None:
+                self.est.add_ambient(t, float(msg.temperature))
+        except Exception as exc:  # noqa: B902
+            self._failed('ambient', exc)
+
+    def _on_measured(self, name: str, msg: Temperature) -> None:
+        try:
+            t = self._header_s(msg.header.stamp)
+            if t is not None:
+                self.est.add_measured(name, t, float(msg.temperature))
+        except Exception as exc:  # noqa: B902
+            self._failed(f'measured/{name}', exc)
+
+    def _on_ack(self, msg: String) -> None:
+        try:
+            quantity = msg.data.strip() or None
+            try:
+                events = self.est.acknowledge(quantity)
+            except ValueError as exc:        # no rule for that quantity
+                self.get_logger().warning(f'acknowledge {quantity!r} ignored: {exc}')
+                return
+            for e in events:
+                self.get_logger().info(e.message)
+            self._pending_events += [e.message for e in events]
+            self._publish_alerts(force=True)
+        except Exception as exc:  # noqa: B902
+            self._failed('ack', exc)
+
+    def _on_set_parameters(self, params) -> SetParametersResult:
+        try:
+            for param in params:
+                if param.name == 'publish_rate_Hz':
+                    self.publish_timer.timer_period_ns = int(1e9 / param.value)
+                elif param.name == 'diagnostics_rate_Hz':
+                    self.diag_timer.timer_period_ns = int(1e9 / param.value)
+                elif param.name == 'background_budget_ms':
+                    self.budget_s = param.value * 1e-3
+        except Exception as exc:  # noqa: B902
+            return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
+    # ---------------------------------------------------------- publishing
+    def _on_tick(self) -> None:
+        """Step the model to the ROS clock and publish the newest estimate."""
+        try:
+            now = self._now_s()
+            if now is None:
+                return
+            try:
+                estimates = self.est.advance(now)
+                self.model_failing = False
+            except Exception as exc:  # noqa: B902 - the model should not raise; never stop
+                estimates = []
+                self.model_errors += 1
+                self.model_error = f'{type(exc).__name__}: {exc}'
+                self.model_failing = True
+                self.get_logger().error(f'model step failed: {self.model_error}',
+                                        throttle_duration_sec=5.0)
+            for e in estimates:
+                for ev in e.alert_events:
+                    log = self.get_logger().warning if ev.kind in ('raised', 'escalated') \
+                        else self.get_logger().info
+                    log(ev.message)
+                    self._pending_events.append(ev.message)
+            if estimates:
+                self._publish_estimate(estimates[-1], estimates[-1].stamp_s)
+            elif self.model_failing and self._last_published is not None:
+                # keep the consumers alive on the last good estimate, stamped now
+                self._publish_estimate(self._last_published, now)
+            self._publish_alerts()
+            if self.budget_s > 0.0:
+                try:
+                    self.est.background(self.budget_s)
+                except Exception as exc:  # noqa: B902
+                    self.background_errors += 1
+                    self.get_logger().error(f'forecast/margin failed: {exc}',
+                                            throttle_duration_sec=5.0)
+        except Exception as exc:  # noqa: B902
+            self._failed('publish', exc)
+
+    def _publish_estimate(self, est: Estimate, stamp_s: float) -> None:
+        ns = int(round(stamp_s * 1e9))
+        if self._last_ns is not None and ns <= self._last_ns:
+            return                      # never the same or an older stamp twice
+        self._last_ns = ns
+        self._last_published = est
+        stamp = _stamp_msg(ns)
+        for name, pub in self.estimate_pubs.items():
+            msg = Temperature()
+            msg.header.stamp = stamp
+            msg.header.frame_id = self.frame_id
+            msg.temperature = float(est.temperatures_C[name])
+            msg.variance = float(est.uncertainty_K[name]) ** 2
+            pub.publish(msg)
+        state = self.est.model.state
+        n_motor = state.size - self.est.model.circuit.n
+        arr = Float64MultiArray()
+        arr.layout.dim = [MultiArrayDimension(
+            label=f'state_K: motor[0:{n_motor}], hydraulic[{n_motor}:{state.size}]',
+            size=state.size, stride=state.size)]
+        arr.data = state.astype(float).tolist()
+        self.state_pub.publish(arr)
+        self.published += 1
+
+    def _publish_alerts(self, force: bool = False) -> None:
+        """Publish the alert summary (latched) when its levels or acknowledgements change."""
+        summary = self.est.alerts.summary()
+        key = (int(summary['level']),) + tuple(
+            (q, d['reported'], d['active'], d['acknowledged'])
+            for q, d in sorted(summary['quantities'].items()))
+        if not force and key == self._alert_key:
+            return
+        self._alert_key = key
+        summary['level'] = int(summary['level'])
+        summary['hardware_id'] = self.hardware_id
+        summary['events'] = self._pending_events
+        self._pending_events = []
+        self.alert_pub.publish(String(data=json.dumps(_json_safe(summary))))
+
+    # --------------------------------------------------------- diagnostics
+    def _status(self, name: str, level: int, message: str, values) -> DiagnosticStatus:
+        return DiagnosticStatus(level=bytes([level]), name=f'wet_eha_thermal: {name}',
+                                message=message, hardware_id=self.hardware_id,
+                                values=[KeyValue(key=k, value=str(v)) for k, v in values])
+
+    def _on_diagnostics(self) -> None:
+        try:
+            now_ns = self.get_clock().now().nanoseconds
+            arr = DiagnosticArray()
+            arr.header.stamp = _stamp_msg(now_ns)
+            arr.status = [self._estimate_status()] + [
+                self._input_status(n, now_ns * 1e-9) for n in INPUTS] + [
+                self._plausibility_status()]
+            self.diag_pub.publish(arr)
+        except Exception as exc:  # noqa: B902
+            self._failed('diagnostics', exc)
+
+    def _estimate_status(self) -> DiagnosticStatus:
+        est = self.est.latest
+        stale = [n for n in INPUTS if self.est.health[n].stale]
+        values = [('hardware_id', self.hardware_id)]
+        if est is None:
+            return self._status('estimate', DiagnosticStatus.STALE[0],
+                                'no estimate yet: waiting for the clock or the first step',
+                                values + [('inputs on fallback', ', '.join(stale) or 'none')])
+        level = int(self.est.alerts.worst())       # OK/WARN/CRITICAL = OK/WARN/ERROR
+        message = self.est.alerts.summary()['message']
+        if message == 'OK':
+            message = 'estimating'
+        if stale:
+            message += f'; on fallback: {", ".join(stale)}'
+        if len(stale) == len(INPUTS):
+            level = DiagnosticStatus.STALE[0]
+            message = 'every input stale: estimates run on held values; ' + \
+                self.est.alerts.summary()['message']
+        if self.model_failing:
+            level = DiagnosticStatus.ERROR[0]
+            message = f'model step failed, republishing the last estimate: {self.model_error}'
+        sigma = max(est.uncertainty_K.values()) if est.uncertainty_K else None
+        values += [('stamp [s]', f'{est.stamp_s:.3f}'), ('step', est.step)]
+        values += [(f'{n} [degC]', _fmt(est.temperatures_C.get(n))) for n in topics.ESTIMATES]
+        values.append(('uncertainty [K, 1 sigma]', _fmt(sigma)))
+        values.append(('margin_current [A RMS]', _fmt(est.margin_current_A, '.1f')))
+        for q in LIMITED:
+            ttl = est.time_to_limit_s
+            text = 'pending' if q not in ttl else (
+                'beyond horizon' if ttl[q] is None else f'{ttl[q]:.0f}')
+            values.append((f'time_to_limit {q} [s]', text))
+            values.append((f'limit {q} [degC]', _fmt(est.limits_C.get(q), '.1f')))
+        values.append(('forecast started at [s]', _fmt(est.forecast_stamp_s, '.3f')))
+        for tc, name in topics.THERMOCOUPLES.items():
+            if tc in self.est.measured_C:
+                t_meas = self.est.measured_C[tc][1]
+                values.append((f'measured {tc} [degC]',
+                               f'{t_meas:.2f} (estimate {name} '
+                               f'{est.temperatures_C[name] - t_meas:+.2f} K)'))
+        values += [('alerts', self.est.alerts.summary()['message']),
+                   ('inputs on fallback', ', '.join(stale) or 'none'),
+                   ('estimates published', self.published),
+                   ('model errors', self.model_errors),
+                   ('forecast failures', self.est.forecast_failures),
+                   ('background errors', self.background_errors),
+                   ('callback errors', sum(self.callback_errors.values())),
+                   ('samples before the clock', self.waiting_for_clock)]
+        return self._status('estimate', level, message, values)
+
+    def _input_status(self, name: str, now_s: float) -> DiagnosticStatus:
+        h = self.est.health[name]
+        rejected = h.rejected
+        new_rejected = rejected - self._diag_prev[name]
+        self._diag_prev[name] = rejected
+        level, message = DiagnosticStatus.OK[0], 'OK'
+        if new_rejected > 0:
+            level = DiagnosticStatus.WARN[0]
+            message = f'{new_rejected} samples rejected since the last report'
+        if h.stale:
+            level = DiagnosticStatus.STALE[0]
+            if h.last_value is None:
+                message = f'stale: no sample yet, using the resting value {self.est.rest[name]:g}'
+            else:
+                since = h.stale_since_s if h.stale_since_s is not None else now_s
+                message = (f'stale: holding last value {h.last_value:g} since {since:.3f} s '
+                           f'({max(now_s - since, 0.0):.1f} s)')
+        cfg = self.est.channel_cfg[name]
+        values = [('topic', self.topic_names[name]), ('received', h.received),
+                  ('accepted', h.accepted), ('non_finite', h.non_finite),
+                  ('out_of_range', h.out_of_range), ('backwards', h.backwards),
+                  ('late', h.late), ('stale_events', h.stale_events),
+                  ('callback_errors', self.callback_errors.get(name, 0)),
+                  ('last_value', _fmt(h.last_value, 'g', 'none')),
+                  ('last_stamp [s]', _fmt(h.last_stamp_s, '.3f', 'none')),
+                  ('timeout [s]', f'{cfg.timeout_s:g}'),
+                  ('range', f'[{cfg.low:g}, {cfg.high:g}]')]
+        return self._status(f'input {name}', level, message, values)
+
+    def _plausibility_status(self) -> DiagnosticStatus:
+        counts = self.est.implausible_counts
+        total = sum(counts.values())
+        new = total - self._implausible_prev
+        self._implausible_prev = total
+        latest = self.est.latest.implausible if self.est.latest is not None else []
+        if new > 0:
+            level = DiagnosticStatus.WARN[0]
+            message = (f'{new} implausible steps since the last report: '
+                       f'{", ".join(latest) or "see counters"}')
+        else:
+            level, message = DiagnosticStatus.OK[0], 'OK'
+        return self._status('plausibility', level, message, list(counts.items()))
+
+
+def spin(executor, context=None) -> None:
+    """
+    Spin ``executor`` until the context shuts down (Ctrl-C, SIGTERM or rclpy.shutdown).
+
+    ``EventsExecutor.spin()`` of the Jazzy wheels (rclpy 7.1.6) never runs a
+    callback and ignores Ctrl-C; spinning toward a future that never completes,
+    with a timeout, runs every callback and returns to check the context.
+    """
+    context = context if context is not None else executor.context
+    never = Future()
+    while context.ok():
+        executor.spin_until_future_complete(never, timeout_sec=0.5)
+
+
+def _parse_args(argv: List[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(
+        prog='wet-eha-thermal-estimator',
+        description='Live thermal estimator of the wet EHA (ROS 2 node). ROS arguments follow '
+                    '--ros-args, e.g. --ros-args --params-file config/estimator.params.yaml '
+                    '-p publish_rate_Hz:=20 -p use_sim_time:=true')
+    parser.add_argument('--executor', choices=EXECUTORS, default=None,
+                        help="'events' (rclpy.experimental.EventsExecutor) or 'single' "
+                             '(SingleThreadedExecutor); default: the executor parameter, '
+                             'which defaults to events')
+    return parser.parse_args(argv)
+
+
+def main(args: Optional[List[str]] = None) -> int:
+    """Run the estimator node until Ctrl-C or shutdown; return the exit status."""
+    argv = list(sys.argv if args is None else args)
+    opts = _parse_args(remove_ros_args(argv)[1:])
+    rclpy.init(args=argv)
+    node = None
+    status = 0
+    try:
+        try:
+            node = EstimatorNode()
+        except (ConfigError, NameValidationException, ParameterException,
+                ValueError) as exc:                # bad parameter or config: say so, no trace
+            print(f'wet-eha-thermal-estimator: {exc}', file=sys.stderr)
+            return 2
+        kind = opts.executor or node.get_parameter('executor').value
+        if kind == 'events':
+            from rclpy.experimental import EventsExecutor
+            executor = EventsExecutor()
+        else:
+            executor = SingleThreadedExecutor()
+        node.get_logger().info(f'spinning with the {kind} executor')
+        executor.add_node(node)
+        try:
+            spin(executor)
+        except (KeyboardInterrupt, ExternalShutdownException):
+            pass
+        finally:
+            executor.shutdown()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return status
+
+
+if __name__ == '__main__':
+    sys.exit(main())

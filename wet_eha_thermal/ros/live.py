@@ -1,0 +1,565 @@
+"""
+The live digital twin in one command: simulated rig, estimator and a status line.
+
+:func:`run` starts two child processes, the simulated rig
+(:mod:`.sim_rig_node`) and the estimator (:mod:`.estimator_node`), on a
+private ROS domain (``WET_EHA_LIVE_DOMAIN_ID``, or the first domain with no
+ROS node on this machine from one picked by the process id; discovery
+limited to this machine), and a small
+node in this process that follows the estimates, the alerts and
+/diagnostics and prints one status line about twice a second (updated in
+place on a terminal, one line every few seconds otherwise). After
+``duration_s``, or on Ctrl-C / SIGTERM, it stops the children (SIGINT, then
+SIGTERM, then SIGKILL, each after a timeout), prints a summary and returns
+the exit status: 0 when both children ran to the end, shut down cleanly and
+estimates came, 1 otherwise (with the last lines a failed child printed).
+
+The children run in their own session, so a Ctrl-C on the terminal reaches
+this process only and the shutdown stays in order; they also get SIGKILL
+from the kernel should this process die without cleaning up, so no child
+outlives it.
+"""
+
+import ctypes
+from dataclasses import dataclass, field
+import json
+import math
+import os
+from pathlib import Path
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from typing import Dict, List, Optional, TextIO
+
+from diagnostic_msgs.msg import DiagnosticArray
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+from rclpy.signals import SignalHandlerOptions
+from sensor_msgs.msg import Temperature
+from std_msgs.msg import String
+from wet_eha_thermal.ros import topics
+
+#: Environment variable that fixes the ROS domain of a live run (0..232).
+DOMAIN_ENV = 'WET_EHA_LIVE_DOMAIN_ID'
+#: Domains picked from the process id: 100..232 (Fast DDS ports allow up to 232).
+DOMAIN_FIRST, DOMAIN_LAST = 100, 232
+#: Domains tried when picking one, and how long each is watched for other nodes (s).
+DOMAIN_TRIES, DOMAIN_PROBE_S = 8, 0.5
+#: Estimates followed by the status line and the peaks.
+WATCHED = ('winding_hotspot', 'winding_mean', 'magnet', 'oil')
+#: Seconds between status lines: on a terminal (updated in place) and in a log.
+TTY_PERIOD_S, LOG_PERIOD_S = 0.5, 5.0
+#: Shutdown timeouts (s) after SIGINT, then after SIGTERM.
+SIGINT_WAIT_S, SIGTERM_WAIT_S = 6.0, 3.0
+ESTIMATE_STATUS = 'wet_eha_thermal: estimate'
+INPUT_STATUS = 'wet_eha_thermal: input '
+RIG_STATUS = 'eha_sim_rig: rig'
+PARAMS_FILE = Path(__file__).resolve().parents[2] / 'config' / 'estimator.params.yaml'
+
+
+@dataclass
+class LiveOptions:
+    """What to run: a stage or a duty file, for how long, at which sample rate."""
+
+    stage: Optional[int] = 6
+    duty: Optional[Path] = None
+    duration_s: float = 60.0
+    rate_Hz: float = 1000.0
+    config: Optional[Path] = None
+    noise: bool = True
+    executor: str = 'events'
+
+
+def domain_from_env() -> Optional[int]:
+    """Return ``$WET_EHA_LIVE_DOMAIN_ID`` (None when unset); ValueError if it is not 0..232."""
+    text = os.environ.get(DOMAIN_ENV, '').strip()
+    if not text:
+        return None
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if not 0 <= value <= DOMAIN_LAST:
+        raise ValueError(f'{DOMAIN_ENV}={text!r}: expected an integer 0..{DOMAIN_LAST}')
+    return value
+
+
+def open_domain(domain: Optional[int] = None):
+    """
+    Return ``(context, domain)``: an initialised rclpy context on a private ROS domain.
+
+    With ``domain`` None, the first domain without any ROS node on this
+    machine, trying from one picked by the process id (nodes that announce
+    themselves within ``DOMAIN_PROBE_S``); a given ``domain`` is used as it is.
+    """
+    span = DOMAIN_LAST - DOMAIN_FIRST + 1
+    first = DOMAIN_FIRST + os.getpid() % span
+    tries = [domain] if domain is not None else [
+        DOMAIN_FIRST + (first - DOMAIN_FIRST + 7 * k) % span for k in range(DOMAIN_TRIES)]
+    for k, d in enumerate(tries):
+        context = rclpy.Context()
+        rclpy.init(args=[], context=context, domain_id=d,
+                   signal_handler_options=SignalHandlerOptions.NO)
+        if domain is not None or k == len(tries) - 1:
+            return context, d
+        probe = Node('eha_live_probe', context=context)
+        end = time.monotonic() + DOMAIN_PROBE_S
+        busy = False
+        while not busy and time.monotonic() < end:
+            time.sleep(0.05)
+            busy = any(n != 'eha_live_probe' for n in probe.get_node_names())
+        probe.destroy_node()
+        if not busy:
+            return context, d
+        rclpy.try_shutdown(context=context)
+    raise AssertionError('unreachable')
+
+
+def child_commands(opts: LiveOptions, hardware_id: str) -> Dict[str, List[str]]:
+    """Return the command lines of the two children: ``{'rig': [...], 'estimator': [...]}``."""
+    py = sys.executable
+    rig = [py, '-m', 'wet_eha_thermal.ros.sim_rig_node', '--executor', opts.executor,
+           '--ros-args', '-p', f'rate_Hz:={float(opts.rate_Hz)!r}',
+           '-p', f'noise:={"true" if opts.noise else "false"}', '-p', 'qos:=sensor_data']
+    if opts.duty is not None:
+        rig += ['-p', f'duty_file:={Path(opts.duty).resolve()}']
+    else:
+        rig += ['-p', f'stage:={int(opts.stage)}']
+    est = [py, '-m', 'wet_eha_thermal.ros.estimator_node', '--executor', opts.executor,
+           '--ros-args']
+    if PARAMS_FILE.is_file():
+        est += ['--params-file', str(PARAMS_FILE)]
+    est += ['-p', 'qos:=sensor_data', '-p', f'hardware_id:={hardware_id}']
+    if opts.config is not None:
+        cfg = str(Path(opts.config).resolve())
+        rig += ['-p', f'config_file:={cfg}']
+        est += ['-p', f'config_file:={cfg}']
+    return {'rig': rig, 'estimator': est}
+
+
+def _die_with_parent() -> None:
+    """Ask the kernel to SIGKILL this (child) process when its parent dies (Linux)."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)     # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
+class Child:
+    """One child process in its own session, its output in a log file."""
+
+    def __init__(self, name: str, cmd: List[str], env: Dict[str, str], log_dir: Path) -> None:
+        self.name = name
+        self.log_path = log_dir / f'{name}.log'
+        self._log = open(self.log_path, 'wb')
+        self.proc = subprocess.Popen(cmd, env=env, stdin=subprocess.DEVNULL, stdout=self._log,
+                                     stderr=subprocess.STDOUT, start_new_session=True,
+                                     preexec_fn=_die_with_parent)
+        self.signals: List[str] = []     # what it took to stop it
+
+    def running(self) -> bool:
+        """Return whether the process is still running."""
+        return self.proc.poll() is None
+
+    def signal(self, sig: int) -> None:
+        """Send ``sig`` to the child's process group (nothing if it already ended)."""
+        if self.running():
+            self.signals.append(signal.Signals(sig).name)
+            try:
+                os.killpg(self.proc.pid, sig)
+            except ProcessLookupError:
+                pass
+
+    def close(self) -> None:
+        """Close the log file."""
+        self._log.close()
+
+    def tail(self, n: int = 15) -> List[str]:
+        """Return the last ``n`` lines of its output."""
+        try:
+            text = self.log_path.read_text(errors='replace')
+        except OSError:
+            return []
+        return text.splitlines()[-n:]
+
+    def clean(self) -> bool:
+        """Return whether it exited by itself with status 0 after at most a SIGINT."""
+        return self.proc.returncode == 0 and not (set(self.signals) - {'SIGINT'})
+
+    def describe(self) -> str:
+        """Return how it ended, in words."""
+        rc = self.proc.returncode
+        if rc is None:
+            return 'still running'
+        how = f'exit status {rc}' if rc >= 0 else f'killed by {signal.Signals(-rc).name}'
+        if self.clean():
+            return f'exited cleanly ({how})'
+        if not self.signals:
+            return f'ended by itself ({how})'
+        return f'did not exit cleanly ({how}; sent {", ".join(self.signals)})'
+
+
+def stop_children(children: List[Child]) -> None:
+    """Stop every child: SIGINT, then SIGTERM, then SIGKILL, each after a timeout."""
+    for sig, wait_s in ((signal.SIGINT, SIGINT_WAIT_S), (signal.SIGTERM, SIGTERM_WAIT_S),
+                        (signal.SIGKILL, 5.0)):
+        for c in children:
+            c.signal(sig)
+        deadline = time.monotonic() + wait_s
+        for c in children:
+            try:
+                c.proc.wait(timeout=max(deadline - time.monotonic(), 0.01))
+            except subprocess.TimeoutExpired:
+                pass
+        if not any(c.running() for c in children):
+            return
+
+
+@dataclass
+class TwinState:
+    """What the monitor has seen of the estimator and the rig."""
+
+    temps: Dict[str, float] = field(default_factory=dict)
+    peaks: Dict[str, float] = field(default_factory=dict)
+    sigma_K: Optional[float] = None
+    estimates: int = 0
+    first_rx: Optional[float] = None
+    last_rx: Optional[float] = None
+    first_stamp: Optional[float] = None
+    last_stamp: Optional[float] = None
+    alert_level: str = 'OK'
+    alert_message: str = 'OK'
+    alert_events: List[str] = field(default_factory=list)
+    raised: int = 0
+    reported: Dict[str, str] = field(default_factory=dict)
+    margin: str = 'pending'
+    time_to_limit: Dict[str, str] = field(default_factory=dict)
+    fallback: str = 'unknown'
+    stale_events: Dict[str, int] = field(default_factory=dict)
+    stale_baseline: Optional[Dict[str, int]] = None   # counters once every input was live
+    received: Dict[str, int] = field(default_factory=dict)
+    rig: Dict[str, str] = field(default_factory=dict)
+    hardware_id: str = field(default_factory=lambda: f'wet-eha-live-{os.getpid()}')
+
+    # --------------------------------------------------------------- updates
+    def on_estimate(self, name: str, temperature_C: float, variance: float, stamp_s: float,
+                    rx: float) -> None:
+        """Take one estimate message."""
+        self.temps[name] = temperature_C
+        if math.isfinite(temperature_C):
+            self.peaks[name] = max(self.peaks.get(name, -math.inf), temperature_C)
+        if name == WATCHED[0]:
+            self.estimates += 1
+            self.sigma_K = math.sqrt(variance) if variance >= 0.0 else None
+            if self.first_rx is None:
+                self.first_rx, self.first_stamp = rx, stamp_s
+            self.last_rx, self.last_stamp = rx, stamp_s
+
+    def on_alerts(self, text: str) -> None:
+        """Take one alert summary (JSON) of the estimator."""
+        try:
+            data = json.loads(text)
+        except ValueError:
+            return
+        if data.get('hardware_id', self.hardware_id) != self.hardware_id:
+            return
+        self.alert_level = str(data.get('level_name', data.get('level', '?')))
+        self.alert_message = str(data.get('message', ''))
+        self.alert_events += [str(e) for e in data.get('events', [])]
+        order = ('OK', 'WARN', 'CRITICAL')
+        for q, d in (data.get('quantities') or {}).items():
+            level = str(d.get('reported', 'OK'))
+            before = self.reported.get(q, 'OK')
+            if level in order and before in order and order.index(level) > order.index(before):
+                self.raised += 1
+            self.reported[q] = level
+
+    def on_diagnostics(self, statuses) -> None:
+        """Take one DiagnosticArray's statuses (estimator and rig)."""
+        for st in statuses:
+            kv = {v.key: v.value for v in st.values}
+            if st.name.startswith('wet_eha_thermal: ') and st.hardware_id != self.hardware_id:
+                continue                      # another estimator on this domain: not ours
+            if st.name == ESTIMATE_STATUS:
+                self.margin = kv.get('margin_current [A RMS]', self.margin)
+                for key, value in kv.items():
+                    if key.startswith('time_to_limit '):
+                        self.time_to_limit[key.split()[1]] = value
+                self.fallback = kv.get('inputs on fallback', self.fallback)
+            elif st.name.startswith(INPUT_STATUS):
+                name = st.name[len(INPUT_STATUS):]
+                for key, store in (('stale_events', self.stale_events),
+                                   ('received', self.received)):
+                    try:
+                        store[name] = int(kv.get(key, ''))
+                    except ValueError:
+                        pass
+            elif st.name == RIG_STATUS:
+                self.rig = kv
+        if self.stale_baseline is None and self.fallback == 'none' and self.stale_events:
+            # the estimator counts every input stale until its first sample: not an event
+            self.stale_baseline = dict(self.stale_events)
+
+    def stale_during_run(self) -> Dict[str, int]:
+        """Return the stale events per input since every input was first live."""
+        base = self.stale_baseline or {}
+        return {k: v - base.get(k, 0) for k, v in self.stale_events.items()}
+
+    # ---------------------------------------------------------------- output
+    def limit_text(self) -> str:
+        """Return the nearest limit crossing of the forecast, or why there is none."""
+        if not self.time_to_limit:
+            return 'pending'
+        found = []
+        for q, text in self.time_to_limit.items():
+            try:
+                found.append((float(text), q))
+            except ValueError:
+                pass
+        if found:
+            s, q = min(found)
+            return f'{q} in {_duration(s)}'
+        if all(t == 'beyond horizon' for t in self.time_to_limit.values()):
+            return 'beyond horizon'
+        return 'pending'
+
+    def status_line(self, elapsed_s: float, duration_s: float) -> str:
+        """Return the one-line status."""
+        if not self.estimates:
+            return f't {elapsed_s:5.1f}/{duration_s:g} s | waiting for the first estimate ...'
+
+        def t(name: str) -> str:
+            v = self.temps.get(name)
+            return f'{v:6.1f}' if v is not None else '   ---'
+
+        margin = f'{self.margin} A' if _is_number(self.margin) else self.margin
+        alert = self.alert_level if self.alert_message in ('OK', '') else \
+            f'{self.alert_level}: {self.alert_message}'
+        return (f't {elapsed_s:5.1f}/{duration_s:g} s | winding hot-spot {t("winding_hotspot")}'
+                f' mean {t("winding_mean")} | magnet {t("magnet")} | oil {t("oil")} degC | '
+                f'margin {margin} | limit: {self.limit_text()} | alerts {alert} | '
+                f'stale: {self.fallback}')
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _what(opts: LiveOptions) -> str:
+    return f'duty file {opts.duty}' if opts.duty is not None else f'stage {opts.stage}'
+
+
+def _duration(s: float) -> str:
+    if s < 120.0:
+        return f'{s:.0f} s'
+    if s < 7200.0:
+        return f'{s / 60.0:.0f} min'
+    return f'{s / 3600.0:.1f} h'
+
+
+class StatusPrinter:
+    """One status line: rewritten in place on a terminal, a line every few seconds otherwise."""
+
+    def __init__(self, stream: TextIO) -> None:
+        self.stream = stream
+        self.tty = stream.isatty()
+        self.period = TTY_PERIOD_S if self.tty else LOG_PERIOD_S
+        self.next = 0.0
+        self.width = 0
+        self.had_estimate = False
+
+    def update(self, now: float, line: str, has_estimate: bool) -> None:
+        """Show ``line`` if it is time (at once for the first estimate)."""
+        first = has_estimate and not self.had_estimate
+        self.had_estimate = self.had_estimate or has_estimate
+        if now < self.next and not first:
+            return
+        self.next = now + self.period
+        if self.tty:
+            cols = shutil.get_terminal_size((160, 24)).columns - 1
+            line = line[:cols]
+            self.stream.write('\r' + line.ljust(self.width))
+            self.width = len(line)
+        else:
+            self.stream.write(line + '\n')
+        self.stream.flush()
+
+    def finish(self) -> None:
+        """End the in-place line on a terminal."""
+        if self.tty and self.width:
+            self.stream.write('\n')
+            self.stream.flush()
+
+
+def _monitor_node(context, state: TwinState):
+    """Create the node of this process that feeds ``state``."""
+    node = Node('eha_live_monitor', context=context)
+
+    def estimate_cb(name):
+        def cb(msg: Temperature) -> None:
+            st = msg.header.stamp
+            state.on_estimate(name, msg.temperature, msg.variance, st.sec + 1e-9 * st.nanosec,
+                              time.monotonic())
+        return cb
+
+    for name in WATCHED:
+        node.create_subscription(Temperature, f'{topics.ESTIMATE_PREFIX}/{name}',
+                                 estimate_cb(name), QoSProfile(depth=50))
+    node.create_subscription(String, topics.ALERT_TOPIC, lambda m: state.on_alerts(m.data),
+                             topics.latched_qos())
+    node.create_subscription(DiagnosticArray, topics.DIAGNOSTICS_TOPIC,
+                             lambda m: state.on_diagnostics(m.status), QoSProfile(depth=20))
+    return node
+
+
+def summary(opts: LiveOptions, state: TwinState, children: List[Child], run_s: float,
+            domain: int, stopped_by: str) -> List[str]:
+    """Return the lines of the end-of-run summary."""
+    out = ['', 'Live twin summary',
+           f'  run             {run_s:.1f} s ({stopped_by}); {_what(opts)} on the simulated rig '
+           f'at {opts.rate_Hz:g} Hz, noise {"on" if opts.noise else "off"}, ROS domain {domain}']
+    if state.estimates and state.first_rx is not None:
+        span = max(state.last_rx - state.first_rx, 1e-9)
+        rate = (state.estimates - 1) / span if state.estimates > 1 else 0.0
+        sample_span = state.last_stamp - state.first_stamp
+        out.append(f'  estimates       {state.estimates} received, {rate:.1f} per s over '
+                   f'{span:.1f} s ({sample_span:.1f} s of sample time)')
+        peaks = ', '.join(f'{n.replace("_", " ")} {state.peaks[n]:.1f}' for n in WATCHED
+                          if n in state.peaks)
+        out.append(f'  peak estimates  {peaks} degC')
+        ends = ', '.join(f'{n.replace("_", " ")} {state.temps[n]:.1f}' for n in WATCHED
+                         if n in state.temps)
+        sigma = f' (1 sigma {state.sigma_K:.1f} K)' if state.sigma_K is not None else ''
+        out.append(f'  at the end      {ends} degC{sigma}')
+        truth = {k: state.rig.get(f'truth_{k}_C') for k in WATCHED}
+        if all(v is not None and _is_number(v) for v in truth.values()):
+            diff = ', '.join(f'{n.replace("_", " ")} {float(truth[n]):.1f} '
+                             f'({state.temps[n] - float(truth[n]):+.1f})' for n in WATCHED
+                             if n in state.temps)
+            out.append(f'  rig truth       {diff} degC (estimate - truth in brackets; last '
+                       'rig report)')
+        out.append(f'  margin, limits  margin current {state.margin} A RMS; time to limit: '
+                   f'{state.limit_text()}')
+    else:
+        out.append('  estimates       none received')
+    line = f'  alerts raised   {state.raised}'
+    if state.alert_message not in ('OK', ''):
+        line += f'; now {state.alert_level}: {state.alert_message}'
+    out.append(line)
+    for e in state.alert_events[-5:]:
+        out.append(f'                  {e}')
+    during = state.stale_during_run()
+    per = ', '.join(f'{k} {v}' for k, v in during.items() if v)
+    since = 'since all inputs were live' if state.stale_baseline is not None else \
+        'including the start'
+    out.append(f'  stale events    {sum(during.values())} ({since})' + (f': {per}' if per else '')
+               + f'; inputs on fallback at the end: {state.fallback}')
+    rig_lines = [ln for ln in children[0].tail(40) if 'rig summary:' in ln] if children else []
+    rig_figures = rig_lines[-1].split('rig summary:', 1)[1].strip() if rig_lines else ''
+    if state.received:
+        mean = sum(state.received.values()) / len(state.received)
+        sent = rig_figures.split(' samples', 1)[0].split(', ')[-1] if rig_figures else '?'
+        out.append(f'  samples         the rig published {sent} per input; the estimator had '
+                   f'received {mean:.0f} per input at its last diagnostics (up to 1 s earlier)')
+    for c in children:
+        out.append(f'  {c.name:<15} {c.describe()}')
+    if rig_figures:
+        out.append(f'  rig figures     {rig_figures}')
+    return out
+
+
+def run(opts: LiveOptions, out: TextIO = sys.stdout, err: TextIO = sys.stderr,
+        domain: Optional[int] = None) -> int:
+    """
+    Run the live twin for ``opts.duration_s`` (or until Ctrl-C); return the exit status.
+
+    ``domain``: the ROS domain to use; None picks a free one (see :func:`open_domain`).
+    """
+    log_dir = Path(tempfile.mkdtemp(prefix='wet-eha-live-'))
+    stop = {'why': None}
+
+    def on_signal(signum, frame) -> None:
+        stop['why'] = 'interrupted' if signum == signal.SIGINT else 'terminated'
+
+    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    children: List[Child] = []
+    context = node = executor = None
+    state = TwinState()
+    printer = StatusPrinter(out)
+    early: Optional[Child] = None
+    t0 = time.monotonic()
+    try:
+        os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'   # for this process's node
+        context, domain = open_domain(domain)
+        print(f'Live digital twin: {_what(opts)} on the simulated rig for {opts.duration_s:g} s '
+              f'(Ctrl-C stops it earlier), ROS domain {domain}', file=out, flush=True)
+        env = dict(os.environ)
+        env.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
+                   PYTHONUNBUFFERED='1', RCUTILS_COLORIZED_OUTPUT='0')
+        env.setdefault('OPENBLAS_NUM_THREADS', '1')
+        for name, cmd in child_commands(opts, state.hardware_id).items():
+            children.append(Child(name, cmd, env, log_dir))
+        node = _monitor_node(context, state)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        deadline = t0 + opts.duration_s
+        while stop['why'] is None:
+            now = time.monotonic()
+            if now >= deadline:
+                stop['why'] = 'duration reached'
+                break
+            executor.spin_once(timeout_sec=min(0.05, max(deadline - now, 0.0)))
+            early = next((c for c in children if not c.running()), None)
+            if early is not None:
+                stop['why'] = f'the {early.name} exited early'
+                break
+            printer.update(now, state.status_line(now - t0, opts.duration_s),
+                           state.estimates > 0)
+        printer.update(math.inf, state.status_line(time.monotonic() - t0, opts.duration_s),
+                       state.estimates > 0)
+    finally:
+        printer.finish()
+        run_s = time.monotonic() - t0
+        stop_children(children)
+        for c in children:
+            c.close()
+        if node is not None:
+            node.destroy_node()
+        if executor is not None:
+            executor.shutdown(timeout_sec=1.0)
+        if context is not None:
+            rclpy.try_shutdown(context=context)
+        for s, handler in old.items():
+            signal.signal(s, handler)
+    for line in summary(opts, state, children, run_s, domain, stop['why'] or 'stopped'):
+        print(line, file=out)
+    out.flush()
+    ok = early is None and state.estimates > 0 and all(c.clean() for c in children)
+    if early is not None:
+        print(f'error: the {early.name} {early.describe()} before the end of the run; its last '
+              'lines:', file=err)
+        for line in early.tail():
+            print(f'  {line}', file=err)
+    elif not state.estimates:
+        print('error: no estimate received from the estimator', file=err)
+    for c in children:
+        if c is not early and not c.clean():
+            print(f'error: the {c.name} {c.describe()}; its last lines:', file=err)
+            for line in c.tail(8):
+                print(f'  {line}', file=err)
+    if ok:
+        shutil.rmtree(log_dir, ignore_errors=True)
+    else:
+        print(f'(logs of the children kept in {log_dir})', file=err)
+    err.flush()
+    return 0 if ok else 1

@@ -1,0 +1,458 @@
+"""
+The simulated rig: a ROS 2 node that plays the reference EHA and its sensors.
+
+Node ``eha_sim_rig``. From a duty (a reference stage or a duty CSV) the
+kinetic model makes the six sensor signals, computed vectorised in blocks of
+20 ms and published one sample per topic per tick of a ``rate_Hz`` timer, so
+that a receiver stamping on arrival (the estimator does, for the Float64
+inputs) sees them spread as a real rig's would. A "truth" thermal model
+(:class:`~wet_eha_thermal.model.eha.EHAModel`) is stepped by the rig itself
+with the same, noise-free samples every block; its temperatures, through a
+first-order sensor lag and noise, are the thermocouples.
+
+Topics (``topic_prefix`` replaces ``/eha``; see :mod:`.topics`):
+
+- the six inputs of ``INPUT_TOPICS`` at ``rate_Hz``: Float64 for current,
+  speed and position, FluidPressure (header stamp = the sample's scheduled
+  time) for the three pressures; QoS ``qos``;
+- the ambient temperature (Temperature, degC) at 1 Hz;
+- the thermocouples ``<prefix>/measured/<name>`` for every name of
+  ``THERMOCOUPLES`` at ``thermocouple_rate_Hz``;
+- ``/diagnostics`` at 1 Hz: samples published and skipped, timer jitter,
+  publish lag, CPU, and the truth model's hot-spot, magnet and oil.
+
+Sensor noise (1 sigma, Gaussian, seeded by ``seed``; off with ``noise:=false``):
+current 0.05 A (the reading is an RMS value, so its magnitude is kept),
+speed 2 rad/s, pressures 20 kPa, position 10 um, thermocouples 0.2 K,
+ambient 0.05 K. Thermocouples lag the truth with a first-order time
+constant ``thermocouple_lag_s`` (1 s).
+
+Time: the sample schedule follows the node's clock, so under
+``use_sim_time`` it follows /clock; nothing is published before the first
+/clock message, and a clock that jumps backwards (a replay restarting)
+re-anchors the schedule without restarting the duty. When the rig falls
+behind (a slow tick) it publishes the due samples in one tick, at most
+``MAX_BURST_S`` worth; samples older than that are skipped and counted.
+
+Run: ``python -m wet_eha_thermal.ros.sim_rig_node [--executor events|single]
+--ros-args -p stage:=3``.
+"""
+
+import argparse
+import math
+import signal
+import sys
+import time
+from typing import Dict, List, Optional
+
+from builtin_interfaces.msg import Time as TimeMsg
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+import numpy as np
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+import rclpy
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.signals import SignalHandlerOptions
+from sensor_msgs.msg import FluidPressure, Temperature
+from std_msgs.msg import Float64
+from wet_eha_thermal.config import ConfigError, load_config
+from wet_eha_thermal.model.eha import EHAModel, SampleBlock
+from wet_eha_thermal.model.kinetics import (DutyError, KineticModel, load_duty_csv, stage_duty,
+                                            STAGES, ThermalFeedback)
+from wet_eha_thermal.model.motor import C_TO_K
+from wet_eha_thermal.ros.topics import (AMBIENT_TOPIC, DIAGNOSTICS_TOPIC, input_qos,
+                                        INPUT_TOPICS, MEASURED_PREFIX, PREFIX, PRESSURE_INPUTS,
+                                        THERMOCOUPLES)
+from wet_eha_thermal.simulation import feedback, SENSORS
+
+NODE_NAME = 'eha_sim_rig'
+#: Length of one kinetics block and one truth-model step (s).
+BLOCK_S = 0.02
+#: Most sample time published in one tick when catching up (s); older samples are skipped.
+MAX_BURST_S = 0.1
+#: Sensor noise, 1 sigma, in the units of each input.
+NOISE_SIGMA = {'current_A': 0.05, 'speed_rad_s': 2.0, 'p_a_Pa': 20.0e3, 'p_b_Pa': 20.0e3,
+               'p_acc_Pa': 20.0e3, 'position_m': 10.0e-6}
+THERMOCOUPLE_SIGMA_K = 0.2
+AMBIENT_SIGMA_K = 0.05
+OIL_NODES = ('airgap_oil_outlet', 'motor_oil_outlet', 'pump_case', 'chamber_a', 'chamber_b',
+             'accumulator')
+#: Tick intervals and publish lags kept for the jitter figures (a ring of this many).
+STATS_WINDOW = 20000
+
+
+def prefixed(topic: str, prefix: str) -> str:
+    """Return ``topic`` (one of :mod:`.topics`, under ``/eha``) moved under ``prefix``."""
+    if not topic.startswith(PREFIX):
+        return topic
+    return prefix.rstrip('/') + topic[len(PREFIX):]
+
+
+def _stamp(ns: int) -> TimeMsg:
+    return TimeMsg(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def _descriptor(text: str, lo=None, hi=None, step=None) -> ParameterDescriptor:
+    d = ParameterDescriptor(description=text, read_only=True)
+    if isinstance(lo, int):
+        d.integer_range = [IntegerRange(from_value=lo, to_value=hi, step=step or 1)]
+    elif lo is not None:
+        d.floating_point_range = [FloatingPointRange(from_value=float(lo), to_value=float(hi),
+                                                     step=0.0)]
+    return d
+
+
+class _Ring:
+    """Fixed-size ring of floats for percentiles over the recent past."""
+
+    def __init__(self, n: int) -> None:
+        self.buf = np.zeros(n)
+        self.n = 0
+
+    def add(self, v: float) -> None:
+        self.buf[self.n % self.buf.size] = v
+        self.n += 1
+
+    def values(self) -> np.ndarray:
+        return self.buf[:min(self.n, self.buf.size)]
+
+    def percentiles(self, qs) -> List[float]:
+        v = self.values()
+        return [float(x) for x in np.percentile(v, qs)] if v.size else [math.nan] * len(qs)
+
+
+class SimRigNode(Node):
+    """The simulated rig: kinetics to sensor topics, truth model to thermocouples."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        p = self._declare_parameters()
+        self.rate_Hz = p['rate_Hz']
+        self.n_block = max(1, int(round(self.rate_Hz * BLOCK_S)))
+        self.period_s = BLOCK_S / self.n_block       # exact: a block is a whole number of samples
+        self.period_ns = int(round(self.period_s * 1e9))
+        self.noise = p['noise']
+        self.ambient_C = p['ambient_C']
+        self.cfg = load_config(p['config_file'] or None)
+        act = self.cfg.hydraulics.actuator
+        if p['duty_file']:
+            self.duty = load_duty_csv(p['duty_file'], act.area_m2, act.half_stroke_m)
+        else:
+            self.duty = stage_duty(self.cfg, p['stage'])
+        self.rng = np.random.default_rng(p['seed'])
+        # truth model, initialised at ambient with the duty's first sample
+        self.truth = EHAModel(self.cfg)
+        self.kin = KineticModel(self.cfg, self.truth.oil, self.truth.log)
+        amb_K = self.ambient_C + C_TO_K
+        self.truth.T_hyd = np.full(self.truth.circuit.n, amb_K)
+        first = self.kin.sample(self.duty, np.array([0.0]), ThermalFeedback.uniform(amb_K))
+        self.truth.initialise(amb_K, _sample_block(first))
+        self.tc_lag = {name: amb_K for name in THERMOCOUPLES}
+        lag = p['thermocouple_lag_s']
+        self.tc_alpha = 1.0 - math.exp(-BLOCK_S / lag) if lag > 0.0 else 1.0
+        # publishers
+        prefix = p['topic_prefix']
+        q = input_qos(p['qos'], depth=max(10, self.n_block * 5))
+        self.pubs = {}
+        for name in SENSORS:
+            kind = FluidPressure if name in PRESSURE_INPUTS else Float64
+            self.pubs[name] = self.create_publisher(kind, prefixed(INPUT_TOPICS[name], prefix), q)
+        self.msgs = {name: (FluidPressure() if name in PRESSURE_INPUTS else Float64())
+                     for name in SENSORS}
+        for name in PRESSURE_INPUTS:
+            self.msgs[name].header.frame_id = NODE_NAME
+            self.msgs[name].variance = NOISE_SIGMA[name] ** 2 if self.noise else 0.0
+        self.ambient_pub = self.create_publisher(Temperature, prefixed(AMBIENT_TOPIC, prefix), 10)
+        self.tc_pubs = {name: self.create_publisher(
+            Temperature, prefixed(f'{MEASURED_PREFIX}/{name}', prefix), 10)
+            for name in THERMOCOUPLES}
+        self.diag_pub = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, 10)
+        # schedule: sample k (1, 2, ...) has duty time k * period and is due at t0 + k * period
+        self.t0_ns: Optional[int] = None
+        self.last_now_ns = 0
+        self.k_next = 1
+        self.block: Optional[List[List[float]]] = None
+        self.block_first = 1        # sample number of the block's first row
+        self.published = 0
+        self.skipped = 0
+        self.restarts = 0
+        self.ticks = 0
+        self.intervals = _Ring(STATS_WINDOW)
+        self.lags = _Ring(STATS_WINDOW)
+        self.block_ms = _Ring(2000)
+        self.max_interval_s = 0.0
+        self.max_lag_s = 0.0
+        self._last_tick_wall: Optional[float] = None
+        self.started_wall = time.monotonic()
+        self.started_cpu = time.process_time()
+        self._diag_mark = (self.started_wall, self.started_cpu)
+        self.create_timer(self.period_s, self._tick)
+        self.create_timer(1.0, self._publish_ambient)
+        self.create_timer(1.0 / p['thermocouple_rate_Hz'], self._publish_thermocouples)
+        self.create_timer(1.0, self._publish_diagnostics)
+        what = self.duty.name if p['duty_file'] else f'stage {p["stage"]}'
+        self.get_logger().info(
+            f'rig: {what} at {1.0 / self.period_s:g} Hz ({self.n_block} samples per '
+            f'{BLOCK_S * 1e3:g} ms block), noise {"on" if self.noise else "off"}, ambient '
+            f'{self.ambient_C:g} degC, qos {p["qos"]}, topics under {prefix}')
+
+    # ------------------------------------------------------------ parameters
+    def _declare_parameters(self) -> Dict[str, object]:
+        stages = sorted(STAGES)
+        specs = [
+            ('stage', 6, _descriptor('reference stage 1-6 (ignored with duty_file)',
+                                     stages[0], stages[-1])),
+            ('duty_file', '', _descriptor('duty CSV (time_s, flow_L_min, load_MPa); '
+                                          'empty: use the stage')),
+            ('rate_Hz', 1000.0, _descriptor('sensor sample rate, Hz', 50.0, 10000.0)),
+            ('noise', True, _descriptor('add sensor noise')),
+            ('seed', 1, _descriptor('seed of the noise', 0, 2 ** 31 - 1)),
+            ('ambient_C', 20.0, _descriptor('ambient temperature, degC', -40.0, 60.0)),
+            ('thermocouple_rate_Hz', 10.0, _descriptor('thermocouple rate, Hz', 0.1, 100.0)),
+            ('thermocouple_lag_s', 1.0, _descriptor('thermocouple time constant, s', 0.0, 60.0)),
+            ('config_file', '', _descriptor('YAML configuration; empty: the reference rig')),
+            ('topic_prefix', PREFIX, _descriptor('namespace of the rig topics')),
+            ('qos', 'sensor_data', _descriptor('QoS of the inputs: sensor_data or reliable')),
+        ]
+        # read `-p rate_Hz:=500` (an integer to YAML) as 500.0 for the double parameters
+        overrides = getattr(self, '_parameter_overrides', None)
+        if isinstance(overrides, dict):
+            for name, default, _ in specs:
+                given = overrides.get(name)
+                if isinstance(default, float) and given is not None \
+                        and given.type_ == Parameter.Type.INTEGER:
+                    overrides[name] = Parameter(name, Parameter.Type.DOUBLE, float(given.value))
+        values = {}
+        for name, default, desc in specs:
+            values[name] = self.declare_parameter(name, default, desc).value
+        if values['qos'] not in ('sensor_data', 'reliable'):
+            raise ValueError(f'parameter qos {values["qos"]!r}: expected sensor_data or '
+                             'reliable')
+        if not values['topic_prefix'].startswith('/'):
+            raise ValueError(f'parameter topic_prefix {values["topic_prefix"]!r}: must start '
+                             'with /')
+        return values
+
+    # -------------------------------------------------------------- kinetics
+    def _next_block(self) -> None:
+        """Compute the next block of samples and step the truth model over it."""
+        t_start = time.perf_counter()
+        first = self.block_first if self.block is None else self.block_first + self.n_block
+        t = (first + np.arange(self.n_block)) * self.period_s
+        s = self.kin.sample(self.duty, t, feedback(self.truth))
+        self.truth.step(_sample_block(s), self.ambient_C + C_TO_K)
+        out = self.truth.outputs()
+        for name, quantity in THERMOCOUPLES.items():
+            self.tc_lag[name] += self.tc_alpha * (out[quantity] - self.tc_lag[name])
+        cols = []
+        for name in SENSORS:
+            v = getattr(s, name)
+            if self.noise:
+                v = v + self.rng.normal(0.0, NOISE_SIGMA[name], v.size)
+                if name == 'current_A':
+                    np.abs(v, out=v)       # an RMS reading is never negative
+            cols.append(v)
+        self.block = np.column_stack(cols).tolist()
+        self.block_first = first
+        self.block_ms.add((time.perf_counter() - t_start) * 1e3)
+
+    # ----------------------------------------------------------------- ticks
+    def _tick(self) -> None:
+        wall = time.perf_counter()
+        if self._last_tick_wall is not None:
+            dt = wall - self._last_tick_wall
+            self.intervals.add(dt)
+            self.max_interval_s = max(self.max_interval_s, dt)
+        self._last_tick_wall = wall
+        self.ticks += 1
+        now_ns = self.get_clock().now().nanoseconds
+        if now_ns == 0:
+            return                      # sim time before the first /clock
+        if self.t0_ns is None:
+            self.t0_ns = now_ns - self.period_ns * self.k_next
+        elif now_ns < self.last_now_ns:
+            # the clock jumped back: keep the duty going from here
+            self.t0_ns = now_ns - self.period_ns * self.k_next
+            self.restarts += 1
+        self.last_now_ns = now_ns
+        due = (now_ns - self.t0_ns) // self.period_ns
+        max_burst = max(1, int(MAX_BURST_S / self.period_s))
+        if due - self.k_next >= max_burst:
+            skip = due - max_burst + 1 - self.k_next
+            self.skipped += skip
+            self.k_next += skip
+        pubs = [self.pubs[n] for n in SENSORS]
+        msgs = [self.msgs[n] for n in SENSORS]
+        is_pressure = [n in PRESSURE_INPUTS for n in SENSORS]
+        while self.k_next <= due:
+            k = self.k_next
+            while self.block is None or k >= self.block_first + self.n_block:
+                self._next_block()
+            row = self.block[k - self.block_first]
+            sched_ns = self.t0_ns + k * self.period_ns
+            stamp = _stamp(sched_ns)
+            for pub, msg, pressure, value in zip(pubs, msgs, is_pressure, row):
+                if pressure:
+                    msg.header.stamp = stamp
+                    msg.fluid_pressure = value
+                else:
+                    msg.data = value
+                pub.publish(msg)
+            lag = (now_ns - sched_ns) * 1e-9
+            self.lags.add(lag)
+            self.max_lag_s = max(self.max_lag_s, lag)
+            self.published += 1
+            self.k_next += 1
+
+    def _publish_ambient(self) -> None:
+        now = self.get_clock().now()
+        if now.nanoseconds == 0:
+            return
+        msg = Temperature()
+        msg.header.stamp = now.to_msg()
+        msg.header.frame_id = NODE_NAME
+        sigma = AMBIENT_SIGMA_K if self.noise else 0.0
+        msg.temperature = self.ambient_C + (self.rng.normal(0.0, sigma) if sigma else 0.0)
+        msg.variance = sigma ** 2
+        self.ambient_pub.publish(msg)
+
+    def _publish_thermocouples(self) -> None:
+        now = self.get_clock().now()
+        if now.nanoseconds == 0 or self.block is None:
+            return
+        stamp = now.to_msg()
+        sigma = THERMOCOUPLE_SIGMA_K if self.noise else 0.0
+        noise = self.rng.normal(0.0, sigma, len(THERMOCOUPLES)) if sigma else \
+            np.zeros(len(THERMOCOUPLES))
+        for (name, pub), e in zip(self.tc_pubs.items(), noise):
+            msg = Temperature()
+            msg.header.stamp = stamp
+            msg.header.frame_id = f'{NODE_NAME}/{name}'
+            msg.temperature = self.tc_lag[name] - C_TO_K + float(e)
+            msg.variance = sigma ** 2
+            pub.publish(msg)
+
+    # ------------------------------------------------------------ statistics
+    def statistics(self) -> Dict[str, float]:
+        """Return the rig's figures: samples, timer jitter, publish lag (ms), CPU (%)."""
+        wall = time.monotonic() - self.started_wall
+        cpu = time.process_time() - self.started_cpu
+        i50, i99 = self.intervals.percentiles([50, 99])
+        l50, l99 = self.lags.percentiles([50, 99])
+        b50, b99 = self.block_ms.percentiles([50, 99])
+        return {'run_s': wall, 'samples_published': self.published,
+                'samples_skipped': self.skipped, 'clock_restarts': self.restarts,
+                'duty_time_s': (self.k_next - 1) * self.period_s,
+                'tick_interval_p50_ms': i50 * 1e3, 'tick_interval_p99_ms': i99 * 1e3,
+                'tick_interval_max_ms': self.max_interval_s * 1e3,
+                'publish_lag_p50_ms': l50 * 1e3, 'publish_lag_p99_ms': l99 * 1e3,
+                'publish_lag_max_ms': self.max_lag_s * 1e3,
+                'block_p50_ms': b50, 'block_p99_ms': b99,
+                'cpu_percent': 100.0 * cpu / wall if wall > 0 else 0.0}
+
+    def summary(self) -> str:
+        """Return a one-line account of the run (samples, jitter, lag, CPU)."""
+        s = self.statistics()
+        return (f'rig summary: {s["run_s"]:.1f} s, {s["samples_published"]} samples x '
+                f'{len(SENSORS)} topics ({s["samples_skipped"]} skipped), tick interval '
+                f'p50/p99/max {s["tick_interval_p50_ms"]:.3f}/{s["tick_interval_p99_ms"]:.3f}/'
+                f'{s["tick_interval_max_ms"]:.1f} ms, publish lag p50/p99/max '
+                f'{s["publish_lag_p50_ms"]:.3f}/{s["publish_lag_p99_ms"]:.3f}/'
+                f'{s["publish_lag_max_ms"]:.1f} ms, block (kinetics + truth step) p50/p99 '
+                f'{s["block_p50_ms"]:.2f}/{s["block_p99_ms"]:.2f} ms, CPU '
+                f'{s["cpu_percent"]:.1f} % of a core')
+
+    def _publish_diagnostics(self) -> None:
+        s = self.statistics()
+        wall, cpu = time.monotonic(), time.process_time()
+        w0, c0 = self._diag_mark
+        self._diag_mark = (wall, cpu)
+        s['cpu_percent_last_s'] = 100.0 * (cpu - c0) / max(wall - w0, 1e-9)
+        if self.block is not None:
+            out = self.truth.outputs()
+            s['truth_winding_hotspot_C'] = out['winding_hotspot'] - C_TO_K
+            s['truth_winding_mean_C'] = out['winding_mean'] - C_TO_K
+            s['truth_magnet_C'] = out['magnet'] - C_TO_K
+            s['truth_oil_C'] = max(out[k] for k in OIL_NODES) - C_TO_K
+        st = DiagnosticStatus(name=f'{NODE_NAME}: rig', hardware_id=NODE_NAME)
+        late = s['publish_lag_p99_ms'] > 10.0 or self.skipped > 0
+        st.level = DiagnosticStatus.WARN if late else DiagnosticStatus.OK
+        st.message = 'falling behind the schedule' if late else 'running'
+        st.values = [KeyValue(key=k, value=(f'{v:.4g}' if isinstance(v, float) else str(v)))
+                     for k, v in s.items()]
+        arr = DiagnosticArray(status=[st])
+        arr.header.stamp = self.get_clock().now().to_msg()
+        self.diag_pub.publish(arr)
+
+
+def _sample_block(s) -> SampleBlock:
+    return SampleBlock(s.t_s, s.current_A, s.speed_rad_s, s.p_a_Pa, s.p_b_Pa, s.p_acc_Pa,
+                       s.position_m)
+
+
+def make_executor(kind: str):
+    """Return an executor: 'events' (rclpy.experimental.EventsExecutor) or 'single'."""
+    if kind == 'events':
+        from rclpy.experimental import EventsExecutor
+        return EventsExecutor()
+    return SingleThreadedExecutor()
+
+
+def spin(executor) -> None:
+    """
+    Spin ``executor`` until SIGINT (Ctrl-C), SIGTERM or a shutdown of the context.
+
+    The signals only set a flag, checked between callbacks, so that no
+    KeyboardInterrupt lands inside a callback; and the executor spins in
+    slices of at most 0.1 s, because ``EventsExecutor.spin()`` of the Jazzy
+    wheels does not return when the context is shut down.
+    """
+    stop = []
+
+    def on_signal(signum, frame) -> None:
+        stop.append(signum)
+
+    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        while rclpy.ok() and not stop:
+            executor.spin_once(timeout_sec=0.1)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        for s, handler in old.items():
+            signal.signal(s, handler)
+
+
+def main(args: Optional[List[str]] = None) -> int:
+    """Run the simulated rig until Ctrl-C (or SIGTERM); return the exit status."""
+    argv = list(sys.argv if args is None else args)
+    parser = argparse.ArgumentParser(
+        prog='wet-eha-thermal-rig', description='Simulated wet-EHA rig (ROS 2 node eha_sim_rig);'
+        ' parameters go after --ros-args, e.g. --ros-args -p stage:=3')
+    parser.add_argument('--executor', choices=('events', 'single'), default='events',
+                        help='rclpy executor (default: %(default)s)')
+    opts = parser.parse_args(rclpy.utilities.remove_ros_args(argv)[1:])
+    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    node = None
+    try:
+        try:
+            node = SimRigNode()
+        except (ConfigError, DutyError, ValueError,
+                rclpy.exceptions.InvalidParameterValueException,
+                rclpy.exceptions.InvalidParameterTypeException) as exc:
+            print(f'error: {exc}', file=sys.stderr)
+            return 2
+        executor = make_executor(opts.executor)
+        executor.add_node(node)
+        spin(executor)
+        return 0
+    finally:
+        if node is not None:
+            print(node.summary(), file=sys.stderr, flush=True)
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    sys.exit(main())
