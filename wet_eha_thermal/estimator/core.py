@@ -231,6 +231,10 @@ class Estimator:
                                   stale))
         return out
 
+    def ready(self, stamp_s: float) -> bool:
+        """Tell whether a sample stamped ``stamp_s`` may let the next step complete (cheap)."""
+        return self.t_model is None or stamp_s >= self._step_end(self.steps + 1) - self._eps
+
     def _step_end(self, k: int) -> float:
         """Return the sample time (s) at which step ``k`` ends (step 0 ends at the start)."""
         return self._t_origin + k * self.settings.step_s

@@ -3,10 +3,11 @@ The live estimator as a ROS 2 node: sensor topics in; estimates, diagnostics and
 
 The node wraps :class:`wet_eha_thermal.estimator.core.Estimator`. Every
 sample goes to the core with its stamp (a Float64 has none: it takes the
-node's ROS clock, so /clock under use_sim_time). A timer at
-``publish_rate_Hz`` calls ``advance(now)`` with the ROS clock, so the model
-keeps stepping on its fallbacks when inputs fall silent, and publishes the
-newest estimate: one sensor_msgs/Temperature per name in
+node's ROS clock, so /clock under use_sim_time). A sample that can complete
+a model step steps it at once, so the estimate leaves within the step's
+computing time. A timer at ``publish_rate_Hz`` also calls ``advance(now)``
+with the ROS clock, so the model keeps stepping on its fallbacks when inputs
+fall silent. Each new estimate is published: one sensor_msgs/Temperature per name in
 ``topics.ESTIMATES`` (stamped with the estimate's sample time, strictly
 increasing), the state vector, and the alert summary whenever it changes
 (latched). The rest of each tick's budget goes to the forecast and margin.
@@ -236,7 +237,8 @@ class EstimatorNode(Node):
             if now is None:
                 self.waiting_for_clock += 1
                 return
-            self.est.add(channel, now, float(msg.data))
+            if self.est.add(channel, now, float(msg.data)) and self.est.ready(now):
+                self._step(None)
         except Exception as exc:  # noqa: B902 - a callback never raises
             self._failed(channel, exc)
 
@@ -246,7 +248,8 @@ class EstimatorNode(Node):
             if t is None:
                 self.waiting_for_clock += 1
                 return
-            self.est.add(channel, t, float(msg.fluid_pressure))
+            if self.est.add(channel, t, float(msg.fluid_pressure)) and self.est.ready(t):
+                self._step(None)
         except Exception as exc:  # noqa: B902
             self._failed(channel, exc)
 
@@ -296,11 +299,31 @@ class EstimatorNode(Node):
 
     # ---------------------------------------------------------- publishing
     def _on_tick(self) -> None:
-        """Step the model to the ROS clock and publish the newest estimate."""
+        """Step to the ROS clock (silent inputs go stale), publish, do background work."""
         try:
             now = self._now_s()
             if now is None:
                 return
+            self._step(now)
+            if self.budget_s > 0.0:
+                try:
+                    self.est.background(self.budget_s)
+                except Exception as exc:  # noqa: B902
+                    self.background_errors += 1
+                    self.get_logger().error(f'forecast/margin failed: {exc}',
+                                            throttle_duration_sec=5.0)
+        except Exception as exc:  # noqa: B902
+            self._failed('publish', exc)
+
+    def _step(self, now: Optional[float]) -> None:
+        """
+        Step the model as far as the samples (and the clock ``now``, if given) allow; publish.
+
+        Called from an input callback as soon as a sample may complete a step,
+        so the estimate leaves within the step's computing time, and from the
+        publish timer with the clock so that the estimator never stops.
+        """
+        try:
             try:
                 estimates = self.est.advance(now)
                 self.model_failing = False
@@ -319,17 +342,11 @@ class EstimatorNode(Node):
                     self._pending_events.append(ev.message)
             if estimates:
                 self._publish_estimate(estimates[-1], estimates[-1].stamp_s)
-            elif self.model_failing and self._last_published is not None:
+            elif self.model_failing and self._last_published is not None and now is not None:
                 # keep the consumers alive on the last good estimate, stamped now
                 self._publish_estimate(self._last_published, now)
-            self._publish_alerts()
-            if self.budget_s > 0.0:
-                try:
-                    self.est.background(self.budget_s)
-                except Exception as exc:  # noqa: B902
-                    self.background_errors += 1
-                    self.get_logger().error(f'forecast/margin failed: {exc}',
-                                            throttle_duration_sec=5.0)
+            if estimates or now is not None:
+                self._publish_alerts()
         except Exception as exc:  # noqa: B902
             self._failed('publish', exc)
 
