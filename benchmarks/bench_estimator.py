@@ -54,6 +54,7 @@ from wet_eha_thermal.config import load_config
 from wet_eha_thermal.model.kinetics import KineticModel, stage_duty, ThermalFeedback
 from wet_eha_thermal.model.oil import get_oil
 from wet_eha_thermal.ros import topics
+from wet_eha_thermal.ros.runtime import make_executor
 from wet_eha_thermal.simulation import SENSORS
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -73,14 +74,6 @@ def cpu_seconds(pid: int) -> float:
     text = Path(f'/proc/{pid}/stat').read_text()
     fields = text[text.rindex(')') + 2:].split()     # after the command name
     return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
-
-
-def make_executor(kind: str):
-    """Return an EventsExecutor ('events') or a SingleThreadedExecutor ('single')."""
-    if kind == 'events':
-        from rclpy.experimental import EventsExecutor
-        return EventsExecutor()
-    return rclpy.executors.SingleThreadedExecutor()
 
 
 # ------------------------------------------------------------------ publisher

@@ -31,20 +31,20 @@ from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescr
                                 ParameterType, SetParametersResult)
 import rclpy
 from rclpy.exceptions import NameValidationException, ParameterException
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
-from rclpy.task import Future
+from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension, String
 from wet_eha_thermal.config import ConfigError, load_config
 from wet_eha_thermal.estimator.core import Estimate, Estimator, INPUTS
 from wet_eha_thermal.ros import topics
+from wet_eha_thermal.ros.runtime import EXECUTORS, make_executor, spin
 
 NODE_NAME = 'eha_thermal_estimator'
-EXECUTORS = ('events', 'single')
 LIMITED = ('winding_hotspot', 'magnet', 'oil')   # quantities with limits and a forecast
 _LEVEL_NAMES = {0: 'OK', 1: 'WARN', 2: 'ERROR', 3: 'STALE'}
 
@@ -500,20 +500,6 @@ class EstimatorNode(Node):
         return self._status('plausibility', level, message, list(counts.items()))
 
 
-def spin(executor, context=None) -> None:
-    """
-    Spin ``executor`` until the context shuts down (Ctrl-C, SIGTERM or rclpy.shutdown).
-
-    ``EventsExecutor.spin()`` of the Jazzy wheels (rclpy 7.1.6) never runs a
-    callback and ignores Ctrl-C; spinning toward a future that never completes,
-    with a timeout, runs every callback and returns to check the context.
-    """
-    context = context if context is not None else executor.context
-    never = Future()
-    while context.ok():
-        executor.spin_until_future_complete(never, timeout_sec=0.5)
-
-
 def _parse_args(argv: List[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
         prog='wet-eha-thermal-estimator',
@@ -531,7 +517,7 @@ def main(args: Optional[List[str]] = None) -> int:
     """Run the estimator node until Ctrl-C or shutdown; return the exit status."""
     argv = list(sys.argv if args is None else args)
     opts = _parse_args(remove_ros_args(argv)[1:])
-    rclpy.init(args=argv)
+    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     status = 0
     try:
@@ -542,11 +528,7 @@ def main(args: Optional[List[str]] = None) -> int:
             print(f'wet-eha-thermal-estimator: {exc}', file=sys.stderr)
             return 2
         kind = opts.executor or node.get_parameter('executor').value
-        if kind == 'events':
-            from rclpy.experimental import EventsExecutor
-            executor = EventsExecutor()
-        else:
-            executor = SingleThreadedExecutor()
+        executor = make_executor(kind)
         node.get_logger().info(f'spinning with the {kind} executor')
         executor.add_node(node)
         try:

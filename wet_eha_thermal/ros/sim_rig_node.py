@@ -40,7 +40,6 @@ Run: ``python -m wet_eha_thermal.ros.sim_rig_node [--executor events|single]
 
 import argparse
 import math
-import signal
 import sys
 import time
 from typing import Dict, List, Optional
@@ -50,17 +49,17 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 import numpy as np
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 import rclpy
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64
 from wet_eha_thermal.config import ConfigError, load_config
-from wet_eha_thermal.model.eha import EHAModel, SampleBlock
+from wet_eha_thermal.model.eha import EHAModel
 from wet_eha_thermal.model.kinetics import (DutyError, KineticModel, load_duty_csv, stage_duty,
                                             STAGES, ThermalFeedback)
 from wet_eha_thermal.model.motor import C_TO_K
+from wet_eha_thermal.ros.runtime import EXECUTORS, make_executor, spin
 from wet_eha_thermal.ros.topics import (AMBIENT_TOPIC, DIAGNOSTICS_TOPIC, input_qos,
                                         INPUT_TOPICS, MEASURED_PREFIX, PREFIX, PRESSURE_INPUTS,
                                         THERMOCOUPLES)
@@ -147,7 +146,7 @@ class SimRigNode(Node):
         amb_K = self.ambient_C + C_TO_K
         self.truth.T_hyd = np.full(self.truth.circuit.n, amb_K)
         first = self.kin.sample(self.duty, np.array([0.0]), ThermalFeedback.uniform(amb_K))
-        self.truth.initialise(amb_K, _sample_block(first))
+        self.truth.initialise(amb_K, first)
         self.tc_lag = {name: amb_K for name in THERMOCOUPLES}
         lag = p['thermocouple_lag_s']
         self.tc_alpha = 1.0 - math.exp(-BLOCK_S / lag) if lag > 0.0 else 1.0
@@ -241,7 +240,7 @@ class SimRigNode(Node):
         first = self.block_first if self.block is None else self.block_first + self.n_block
         t = (first + np.arange(self.n_block)) * self.period_s
         s = self.kin.sample(self.duty, t, feedback(self.truth))
-        self.truth.step(_sample_block(s), self.ambient_C + C_TO_K)
+        self.truth.step(s, self.ambient_C + C_TO_K)
         out = self.truth.outputs()
         for name, quantity in THERMOCOUPLES.items():
             self.tc_lag[name] += self.tc_alpha * (out[quantity] - self.tc_lag[name])
@@ -386,51 +385,13 @@ class SimRigNode(Node):
         self.diag_pub.publish(arr)
 
 
-def _sample_block(s) -> SampleBlock:
-    return SampleBlock(s.t_s, s.current_A, s.speed_rad_s, s.p_a_Pa, s.p_b_Pa, s.p_acc_Pa,
-                       s.position_m)
-
-
-def make_executor(kind: str):
-    """Return an executor: 'events' (rclpy.experimental.EventsExecutor) or 'single'."""
-    if kind == 'events':
-        from rclpy.experimental import EventsExecutor
-        return EventsExecutor()
-    return SingleThreadedExecutor()
-
-
-def spin(executor) -> None:
-    """
-    Spin ``executor`` until SIGINT (Ctrl-C), SIGTERM or a shutdown of the context.
-
-    The signals only set a flag, checked between callbacks, so that no
-    KeyboardInterrupt lands inside a callback; and the executor spins in
-    slices of at most 0.1 s, because ``EventsExecutor.spin()`` of the Jazzy
-    wheels does not return when the context is shut down.
-    """
-    stop = []
-
-    def on_signal(signum, frame) -> None:
-        stop.append(signum)
-
-    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        while rclpy.ok() and not stop:
-            executor.spin_once(timeout_sec=0.1)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        for s, handler in old.items():
-            signal.signal(s, handler)
-
-
 def main(args: Optional[List[str]] = None) -> int:
     """Run the simulated rig until Ctrl-C (or SIGTERM); return the exit status."""
     argv = list(sys.argv if args is None else args)
     parser = argparse.ArgumentParser(
         prog='wet-eha-thermal-rig', description='Simulated wet-EHA rig (ROS 2 node eha_sim_rig);'
         ' parameters go after --ros-args, e.g. --ros-args -p stage:=3')
-    parser.add_argument('--executor', choices=('events', 'single'), default='events',
+    parser.add_argument('--executor', choices=EXECUTORS, default='events',
                         help='rclpy executor (default: %(default)s)')
     opts = parser.parse_args(rclpy.utilities.remove_ros_args(argv)[1:])
     rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
