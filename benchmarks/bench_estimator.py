@@ -107,14 +107,7 @@ def run_publisher(args) -> None:
         due = (time.monotonic_ns() - st['start']) // period_ns + 1
         while st['k'] < due:
             row = rows[st['k'] % n]
-            stamp = clock.now().to_msg()
-            for pub, msg, is_p, v in zip(pubs, msgs, pressure, row):
-                if is_p:
-                    msg.header.stamp = stamp
-                    msg.fluid_pressure = v
-                else:
-                    msg.data = v
-                pub.publish(msg)
+            topics.publish_inputs(pubs, msgs, pressure, row, clock.now().to_msg())
             st['k'] += 1
 
     node.create_timer(1.0 / args.rate_Hz, tick)

@@ -214,6 +214,15 @@ def _live(args: argparse.Namespace) -> int:
     return live.run(opts, domain=domain)
 
 
+def _add_duty_arguments(p: argparse.ArgumentParser, required: bool) -> None:
+    """Add the --stage | --duty choice (one of them; stage 6 when neither is required)."""
+    which = p.add_mutually_exclusive_group(required=required)
+    which.add_argument('--stage', type=int, default=None,
+                       help='reference stage number (1-6)' + ('' if required else '; default 6'))
+    which.add_argument('--duty', type=Path, metavar='FILE.csv',
+                       help='duty table: time_s, flow_L_min, load_MPa (repeats periodically)')
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of all commands."""
     parser = argparse.ArgumentParser(
@@ -241,10 +250,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    'stage or a duty CSV (columns time_s, flow_L_min, load_MPa). '
                                    'Prints end and peak temperatures and when each limit is or '
                                    'would be reached; writes a CSV and a PNG plot.')
-    which = p.add_mutually_exclusive_group(required=True)
-    which.add_argument('--stage', type=int, help='reference stage number (1-6)')
-    which.add_argument('--duty', type=Path, metavar='FILE.csv',
-                       help='duty table: time_s, flow_L_min, load_MPa (repeats periodically)')
+    _add_duty_arguments(p, required=True)
     p.add_argument('--duration', type=float, default=3600.0,
                    help='simulated time, s (default: %(default)g)')
     p.add_argument('--ambient-C', type=float, default=20.0,
@@ -269,11 +275,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    'to limit, alerts and stale inputs. Ends after --duration or '
                                    'on Ctrl-C with a summary. Both nodes run on a private ROS '
                                    'domain (from the process id, or $WET_EHA_LIVE_DOMAIN_ID).')
-    which = p.add_mutually_exclusive_group()
-    which.add_argument('--stage', type=int, default=None,
-                       help='reference stage number (1-6; default 6)')
-    which.add_argument('--duty', type=Path, metavar='FILE.csv',
-                       help='duty table: time_s, flow_L_min, load_MPa (repeats periodically)')
+    _add_duty_arguments(p, required=False)
     p.add_argument('--duration', type=float, default=60.0,
                    help='how long to run, s (default: %(default)g)')
     p.add_argument('--rate-Hz', type=float, default=1000.0,

@@ -62,7 +62,7 @@ from wet_eha_thermal.model.motor import C_TO_K
 from wet_eha_thermal.ros.runtime import EXECUTORS, make_executor, spin
 from wet_eha_thermal.ros.topics import (AMBIENT_TOPIC, DIAGNOSTICS_TOPIC, input_qos,
                                         INPUT_TOPICS, MEASURED_PREFIX, PREFIX, PRESSURE_INPUTS,
-                                        THERMOCOUPLES)
+                                        publish_inputs, THERMOCOUPLES)
 from wet_eha_thermal.simulation import feedback, SENSORS
 
 NODE_NAME = 'eha_sim_rig'
@@ -290,14 +290,7 @@ class SimRigNode(Node):
                 self._next_block()
             row = self.block[k - self.block_first]
             sched_ns = self.t0_ns + k * self.period_ns
-            stamp = _stamp(sched_ns)
-            for pub, msg, pressure, value in zip(pubs, msgs, is_pressure, row):
-                if pressure:
-                    msg.header.stamp = stamp
-                    msg.fluid_pressure = value
-                else:
-                    msg.data = value
-                pub.publish(msg)
+            publish_inputs(pubs, msgs, is_pressure, row, _stamp(sched_ns))
             lag = (now_ns - sched_ns) * 1e-9
             self.lags.add(lag)
             self.max_lag_s = max(self.max_lag_s, lag)

@@ -56,6 +56,17 @@ THERMOCOUPLES = {'winding': 'winding_mean', 'frame': 'frame', 'pump_inlet': 'pum
                  'motor_oil_outlet': 'motor_oil_outlet'}
 
 
+def publish_inputs(publishers, messages, is_pressure, values, stamp) -> None:
+    """Publish one sample of every input; pressures carry ``stamp`` in their header."""
+    for pub, msg, pressure, value in zip(publishers, messages, is_pressure, values):
+        if pressure:
+            msg.header.stamp = stamp
+            msg.fluid_pressure = value
+        else:
+            msg.data = value
+        pub.publish(msg)
+
+
 def input_qos(kind: str, depth: int = 100) -> QoSProfile:
     """Return the QoS of the sensor inputs: 'sensor_data' (best effort) or 'reliable'."""
     if kind == 'sensor_data':
