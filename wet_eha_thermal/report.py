@@ -18,8 +18,8 @@ import warnings
 import numpy as np
 
 from .config import Config
+from .model.eha import OIL_OUTPUTS
 from .model.motor import C_TO_K
-from .model.oil import OIL_GRADES
 
 #: Temperatures of the table, in print order.
 TABLE = ('winding_mean', 'winding_hotspot', 'frame', 'magnet', 'airgap_oil_outlet',
@@ -28,13 +28,6 @@ TABLE = ('winding_mean', 'winding_hotspot', 'frame', 'magnet', 'airgap_oil_outle
 #: Printed names of the temperatures, where not the key with spaces.
 LABELS = {'winding_hotspot': 'winding hot-spot', 'magnet': 'magnet (hottest)',
           'chamber_a': 'chamber A', 'chamber_b': 'chamber B'}
-#: Oil nodes whose hottest value at each recorded time is checked against the oil limit.
-OIL_NODES = ('motor_oil_outlet', 'pump_case', 'chamber_a', 'chamber_b', 'accumulator',
-             'airgap_oil_outlet')
-#: Oil temperature limit (degC) of the reference rig with MIL-PRF-5606:
-#: /work/shared/design/reference-eha.md ("oil limit 135 degC for 5606"), also the top
-#: of that grade's service range in :mod:`.model.oil`.
-OIL_LIMIT_C = 135.0
 #: Fraction of the recorded history, at its end, that the extrapolation fits.
 FIT_FRACTION = 1.0 / 3.0
 #: Peak-to-peak change (K) below which the fitted part of a history counts as flat.
@@ -217,20 +210,8 @@ def check_limit(label: str, t_s: Sequence[float], T_C: Sequence[float], limit_C:
 
 
 def oil_limit_C(cfg: Config) -> Tuple[float, str]:
-    """
-    Return the oil temperature limit (degC) and where it comes from.
-
-    A ``fluid.oil_limit_C`` in the configuration wins; otherwise
-    :data:`OIL_LIMIT_C` for MIL-PRF-5606 and the top of the service range
-    (:mod:`.model.oil`) for another grade.
-    """
-    own = getattr(cfg.fluid, 'oil_limit_C', None)
-    if own is not None:
-        return float(own), 'fluid.oil_limit_C'
-    if cfg.fluid.grade == 'MIL-PRF-5606':
-        return OIL_LIMIT_C, 'reference-eha.md'
-    grade = OIL_GRADES[cfg.fluid.grade]
-    return grade.T_max_K - C_TO_K, f'top of the {grade.name} service range'
+    """Return the oil temperature limit (degC) and where it comes from."""
+    return cfg.fluid.oil_limit_C, 'fluid.oil_limit_C'
 
 
 def temperatures_C(result) -> Dict[str, np.ndarray]:
@@ -239,9 +220,9 @@ def temperatures_C(result) -> Dict[str, np.ndarray]:
 
 
 def hottest_oil_C(result) -> Tuple[np.ndarray, str]:
-    """Return the hottest of the :data:`OIL_NODES` at each recorded time, and the end's node."""
+    """Return the hottest oil volume's temperature at each recorded time, and the end's node."""
     temps = temperatures_C(result)
-    names = [n for n in OIL_NODES if n in temps]
+    names = [n for n in OIL_OUTPUTS if n in temps]
     stack = np.vstack([temps[n] for n in names])
     return np.max(stack, axis=0), names[int(np.argmax(stack[:, -1]))]
 

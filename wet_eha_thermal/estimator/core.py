@@ -41,8 +41,6 @@ from ..model.eha import EHAModel, SampleBlock
 from ..model.motor import C_TO_K, MotorInputs, WetMotor
 
 INPUTS = ('current_A', 'speed_rad_s', 'p_a_Pa', 'p_b_Pa', 'p_acc_Pa', 'position_m')
-OIL_OUTPUTS = ('airgap_oil_outlet', 'motor_oil_outlet', 'pump_case', 'chamber_a', 'chamber_b',
-               'accumulator')
 
 
 @dataclass
@@ -310,7 +308,6 @@ class Estimator:
         self._window.append(block)
         implausible = self._plausibility(values, t1 - t0)
         temps = {k: v - C_TO_K for k, v in self.model.outputs().items()}
-        temps['oil'] = max(temps[k] for k in OIL_OUTPUTS)
         events = self.alerts.update(t1, {q: temps[q] for q in self.limits_C})
         worst_stale = max((t1 - self.health[n].stale_since_s for n in stale
                            if self.health[n].stale_since_s is not None), default=0.0)
@@ -407,7 +404,6 @@ class Estimator:
         f.model.step(block, f.ambient_K)
         f.t_s += span
         temps = {k: v - C_TO_K for k, v in f.model.outputs().items()}
-        temps['oil'] = max(temps[k] for k in OIL_OUTPUTS)
         for q, lim in self.limits_C.items():
             if f.crossed[q] is None and temps[q] >= lim:
                 f.crossed[q] = f.t_s

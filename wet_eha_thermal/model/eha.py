@@ -34,6 +34,10 @@ from .oil import get_oil, Oil
 from .validity import ValidityLog
 from ..config import Config
 
+#: the oil volumes whose hottest value is the ``oil`` output, checked against the oil limit
+OIL_OUTPUTS = ('airgap_oil_outlet', 'motor_oil_outlet', 'pump_case', 'chamber_a', 'chamber_b',
+               'accumulator')
+
 
 @dataclass
 class SampleBlock:
@@ -236,7 +240,7 @@ class EHAModel:
 
     # --------------------------------------------------------------- outputs
     def outputs(self) -> Dict[str, float]:
-        """Return the named temperatures (K) of the present state."""
+        """Return the named temperatures (K) of the present state; ``oil`` is the hottest oil."""
         out = dict(self.motor.outputs())
         named = self.circuit.named(self.T_hyd)
         out.update({'pump_case': named['case'], 'pump_port_a': named['port_a'],
@@ -247,6 +251,7 @@ class EHAModel:
         if self._last is not None:
             p = self._last[3]
             out['pump_outlet'] = named['port_a'] if p[0] >= p[1] else named['port_b']
+        out['oil'] = max(out[k] for k in OIL_OUTPUTS)
         return out
 
     def energy(self) -> Dict[str, float]:

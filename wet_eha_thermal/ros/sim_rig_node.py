@@ -75,8 +75,6 @@ NOISE_SIGMA = {'current_A': 0.05, 'speed_rad_s': 2.0, 'p_a_Pa': 20.0e3, 'p_b_Pa'
                'p_acc_Pa': 20.0e3, 'position_m': 10.0e-6}
 THERMOCOUPLE_SIGMA_K = 0.2
 AMBIENT_SIGMA_K = 0.05
-OIL_NODES = ('airgap_oil_outlet', 'motor_oil_outlet', 'pump_case', 'chamber_a', 'chamber_b',
-             'accumulator')
 #: Tick intervals and publish lags kept for the jitter figures (a ring of this many).
 STATS_WINDOW = 20000
 
@@ -366,7 +364,7 @@ class SimRigNode(Node):
             s['truth_winding_hotspot_C'] = out['winding_hotspot'] - C_TO_K
             s['truth_winding_mean_C'] = out['winding_mean'] - C_TO_K
             s['truth_magnet_C'] = out['magnet'] - C_TO_K
-            s['truth_oil_C'] = max(out[k] for k in OIL_NODES) - C_TO_K
+            s['truth_oil_C'] = out['oil'] - C_TO_K
         st = DiagnosticStatus(name=f'{NODE_NAME}: rig', hardware_id=NODE_NAME)
         late = s['publish_lag_p99_ms'] > 10.0 or self.skipped > 0
         st.level = DiagnosticStatus.WARN if late else DiagnosticStatus.OK
