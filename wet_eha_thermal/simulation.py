@@ -101,9 +101,10 @@ def simulate(cfg: Config, duty: Duty, duration_s: float, dt_s: float = 1.0,
         t = t_start + (k + frac) * dt_s
         s = kin.sample(duty, t, feedback(model))
         model.step(s, amb_K)
-        hottest = max(model.outputs().items(), key=lambda kv: kv[1])
+        out = model.outputs()
+        hottest = max(out.items(), key=lambda kv: kv[1])
         if hottest[1] - C_TO_K > RUNAWAY_C:
-            res.append(float(t[-1]), model.outputs(), {}, dict(model.heat_W))
+            res.append(float(t[-1]), out, {}, dict(model.heat_W))
             raise ThermalRunaway(f'thermal runaway: {hottest[0]} passed {RUNAWAY_C:.0f} degC at '
                                  f't = {t[-1]:.0f} s; the cooling cannot hold this duty', res)
         w = np.diff(np.concatenate([[t_start + k * dt_s], t]))
@@ -115,7 +116,7 @@ def simulate(cfg: Config, duty: Duty, duration_s: float, dt_s: float = 1.0,
             # inputs as means over the record interval (a snapshot of a 1 Hz duty
             # taken every second would always catch the same phase)
             span = acc[4]
-            res.append(float(t[-1]), model.outputs(),
+            res.append(float(t[-1]), out,
                        {'current_A_rms': float(np.sqrt(acc[0] / span)),
                         'speed_rpm': float(acc[1] / span * 30 / np.pi),
                         'p_a_MPa': float(acc[2] / span / 1e6),

@@ -136,7 +136,6 @@ class Estimator:
         self._next_margin_s: Optional[float] = None
         self._margin_job = None
         self.forecast_failures = 0
-        self.forecast_error = ''
 
     # ----------------------------------------------------------------- input
     def add(self, channel: str, stamp_s: float, value: float) -> bool:
@@ -383,10 +382,9 @@ class Estimator:
         """Advance the forecast by one ``forecast_step_s`` of repeated duty."""
         try:
             self._forecast_step_unguarded()
-        except (ArithmeticError, ValueError, RuntimeError) as exc:
+        except (ArithmeticError, ValueError, RuntimeError):
             # a forecast is advice: give up on this one, never on the estimator
             self.forecast_failures += 1
-            self.forecast_error = str(exc)
             self._forecast = None
 
     def _forecast_step_unguarded(self) -> None:
