@@ -33,7 +33,6 @@ import rclpy
 from rclpy.exceptions import NameValidationException, ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
@@ -42,7 +41,7 @@ from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension, String
 from wet_eha_thermal.config import ConfigError, load_config
 from wet_eha_thermal.estimator.core import Estimate, Estimator, INPUTS
 from wet_eha_thermal.ros import topics
-from wet_eha_thermal.ros.runtime import EXECUTORS, make_executor, spin
+from wet_eha_thermal.ros.runtime import accept_whole_numbers, EXECUTORS, make_executor, spin
 
 NODE_NAME = 'eha_thermal_estimator'
 LIMITED = ('winding_hotspot', 'magnet', 'oil')   # quantities with limits and a forecast
@@ -126,7 +125,7 @@ class EstimatorNode(Node):
 
     def __init__(self, **kwargs) -> None:
         super().__init__(NODE_NAME, **kwargs)
-        self._accept_whole_numbers()
+        accept_whole_numbers(self, {name: d for name, (d, _) in PARAMETERS.items()})
         for name, (default, descriptor) in PARAMETERS.items():
             self.declare_parameter(name, default, descriptor)
         p = {name: self.get_parameter(name).value for name in PARAMETERS}
@@ -198,17 +197,6 @@ class EstimatorNode(Node):
             f"{p['config_file'] or 'reference_eha.yaml (shipped)'}")
 
     # ------------------------------------------------------------- helpers
-    def _accept_whole_numbers(self) -> None:
-        """Read ``-p publish_rate_Hz:=20`` (an integer to YAML) as 20.0 for double parameters."""
-        overrides = getattr(self, '_parameter_overrides', None)   # rclpy keeps them here
-        if not isinstance(overrides, dict):
-            return
-        for name, (default, _) in PARAMETERS.items():
-            given = overrides.get(name)
-            if isinstance(default, float) and given is not None \
-                    and given.type_ == Parameter.Type.INTEGER:
-                overrides[name] = Parameter(name, Parameter.Type.DOUBLE, float(given.value))
-
     def _topic(self, name: str) -> str:
         """Return ``name`` with the topic prefix in place of topics.PREFIX."""
         if name.startswith(topics.PREFIX):

@@ -8,9 +8,12 @@ subscription and is not offered.
 """
 
 import signal
+from typing import Mapping
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
 
 EXECUTORS = ('events', 'single')
 
@@ -47,3 +50,21 @@ def spin(executor) -> None:
     finally:
         for s, handler in old.items():
             signal.signal(s, handler)
+
+
+def accept_whole_numbers(node: Node, defaults: Mapping[str, object]) -> None:
+    """
+    Read an integer override of a double parameter (``-p rate_Hz:=500``) as a double.
+
+    YAML types ``500`` as an integer, and declaring a double parameter with
+    it fails. rclpy keeps the command-line overrides in the node's private
+    ``_parameter_overrides``; call this before declaring the parameters.
+    """
+    overrides = getattr(node, '_parameter_overrides', None)
+    if not isinstance(overrides, dict):
+        return
+    for name, default in defaults.items():
+        given = overrides.get(name)
+        if isinstance(default, float) and given is not None \
+                and given.type_ == Parameter.Type.INTEGER:
+            overrides[name] = Parameter(name, Parameter.Type.DOUBLE, float(given.value))

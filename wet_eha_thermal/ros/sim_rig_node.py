@@ -50,7 +50,6 @@ import numpy as np
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 import rclpy
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64
@@ -59,7 +58,7 @@ from wet_eha_thermal.model.eha import EHAModel
 from wet_eha_thermal.model.kinetics import (DutyError, KineticModel, load_duty_csv, stage_duty,
                                             STAGES, ThermalFeedback)
 from wet_eha_thermal.model.motor import C_TO_K
-from wet_eha_thermal.ros.runtime import EXECUTORS, make_executor, spin
+from wet_eha_thermal.ros.runtime import accept_whole_numbers, EXECUTORS, make_executor, spin
 from wet_eha_thermal.ros.topics import (AMBIENT_TOPIC, DIAGNOSTICS_TOPIC, input_qos,
                                         INPUT_TOPICS, MEASURED_PREFIX, PREFIX, PRESSURE_INPUTS,
                                         publish_inputs, THERMOCOUPLES)
@@ -212,14 +211,7 @@ class SimRigNode(Node):
             ('topic_prefix', PREFIX, _descriptor('namespace of the rig topics')),
             ('qos', 'sensor_data', _descriptor('QoS of the inputs: sensor_data or reliable')),
         ]
-        # read `-p rate_Hz:=500` (an integer to YAML) as 500.0 for the double parameters
-        overrides = getattr(self, '_parameter_overrides', None)
-        if isinstance(overrides, dict):
-            for name, default, _ in specs:
-                given = overrides.get(name)
-                if isinstance(default, float) and given is not None \
-                        and given.type_ == Parameter.Type.INTEGER:
-                    overrides[name] = Parameter(name, Parameter.Type.DOUBLE, float(given.value))
+        accept_whole_numbers(self, {name: default for name, default, _ in specs})
         values = {}
         for name, default, desc in specs:
             values[name] = self.declare_parameter(name, default, desc).value
