@@ -69,7 +69,8 @@ class EHAModel:
     """
 
     def __init__(self, cfg: Config, oil: Optional[Oil] = None,
-                 log: Optional[ValidityLog] = None, coefficient_filter_s: float = 4.0) -> None:
+                 log: Optional[ValidityLog] = None, coefficient_filter_s: float = 4.0,
+                 defer_refresh: bool = False) -> None:
         self.cfg = cfg
         self.oil = oil if oil is not None else get_oil(cfg.fluid.grade)
         self.log = log if log is not None else ValidityLog()
@@ -77,8 +78,10 @@ class EHAModel:
         # network step is exact for inputs held over the step
         # friction and R(T) follow the present temperatures every step, so the 0.5 K
         # refresh threshold only bounds the convection coefficients (~1.5 %/K)
+        # defer_refresh: see WetMotor; the live estimator re-discretises after publishing
         self.motor = WetMotor(cfg.motor, self.oil, self.log, refresh_dT_K=0.5,
-                              max_substep_s=1.0, coefficient_filter_s=coefficient_filter_s)
+                              max_substep_s=1.0, coefficient_filter_s=coefficient_filter_s,
+                              defer_refresh=defer_refresh)
         self.circuit = HydraulicCircuit(cfg.hydraulics, self.oil)
         h = cfg.hydraulics
         self.area = h.actuator.area_m2
@@ -102,6 +105,20 @@ class EHAModel:
         raw = np.array([first.p_a_Pa[-1], first.p_b_Pa[-1], first.p_acc_Pa[-1]])
         p = self._node_pressures(raw[:, None], 0.0)
         self._last = (float(first.t_s[-1]), float(first.position_m[-1]), raw, p[:, -1])
+
+    @property
+    def defer_refresh(self) -> bool:
+        """Return whether motor re-discretisations wait for :meth:`prepare` or the next step."""
+        return self.motor.net.hold_changes
+
+    @defer_refresh.setter
+    def defer_refresh(self, value: bool) -> None:
+        self.motor.net.apply_changes()
+        self.motor.net.hold_changes = bool(value)
+
+    def prepare(self, dt_s: float) -> bool:
+        """Do a deferred motor re-discretisation now, for a next step of ``dt_s``."""
+        return self.motor.prepare(dt_s)
 
     @property
     def state(self) -> np.ndarray:

@@ -16,7 +16,7 @@ ambient (natural convection and radiation, or a fan coefficient).
 """
 
 from dataclasses import dataclass, replace
-from typing import Dict, Optional, Union
+from typing import Dict, Optional, Tuple, Union
 
 import numpy as np
 
@@ -67,17 +67,25 @@ class WetMotor:
     than the motor's thermal response (speed and leakage flow swinging at a
     few Hz) then no longer re-discretises the network every step; losses stay
     exact for every step. The coupled EHA model uses this.
+
+    With ``defer_refresh`` a refresh found due in one (sub-)step sets the new
+    coefficients but the step still runs on the previous discretisation; the
+    new one comes into use at the next (sub-)step, or earlier through
+    :meth:`prepare`. The live estimator uses this to re-discretise after an
+    estimate has left rather than before; the result does not depend on when
+    (or whether) ``prepare`` is called.
     """
 
     def __init__(self, cfg: Motor, oil: Oil, log: Optional[ValidityLog] = None,
                  refresh_dT_K: float = 0.25, max_substep_s: float = 0.1,
-                 coefficient_filter_s: float = 0.0) -> None:
+                 coefficient_filter_s: float = 0.0, defer_refresh: bool = False) -> None:
         self.cfg = cfg
         self.oil = oil
         self.log = log if log is not None else ValidityLog()
         self.net = ThermalNetwork()
         self._build()
         self.net.freeze()
+        self.net.hold_changes = defer_refresh
         self.x: Optional[np.ndarray] = None
         self.T: Optional[np.ndarray] = None
         self.power_W = np.zeros(self.net.ns)
@@ -494,11 +502,13 @@ class WetMotor:
         """
         if self.x is None:
             raise RuntimeError('set an initial state first (initialise or steady_state)')
-        substeps = max(1, int(np.ceil(dt_s / self.max_substep_s - 1e-9)))
-        h = dt_s / substeps
+        substeps, h = self._substeps(dt_s)
         Tb = self.boundaries(u)
         self.T_mean = np.zeros(self.net.n)
         for _ in range(substeps):
+            # changes held by defer_refresh in the previous step come into use, discretised
+            # before this step's refresh (which is then held in turn)
+            self.net.apply_changes(h)
             T_c, u_c = self._coefficient_point(h, u)
             if self._refresh_due(T_c, u_c):
                 self.refresh(T_c, u_c)
@@ -510,6 +520,15 @@ class WetMotor:
             self.x = x_new
             self.T = self.net.temperatures(self.x, Tb, self.power_W)
         return self.T
+
+    def prepare(self, dt_s: float) -> bool:
+        """Discretise now for a next step of ``dt_s`` if a deferred refresh is pending."""
+        return self.net.apply_changes(self._substeps(dt_s)[1])
+
+    def _substeps(self, dt_s: float) -> Tuple[int, float]:
+        """Return the number and length (s) of the sub-steps of a step of ``dt_s``."""
+        n = max(1, int(np.ceil(dt_s / self.max_substep_s - 1e-9)))
+        return n, dt_s / n
 
     def _book(self, h: float, dx: np.ndarray, T_mean: np.ndarray, u: MotorInputs) -> None:
         """Add one step's energies (J) to the ledger, with the coefficients the step used."""

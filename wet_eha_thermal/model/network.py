@@ -67,6 +67,11 @@ class ThermalNetwork:
         self.link_names: List[Optional[str]] = []
         self._frozen = False
         self.refresh_rtol = 0.0
+        # hold_changes: new coefficients wait for apply_changes() (or the step after the
+        # next) instead of dropping the cached matrices at once; see apply_changes
+        self.hold_changes = False
+        self.changes_pending = False
+        self.discretise_count = 0       # exponentials computed: the expensive part of a step
 
     # ----------------------------------------------------------------- build
     def add_node(self, name: str, capacity_J_K: float = 0.0) -> str:
@@ -267,9 +272,33 @@ class ThermalNetwork:
                     break
             if not moved:
                 return
+        if self.hold_changes:
+            self.changes_pending = True
+            return
+        self._drop_cache()
+
+    def _drop_cache(self) -> None:
         self._used = None
         self._reduced = None
         self._disc = None
+        self.changes_pending = False
+
+    def apply_changes(self, dt_s: Optional[float] = None) -> bool:
+        """
+        Put held coefficient changes into use; with ``dt_s``, also discretise for that step.
+
+        With ``hold_changes`` the solver keeps stepping (and reporting heat
+        flows) with the coefficients of the last discretisation until this is
+        called, so that the expensive re-discretisation can be done at a
+        convenient time, e.g. right after an estimate has been published.
+        Returns whether anything changed.
+        """
+        if not self.changes_pending:
+            return False
+        self._drop_cache()
+        if dt_s is not None:
+            self.discretise(dt_s)
+        return True
 
     # -------------------------------------------------------------- matrices
     def _scatter_indices(self, position: np.ndarray) -> tuple:
@@ -353,9 +382,14 @@ class ThermalNetwork:
         if not dt_s > 0.0:
             raise NetworkError(f'time step {dt_s} s must be > 0')
         A, B = self._reduce()[:2]
-        # steps taken from sample times differ in the last bits: treat them as one
-        if self._disc is not None and abs(self._disc.dt_s - dt_s) <= 1e-9 * dt_s:
+        # steps taken from sample times differ in the last bits: within 1 ppm they are
+        # one step (the state moves by 1e-6 of a step's change at most), discretised
+        # at the step rounded to 1 ns, so that the matrices do not depend on which of
+        # them came first (apply_changes may discretise ahead of a step)
+        if self._disc is not None and abs(self._disc.dt_s - dt_s) <= 1e-6 * dt_s:
             return self._disc
+        dt_s = round(dt_s, 9) or dt_s
+        self.discretise_count += 1
         # Ad = e^{A dt}; F1 = int_0^dt e^{As} ds = A^-1 (Ad - I) and
         # F2 = int_0^dt (dt - s) e^{As} ds = A^-1 (F1 - dt I) (by parts). A is
         # invertible when every node has a path to a boundary; this costs one
