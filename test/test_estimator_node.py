@@ -41,7 +41,7 @@ os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 ROOT = Path(__file__).resolve().parents[1]
 OK, WARN, ERROR, STALE = 0, 1, 2, 3
 VALUES = {'current_A': 20.0, 'speed_rad_s': 800.0, 'p_a_Pa': 1.0e6, 'p_b_Pa': 1.0e6,
-          'p_acc_Pa': 1.0e6, 'position_m': 0.002}
+          'p_acc_Pa': 1.0e6, 'dp_Pa': 0.0, 'position_m': 0.002}
 
 
 @pytest.fixture(scope='module')
@@ -62,8 +62,8 @@ class Rig:
         self.clock_ns = 1000 * 10**9 if sim_time else None
         in_qos = topics.input_qos('sensor_data', 100)
         self.pubs = {name: self.probe.create_publisher(
-            FluidPressure if name in topics.PRESSURE_INPUTS else Float64, topic, in_qos)
-            for name, topic in topics.INPUT_TOPICS.items()}
+            FluidPressure if name in topics.PRESSURE_INPUTS else Float64,
+            topics.INPUT_TOPICS[name], in_qos) for name in self.node.est.inputs}
         self.clock_pub = self.probe.create_publisher(Clock, '/clock', 10)
         self.ack_pub = self.probe.create_publisher(String, topics.ACK_TOPIC, QoSProfile(depth=10))
         self.estimates = {'winding_hotspot': [], 'winding_mean': [], 'oil': []}
@@ -234,6 +234,24 @@ def test_latched_alert_and_acknowledge(context, tmp_path):
         rig.ack_pub.publish(String(data='no_such_quantity'))
         rig.feed(0.3)
         rig.probe.destroy_subscription(sub)
+    finally:
+        rig.close()
+
+
+def test_one_differential_pressure_topic(context, tmp_path):
+    cfg = yaml.safe_load(default_config_path().read_text())
+    cfg['estimator']['pressure_inputs'] = 'differential'
+    path = tmp_path / 'differential.yaml'
+    path.write_text(yaml.safe_dump(cfg))
+    rig = Rig(context, [Parameter('config_file', value=str(path))])
+    try:
+        assert set(rig.pubs) == {'current_A', 'speed_rad_s', 'dp_Pa', 'position_m'}
+        assert rig.feed(6.0, until=lambda: rig.all_ok() and len(rig.estimates['oil']) > 20)
+        names = [s.name for s in rig.diagnostics[-1].status]
+        assert 'wet_eha_thermal: input dp_Pa' in names
+        assert 'wet_eha_thermal: input p_a_Pa' not in names
+        assert rig.values('input dp_Pa')['topic'] == '/eha/pressure_diff'
+        assert int(rig.values('input dp_Pa')['accepted']) > 200
     finally:
         rig.close()
 

@@ -419,13 +419,19 @@ class Channel:
 
 @dataclass(frozen=True, kw_only=True)
 class Channels:
-    """The estimator's sensor inputs (SI units: A RMS, rad/s, Pa absolute, m)."""
+    """
+    The estimator's sensor inputs (SI units: A RMS, rad/s, Pa, m).
+
+    ``dp_Pa`` (port A minus port B) is used instead of the three absolute
+    pressures when ``estimator.pressure_inputs`` is ``differential``.
+    """
 
     current_A: Channel
     speed_rad_s: Channel
     p_a_Pa: Channel
     p_b_Pa: Channel
     p_acc_Pa: Channel
+    dp_Pa: Channel
     position_m: Channel
 
 
@@ -468,6 +474,9 @@ class EstimatorSettings:
     forecast_horizon_s: float = spec(60.0, 86400.0)
     forecast_step_s: float = spec(0.1, 60.0)
     forecast_period_s: float = spec(1.0, 3600.0, doc='a new forecast starts this often')
+    pressure_inputs: str = spec(choices=('ports', 'differential'), doc=(
+        'ports: absolute pressures of port A, port B and the accumulator; differential: '
+        'one p_A - p_B sensor, the low side at the accumulator precharge pressure'))
     channels: Channels
     alerts: Alerts
 

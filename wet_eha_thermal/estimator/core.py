@@ -1,8 +1,10 @@
 """
 The live estimator without ROS: timestamped samples in, estimates and alerts out.
 
-Samples of the six inputs arrive one by one, at any rate and in any
-interleaving (``add``). ``advance`` steps the coupled thermal model over every
+Samples of the inputs arrive one by one, at any rate and in any
+interleaving (``add``): current, speed, position and either the absolute
+pressures of both ports and the accumulator or one differential pressure
+(``estimator.pressure_inputs``). ``advance`` steps the coupled thermal model over every
 complete step of ``step_s`` in *sample time* (the stamps, never the wall
 clock), so a replayed log gives the same estimates as the live run. Inside a
 step each input is averaged on a grid of ``block_rate_Hz``: current as the
@@ -31,7 +33,7 @@ import copy
 from dataclasses import dataclass, field
 import math
 import time
-from typing import Deque, Dict, List, Optional
+from typing import Deque, Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -41,6 +43,20 @@ from ..model.eha import EHAModel, SampleBlock
 from ..model.motor import C_TO_K, MotorInputs, WetMotor
 
 INPUTS = ('current_A', 'speed_rad_s', 'p_a_Pa', 'p_b_Pa', 'p_acc_Pa', 'position_m')
+# with one differential pressure sensor (estimator.pressure_inputs: differential)
+DIFFERENTIAL_INPUTS = ('current_A', 'speed_rad_s', 'dp_Pa', 'position_m')
+
+
+def sensor_inputs(cfg: Config) -> Tuple[str, ...]:
+    """Return the estimator's inputs under configuration ``cfg``."""
+    return DIFFERENTIAL_INPUTS if cfg.estimator.pressure_inputs == 'differential' else INPUTS
+
+
+def sensor_signal(samples: SampleBlock, name: str) -> np.ndarray:
+    """Return what input ``name`` reads from the model's ``samples`` (dp_Pa: p_A - p_B)."""
+    if name == 'dp_Pa':
+        return samples.p_a_Pa - samples.p_b_Pa
+    return getattr(samples, name)
 
 
 @dataclass
@@ -102,16 +118,19 @@ class Estimator:
         self.cfg = cfg
         s = cfg.estimator
         self.settings = s
+        # deferred refresh: the slow re-discretisation runs in prepare(), after the
+        # estimate has left, and the coefficients lag by one 20 ms step
         self.model = model if model is not None else EHAModel(
-            cfg, coefficient_filter_s=s.coefficient_filter_s)
-        self.channel_cfg = {name: getattr(s.channels, name) for name in INPUTS}
-        self.health = {name: ChannelHealth() for name in INPUTS}
-        self._buf: Dict[str, List[tuple]] = {name: [] for name in INPUTS}
-        self._prev: Dict[str, Optional[tuple]] = dict.fromkeys(INPUTS)
-        self.rest = {'current_A': 0.0, 'speed_rad_s': 0.0,
-                     'p_a_Pa': cfg.hydraulics.accumulator.pressure_Pa,
-                     'p_b_Pa': cfg.hydraulics.accumulator.pressure_Pa,
-                     'p_acc_Pa': cfg.hydraulics.accumulator.pressure_Pa, 'position_m': 0.0}
+            cfg, coefficient_filter_s=s.coefficient_filter_s, defer_refresh=True)
+        self.inputs = sensor_inputs(cfg)
+        self.differential = self.inputs == DIFFERENTIAL_INPUTS
+        self.channel_cfg = {name: getattr(s.channels, name) for name in self.inputs}
+        self.health = {name: ChannelHealth() for name in self.inputs}
+        self._buf: Dict[str, List[tuple]] = {name: [] for name in self.inputs}
+        self._prev: Dict[str, Optional[tuple]] = dict.fromkeys(self.inputs)
+        p_acc = cfg.hydraulics.accumulator.pressure_Pa
+        self.rest = {'current_A': 0.0, 'speed_rad_s': 0.0, 'p_a_Pa': p_acc, 'p_b_Pa': p_acc,
+                     'p_acc_Pa': p_acc, 'dp_Pa': 0.0, 'position_m': 0.0}
         self.ambient_K = s.ambient_C + C_TO_K
         self.measured_C: Dict[str, tuple] = {}
         self.alerts = AlertManager(rules_from_config({
@@ -214,7 +233,7 @@ class Estimator:
         if ref is None:
             return []
         stale = self._update_staleness(ref)
-        fresh = [n for n in INPUTS if n not in stale]
+        fresh = [n for n in self.inputs if n not in stale]
         horizon = min(self.health[n].last_stamp_s for n in fresh) if fresh else ref
         if self.t_model is None:
             self._start(horizon)
@@ -239,10 +258,14 @@ class Estimator:
     def _start(self, t0: float) -> None:
         """Initialise the model at ambient with the inputs' values at ``t0``."""
         self.t_model = self._t_origin = t0
-        values = {n: self._value_at(n, t0) for n in INPUTS}
-        first = SampleBlock(np.array([t0]), *(np.array([values[n]]) for n in INPUTS))
+        # stamps since the epoch are only resolved to ~0.2 us: equal means within a few ulps
+        self._eps = max(self._eps, 8.0 * float(np.spacing(abs(t0))))
+        values = self._model_inputs({n: np.array([self._value_at(n, t0)]) for n in self.inputs})
+        # the model runs on time since the start: stamps since the epoch (~1.8e9 s) carry
+        # only ~0.2 us of resolution, which would make every step length differ
+        first = SampleBlock(np.array([0.0]), *(values[n] for n in INPUTS))
         self.model.initialise(self.ambient_K, first)
-        for n in INPUTS:
+        for n in self.inputs:
             self._drop_until(n, t0)
 
     def _value_at(self, name: str, t: float) -> float:
@@ -296,11 +319,13 @@ class Estimator:
         return np.sqrt(out) if name == 'current_A' else out
 
     def _step(self, t0: float, t1: float, stale: List[str]) -> Estimate:
-        grid = t0 + (t1 - t0) * np.arange(1, self.n_grid + 1) / self.n_grid
-        values = {n: self._grid_values(n, t0, t1, grid) for n in INPUTS}
-        block = SampleBlock(grid, *(values[n] for n in INPUTS))
+        frac = np.arange(1, self.n_grid + 1) / self.n_grid
+        grid = t0 + (t1 - t0) * frac
+        values = self._model_inputs({n: self._grid_values(n, t0, t1, grid) for n in self.inputs})
+        since_start = (self.steps + frac) * self.settings.step_s
+        block = SampleBlock(since_start, *(values[n] for n in INPUTS))
         self.model.step(block, self.ambient_K)
-        for n in INPUTS:
+        for n in self.inputs:
             self._drop_until(n, t1)
         self.t_model = t1
         self.steps += 1
@@ -320,6 +345,30 @@ class Estimator:
             alert_events=events, stale=list(stale), implausible=implausible, step=self.steps)
         self.latest = est
         return est
+
+    def _model_inputs(self, values: Dict[str, np.ndarray]) -> Dict[str, np.ndarray]:
+        """
+        Return the model's six inputs from the sensors' (the same arrays with port pressures).
+
+        A differential pressure is split with its low side at the accumulator
+        pressure: in a closed-circuit EHA the low port is fed from the
+        accumulator through its check valve.
+        """
+        if not self.differential:
+            return values
+        dp = values['dp_Pa']
+        p_acc = np.full_like(dp, self.rest['p_acc_Pa'])
+        return {**values, 'p_a_Pa': p_acc + np.maximum(dp, 0.0),
+                'p_b_Pa': p_acc + np.maximum(-dp, 0.0), 'p_acc_Pa': p_acc}
+
+    def prepare(self) -> bool:
+        """
+        Do the model's deferred re-discretisation now, for the next step; say if there was one.
+
+        Cheap when nothing is pending; call it once an estimate has been
+        published. The estimates are the same whether or not it is called.
+        """
+        return self.model.prepare(self.settings.step_s)
 
     def _plausibility(self, values: Dict[str, np.ndarray], dt: float) -> List[str]:
         """Count physically implausible combinations of the step's inputs."""
@@ -374,7 +423,9 @@ class Estimator:
         # removed, so the repeated duty is periodic and stays inside the stroke
         dx = np.diff(x, prepend=x[0])
         duty['dx_m'] = dx - dx.mean()
-        self._forecast = _Forecast(model=copy.deepcopy(self.model), start_s=self.t_model,
+        model = copy.deepcopy(self.model)
+        model.defer_refresh = False       # forecast steps are seconds long: no lag there
+        self._forecast = _Forecast(model=model, start_s=self.t_model,
                                    duty=duty, ambient_K=self.ambient_K,
                                    crossed=dict.fromkeys(self.limits_C))
 

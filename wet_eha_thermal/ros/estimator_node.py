@@ -19,14 +19,17 @@ config/estimator.params.yaml`` or ``python -m wet_eha_thermal.ros.estimator_node
 """
 
 import argparse
+from collections import deque
 import functools
 import json
 import math
 import sys
-from typing import Dict, List, Optional
+import time
+from typing import Deque, Dict, List, Optional
 
 from builtin_interfaces.msg import Time as TimeMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+import numpy as np
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 ParameterType, SetParametersResult)
 import rclpy
@@ -39,7 +42,7 @@ from rclpy.utilities import remove_ros_args
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension, String
 from wet_eha_thermal.config import ConfigError, load_config
-from wet_eha_thermal.estimator.core import Estimate, Estimator, INPUTS
+from wet_eha_thermal.estimator.core import Estimate, Estimator
 from wet_eha_thermal.ros import topics
 from wet_eha_thermal.ros.runtime import accept_whole_numbers, EXECUTORS, make_executor, spin
 
@@ -148,16 +151,19 @@ class EstimatorNode(Node):
         self.model_failing = False
         self.background_errors = 0
         self.published = 0
+        # callback start of the sample that closed a step -> its estimate published (ms)
+        self.latency_ms: Deque[float] = deque(maxlen=3000)
         self._last_ns: Optional[int] = None          # stamp of the last published estimate
         self._last_published: Optional[Estimate] = None
         self._alert_key = None
         self._pending_events: List[str] = []
-        self._diag_prev = dict.fromkeys(INPUTS, 0)      # rejected counts at the last diagnostics
+        # rejected counts at the last diagnostics
+        self._diag_prev = dict.fromkeys(self.est.inputs, 0)
         self._implausible_prev = 0
         self.topic_names: Dict[str, str] = {}
 
         # inputs
-        for name in INPUTS:
+        for name in self.est.inputs:
             topic = self._topic(topics.INPUT_TOPICS[name])
             if name in topics.PRESSURE_INPUTS:
                 cb = functools.partial(self._on_pressure, name)
@@ -179,6 +185,8 @@ class EstimatorNode(Node):
             name: self.create_publisher(Temperature,
                                         self._topic(f'{topics.ESTIMATE_PREFIX}/{name}'), out_qos)
             for name in topics.ESTIMATES}
+        self._temperature_msg = Temperature()
+        self._temperature_msg.header.frame_id = self.frame_id
         self.state_pub = self.create_publisher(Float64MultiArray,
                                                self._topic(topics.STATE_TOPIC), out_qos)
         self.alert_pub = self.create_publisher(String, self._topic(topics.ALERT_TOPIC),
@@ -220,24 +228,26 @@ class EstimatorNode(Node):
 
     # ----------------------------------------------------------- callbacks
     def _on_float(self, channel: str, msg: Float64) -> None:
+        t_rx = time.perf_counter()
         try:
             now = self._now_s()
             if now is None:
                 self.waiting_for_clock += 1
                 return
             if self.est.add(channel, now, float(msg.data)) and self.est.ready(now):
-                self._step(None)
+                self._step(None, t_rx)
         except Exception as exc:  # noqa: B902 - a callback never raises
             self._failed(channel, exc)
 
     def _on_pressure(self, channel: str, msg: FluidPressure) -> None:
+        t_rx = time.perf_counter()
         try:
             t = self._header_s(msg.header.stamp)
             if t is None:
                 self.waiting_for_clock += 1
                 return
             if self.est.add(channel, t, float(msg.fluid_pressure)) and self.est.ready(t):
-                self._step(None)
+                self._step(None, t_rx)
         except Exception as exc:  # noqa: B902
             self._failed(channel, exc)
 
@@ -287,36 +297,50 @@ class EstimatorNode(Node):
 
     # ---------------------------------------------------------- publishing
     def _on_tick(self) -> None:
-        """Step to the ROS clock (silent inputs go stale), publish, do background work."""
+        """Step to the ROS clock (silent inputs go stale) and publish."""
         try:
             now = self._now_s()
             if now is None:
                 return
             self._step(now)
-            if self.budget_s > 0.0:
-                try:
-                    self.est.background(self.budget_s)
-                except Exception as exc:  # noqa: B902
-                    self.background_errors += 1
-                    self.get_logger().error(f'forecast/margin failed: {exc}',
-                                            throttle_duration_sec=5.0)
         except Exception as exc:  # noqa: B902
             self._failed('publish', exc)
 
-    def _step(self, now: Optional[float]) -> None:
+    def _after_publish(self) -> None:
+        """
+        Do the slow work right after an estimate has left: the next one is a step away.
+
+        The model's deferred re-discretisation, then forecast and margin
+        slices within the budget. Done here rather than on a timer, so that
+        it never holds up the sample that closes the next step.
+        """
+        try:
+            self.est.prepare()
+        except Exception as exc:  # noqa: B902 - the next step redoes it and reports
+            self._failed('prepare', exc)
+        if self.budget_s > 0.0:
+            try:
+                self.est.background(self.budget_s)
+            except Exception as exc:  # noqa: B902
+                self.background_errors += 1
+                self.get_logger().error(f'forecast/margin failed: {exc}',
+                                        throttle_duration_sec=5.0)
+
+    def _step(self, now: Optional[float], t_rx: Optional[float] = None) -> None:
         """
         Step the model as far as the samples (and the clock ``now``, if given) allow; publish.
 
         Called from an input callback as soon as a sample may complete a step,
         so the estimate leaves within the step's computing time, and from the
         publish timer with the clock so that the estimator never stops.
+        ``t_rx`` is the callback's start (perf_counter s), for the latency figures.
         """
+        estimates: List[Estimate] = []
         try:
             try:
                 estimates = self.est.advance(now)
                 self.model_failing = False
             except Exception as exc:  # noqa: B902 - the model should not raise; never stop
-                estimates = []
                 self.model_errors += 1
                 self.model_error = f'{type(exc).__name__}: {exc}'
                 self.model_failing = True
@@ -330,6 +354,8 @@ class EstimatorNode(Node):
                     self._pending_events.append(ev.message)
             if estimates:
                 self._publish_estimate(estimates[-1], estimates[-1].stamp_s)
+                if t_rx is not None:
+                    self.latency_ms.append((time.perf_counter() - t_rx) * 1e3)
             elif self.model_failing and self._last_published is not None and now is not None:
                 # keep the consumers alive on the last good estimate, stamped now
                 self._publish_estimate(self._last_published, now)
@@ -337,6 +363,8 @@ class EstimatorNode(Node):
                 self._publish_alerts()
         except Exception as exc:  # noqa: B902
             self._failed('publish', exc)
+        if estimates:
+            self._after_publish()
 
     def _publish_estimate(self, est: Estimate, stamp_s: float) -> None:
         ns = int(round(stamp_s * 1e9))
@@ -345,10 +373,9 @@ class EstimatorNode(Node):
         self._last_ns = ns
         self._last_published = est
         stamp = _stamp_msg(ns)
+        msg = self._temperature_msg          # publish() copies it: one object will do
+        msg.header.stamp = stamp
         for name, pub in self.estimate_pubs.items():
-            msg = Temperature()
-            msg.header.stamp = stamp
-            msg.header.frame_id = self.frame_id
             msg.temperature = float(est.temperatures_C[name])
             msg.variance = float(est.uncertainty_K[name]) ** 2
             pub.publish(msg)
@@ -389,7 +416,7 @@ class EstimatorNode(Node):
             arr = DiagnosticArray()
             arr.header.stamp = _stamp_msg(now_ns)
             arr.status = [self._estimate_status()] + [
-                self._input_status(n, now_ns * 1e-9) for n in INPUTS] + [
+                self._input_status(n, now_ns * 1e-9) for n in self.est.inputs] + [
                 self._plausibility_status()]
             self.diag_pub.publish(arr)
         except Exception as exc:  # noqa: B902
@@ -397,7 +424,7 @@ class EstimatorNode(Node):
 
     def _estimate_status(self) -> DiagnosticStatus:
         est = self.est.latest
-        stale = [n for n in INPUTS if self.est.health[n].stale]
+        stale = [n for n in self.est.inputs if self.est.health[n].stale]
         values = [('hardware_id', self.hardware_id)]
         if est is None:
             return self._status('estimate', DiagnosticStatus.STALE[0],
@@ -409,7 +436,7 @@ class EstimatorNode(Node):
             message = 'estimating'
         if stale:
             message += f'; on fallback: {", ".join(stale)}'
-        if len(stale) == len(INPUTS):
+        if len(stale) == len(self.est.inputs):
             level = DiagnosticStatus.STALE[0]
             message = 'every input stale: estimates run on held values; ' + \
                 self.est.alerts.summary()['message']
@@ -428,6 +455,12 @@ class EstimatorNode(Node):
             values.append((f'time_to_limit {q} [s]', text))
             values.append((f'limit {q} [degC]', _fmt(est.limits_C.get(q), '.1f')))
         values.append(('forecast started at [s]', _fmt(est.forecast_stamp_s, '.3f')))
+        if self.latency_ms:
+            lat = np.percentile(self.latency_ms, [50, 99])
+            values.append(('step latency p50/p99/max [ms]',
+                           f'{lat[0]:.2f}/{lat[1]:.2f}/{max(self.latency_ms):.2f} (last '
+                           f'{len(self.latency_ms)} estimates; closing sample received -> '
+                           'estimate published)'))
         for tc, name in topics.THERMOCOUPLES.items():
             if tc in self.est.measured_C:
                 t_meas = self.est.measured_C[tc][1]

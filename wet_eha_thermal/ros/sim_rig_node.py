@@ -2,7 +2,7 @@
 The simulated rig: a ROS 2 node that plays the reference EHA and its sensors.
 
 Node ``eha_sim_rig``. From a duty (a reference stage or a duty CSV) the
-kinetic model makes the six sensor signals, computed vectorised in blocks of
+kinetic model makes the sensor signals, computed vectorised in blocks of
 20 ms and published one sample per topic per tick of a ``rate_Hz`` timer, so
 that a receiver stamping on arrival (the estimator does, for the Float64
 inputs) sees them spread as a real rig's would. A "truth" thermal model
@@ -12,9 +12,11 @@ first-order sensor lag and noise, are the thermocouples.
 
 Topics (``topic_prefix`` replaces ``/eha``; see :mod:`.topics`):
 
-- the six inputs of ``INPUT_TOPICS`` at ``rate_Hz``: Float64 for current,
-  speed and position, FluidPressure (header stamp = the sample's scheduled
-  time) for the three pressures; QoS ``qos``;
+- the estimator's inputs of ``INPUT_TOPICS`` at ``rate_Hz``: Float64 for
+  current, speed and position, FluidPressure (header stamp = the sample's
+  scheduled time) for the three pressures, or for the one differential
+  pressure when the configuration's ``estimator.pressure_inputs`` says so;
+  QoS ``qos``;
 - the ambient temperature (Temperature, degC) at 1 Hz;
 - the thermocouples ``<prefix>/measured/<name>`` for every name of
   ``THERMOCOUPLES`` at ``thermocouple_rate_Hz``;
@@ -54,6 +56,7 @@ from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64
 from wet_eha_thermal.config import ConfigError, load_config
+from wet_eha_thermal.estimator.core import sensor_inputs, sensor_signal
 from wet_eha_thermal.model.eha import EHAModel
 from wet_eha_thermal.model.kinetics import (DutyError, KineticModel, load_duty_csv, stage_duty,
                                             STAGES, ThermalFeedback)
@@ -62,7 +65,7 @@ from wet_eha_thermal.ros.runtime import accept_whole_numbers, EXECUTORS, make_ex
 from wet_eha_thermal.ros.topics import (AMBIENT_TOPIC, DIAGNOSTICS_TOPIC, input_qos,
                                         INPUT_TOPICS, MEASURED_PREFIX, PREFIX, PRESSURE_INPUTS,
                                         publish_inputs, THERMOCOUPLES)
-from wet_eha_thermal.simulation import feedback, SENSORS
+from wet_eha_thermal.simulation import feedback
 
 NODE_NAME = 'eha_sim_rig'
 #: Length of one kinetics block and one truth-model step (s).
@@ -71,7 +74,7 @@ BLOCK_S = 0.02
 MAX_BURST_S = 0.1
 #: Sensor noise, 1 sigma, in the units of each input.
 NOISE_SIGMA = {'current_A': 0.05, 'speed_rad_s': 2.0, 'p_a_Pa': 20.0e3, 'p_b_Pa': 20.0e3,
-               'p_acc_Pa': 20.0e3, 'position_m': 10.0e-6}
+               'p_acc_Pa': 20.0e3, 'dp_Pa': 20.0e3, 'position_m': 10.0e-6}
 THERMOCOUPLE_SIGMA_K = 0.2
 AMBIENT_SIGMA_K = 0.05
 #: Tick intervals and publish lags kept for the jitter figures (a ring of this many).
@@ -150,13 +153,15 @@ class SimRigNode(Node):
         # publishers
         prefix = p['topic_prefix']
         q = input_qos(p['qos'], depth=max(10, self.n_block * 5))
+        # the inputs the configured estimator takes (three pressures or one differential)
+        self.inputs = sensor_inputs(self.cfg)
         self.pubs = {}
-        for name in SENSORS:
+        for name in self.inputs:
             kind = FluidPressure if name in PRESSURE_INPUTS else Float64
             self.pubs[name] = self.create_publisher(kind, prefixed(INPUT_TOPICS[name], prefix), q)
         self.msgs = {name: (FluidPressure() if name in PRESSURE_INPUTS else Float64())
-                     for name in SENSORS}
-        for name in PRESSURE_INPUTS:
+                     for name in self.inputs}
+        for name in set(PRESSURE_INPUTS) & set(self.inputs):
             self.msgs[name].header.frame_id = NODE_NAME
             self.msgs[name].variance = NOISE_SIGMA[name] ** 2 if self.noise else 0.0
         self.ambient_pub = self.create_publisher(Temperature, prefixed(AMBIENT_TOPIC, prefix), 10)
@@ -235,8 +240,8 @@ class SimRigNode(Node):
         for name, quantity in THERMOCOUPLES.items():
             self.tc_lag[name] += self.tc_alpha * (out[quantity] - self.tc_lag[name])
         cols = []
-        for name in SENSORS:
-            v = getattr(s, name)
+        for name in self.inputs:
+            v = sensor_signal(s, name)
             if self.noise:
                 v = v + self.rng.normal(0.0, NOISE_SIGMA[name], v.size)
                 if name == 'current_A':
@@ -271,9 +276,9 @@ class SimRigNode(Node):
             skip = due - max_burst + 1 - self.k_next
             self.skipped += skip
             self.k_next += skip
-        pubs = [self.pubs[n] for n in SENSORS]
-        msgs = [self.msgs[n] for n in SENSORS]
-        is_pressure = [n in PRESSURE_INPUTS for n in SENSORS]
+        pubs = [self.pubs[n] for n in self.inputs]
+        msgs = [self.msgs[n] for n in self.inputs]
+        is_pressure = [n in PRESSURE_INPUTS for n in self.inputs]
         while self.k_next <= due:
             k = self.k_next
             while self.block is None or k >= self.block_first + self.n_block:
@@ -337,7 +342,7 @@ class SimRigNode(Node):
         """Return a one-line account of the run (samples, jitter, lag, CPU)."""
         s = self.statistics()
         return (f'rig summary: {s["run_s"]:.1f} s, {s["samples_published"]} samples x '
-                f'{len(SENSORS)} topics ({s["samples_skipped"]} skipped), tick interval '
+                f'{len(self.inputs)} topics ({s["samples_skipped"]} skipped), tick interval '
                 f'p50/p99/max {s["tick_interval_p50_ms"]:.3f}/{s["tick_interval_p99_ms"]:.3f}/'
                 f'{s["tick_interval_max_ms"]:.1f} ms, publish lag p50/p99/max '
                 f'{s["publish_lag_p50_ms"]:.3f}/{s["publish_lag_p99_ms"]:.3f}/'

@@ -10,6 +10,7 @@ Inputs (what the rig publishes; SI units, as the messages define them):
 | port A pressure | /eha/pressure_a | sensor_msgs/FluidPressure | Pa absolute |
 | port B pressure | /eha/pressure_b | sensor_msgs/FluidPressure | Pa absolute |
 | accumulator pressure | /eha/pressure_acc | sensor_msgs/FluidPressure | Pa absolute |
+| or: differential pressure | /eha/pressure_diff | sensor_msgs/FluidPressure | Pa, p_A - p_B |
 | actuator position (LVDT) | /eha/position | std_msgs/Float64 | m |
 | ambient temperature | /eha/ambient | sensor_msgs/Temperature | degC |
 | thermocouples | /eha/measured/<name> | sensor_msgs/Temperature | degC |
@@ -37,9 +38,11 @@ INPUT_TOPICS = {
     'p_a_Pa': f'{PREFIX}/pressure_a',
     'p_b_Pa': f'{PREFIX}/pressure_b',
     'p_acc_Pa': f'{PREFIX}/pressure_acc',
+    'dp_Pa': f'{PREFIX}/pressure_diff',      # instead of the three above (pressure_inputs)
     'position_m': f'{PREFIX}/position',
 }
-PRESSURE_INPUTS = ('p_a_Pa', 'p_b_Pa', 'p_acc_Pa')   # sensor_msgs/FluidPressure; others Float64
+# sensor_msgs/FluidPressure; the others are std_msgs/Float64
+PRESSURE_INPUTS = ('p_a_Pa', 'p_b_Pa', 'p_acc_Pa', 'dp_Pa')
 AMBIENT_TOPIC = f'{PREFIX}/ambient'
 MEASURED_PREFIX = f'{PREFIX}/measured'
 ESTIMATE_PREFIX = f'{PREFIX}/estimate'
