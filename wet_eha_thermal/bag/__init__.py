@@ -1,0 +1,1 @@
+"""Record runs to rosbag2-compatible MCAP files and read them back fast."""
