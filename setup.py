@@ -31,6 +31,8 @@ setup(
             'wet-eha-thermal = wet_eha_thermal.cli:main',
             'wet-eha-thermal-estimator = wet_eha_thermal.ros.estimator_node:main',
             'wet-eha-thermal-rig = wet_eha_thermal.ros.sim_rig_node:main',
+            'wet-eha-thermal-record = wet_eha_thermal.ros.recorder_node:main',
+            'wet-eha-thermal-play = wet_eha_thermal.ros.player:main',
         ],
     },
 )

@@ -1,17 +1,22 @@
 """
-Launch the live digital twin on a ROS 2 install: the simulated rig and the estimator.
+Launch the live digital twin on a ROS 2 install: the simulated rig, the estimator, the recorder.
 
 Usage (after ``colcon build`` and sourcing the workspace)::
 
     ros2 launch wet_eha_thermal eha_twin.launch.py stage:=3
     ros2 launch wet_eha_thermal eha_twin.launch.py use_sim_time:=true
+    ros2 launch wet_eha_thermal eha_twin.launch.py record_output:=runs/test.mcap
 
-Both nodes read ``config/estimator.params.yaml`` from the package's share
-directory: its ``/**`` keys apply to every node, so the rig takes the same
-``config_file``, ``qos`` and ``topic_prefix`` as the estimator and ignores
-the keys it does not declare. Launch arguments: ``stage`` (1-6, the rig's
-duty), ``duty_file`` (a duty CSV; empty: the stage), ``use_sim_time`` (both
-nodes follow /clock) and ``executor`` (events or single).
+Every node reads ``config/estimator.params.yaml`` from the package's share
+directory: its ``/**`` keys apply to every node, so the rig and the recorder
+take the same ``config_file``, ``qos`` and ``topic_prefix`` as the estimator
+and ignore the keys they do not declare; the recorder also stores that file
+in the recording (``params_file``). Launch arguments: ``stage`` (1-6, the
+rig's duty), ``duty_file`` (a duty CSV; empty: the stage), ``use_sim_time``
+(every node follows /clock), ``executor`` (events or single; the recorder
+always uses events), ``record`` (true: start the recorder) and
+``record_output`` (its file; empty: ``runs/eha_<UTC time>.mcap`` in the
+working folder).
 
 ``launch`` and ``launch_ros`` are not on PyPI, so they are imported inside
 :func:`generate_launch_description` only: the file stays importable (and
@@ -22,10 +27,11 @@ import os
 
 
 def generate_launch_description():
-    """Return the launch description of the rig and the estimator nodes."""
+    """Return the launch description of the rig, the estimator and the recorder nodes."""
     from ament_index_python.packages import get_package_share_directory
     from launch import LaunchDescription
     from launch.actions import DeclareLaunchArgument
+    from launch.conditions import IfCondition
     from launch.substitutions import LaunchConfiguration
     from launch_ros.actions import Node
     from launch_ros.parameter_descriptions import ParameterValue
@@ -45,7 +51,11 @@ def generate_launch_description():
         DeclareLaunchArgument('use_sim_time', default_value='false',
                               description='follow /clock instead of the system clock'),
         DeclareLaunchArgument('executor', default_value='events',
-                              description='rclpy executor of both nodes: events or single'),
+                              description='rclpy executor of rig and estimator: events or single'),
+        DeclareLaunchArgument('record', default_value='true',
+                              description='record every topic of the twin to an MCAP file'),
+        DeclareLaunchArgument('record_output', default_value='',
+                              description='file of the recording (empty: runs/eha_<UTC>.mcap)'),
         Node(package='wet_eha_thermal', executable='wet-eha-thermal-rig', name='eha_sim_rig',
              output='screen', arguments=['--executor', executor],
              parameters=[params_file,
@@ -56,4 +66,12 @@ def generate_launch_description():
              name='eha_thermal_estimator', output='screen',
              arguments=['--executor', executor],
              parameters=[params_file, {'use_sim_time': sim_time}]),
+        Node(package='wet_eha_thermal', executable='wet-eha-thermal-record', name='eha_recorder',
+             output='screen', arguments=['--executor', 'events'],
+             condition=IfCondition(LaunchConfiguration('record')),
+             parameters=[params_file,
+                         {'params_file': params_file, 'qos_depth': 1000,
+                          'output': ParameterValue(LaunchConfiguration('record_output'),
+                                                   value_type=str),
+                          'use_sim_time': sim_time}]),
     ])

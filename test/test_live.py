@@ -9,6 +9,10 @@ import time
 import uuid
 
 import pytest
+from wet_eha_thermal.bag.reader import open_bag
+from wet_eha_thermal.config import default_config_path
+from wet_eha_thermal.ros import topics
+from wet_eha_thermal.ros.recorder_node import CONFIG_METADATA
 
 BIN = Path(sys.executable).parent / 'wet-eha-thermal'
 
@@ -44,9 +48,10 @@ def _marked_processes(mark: str):
 
 
 @pytest.mark.skipif(not Path('/proc/self/environ').exists(), reason='needs /proc')
-def test_live_runs_and_cleans_up():
+def test_live_runs_and_cleans_up(tmp_path):
     mark = uuid.uuid4().hex
-    res = subprocess.run(_command('live', '--duration', '8'), env=_env(mark),
+    # in tmp_path: the recording goes to runs/ of the working folder
+    res = subprocess.run(_command('live', '--duration', '8'), env=_env(mark), cwd=tmp_path,
                          capture_output=True, text=True, timeout=60)
     assert res.returncode == 0, res.stdout + res.stderr
     out = res.stdout
@@ -56,6 +61,15 @@ def test_live_runs_and_cleans_up():
     assert m and int(m.group(1)) > 100, out
     assert 'rig             exited cleanly' in out, out
     assert 'estimator       exited cleanly' in out, out
+    assert 'recorder        exited cleanly' in out, out
+    recordings = list((tmp_path / 'runs').glob('live_*.mcap'))
+    assert len(recordings) == 1 and f'recording       {recordings[0]}: ' in out, out
+    bag = open_bag(recordings[0])
+    assert not bag.truncated
+    assert all(bag.topics[f'{topics.ESTIMATE_PREFIX}/{name}'].message_count > 100
+               for name in topics.ESTIMATES), bag.topics
+    assert bag.topics[topics.INPUT_TOPICS['current_A']].message_count > 0
+    assert bag.metadata[CONFIG_METADATA]['yaml'] == default_config_path().read_text()
     deadline = time.monotonic() + 2.0
     while _marked_processes(mark) and time.monotonic() < deadline:
         time.sleep(0.1)

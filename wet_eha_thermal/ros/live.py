@@ -1,8 +1,10 @@
 """
 The live digital twin in one command: simulated rig, estimator and a status line.
 
-:func:`run` starts two child processes, the simulated rig
-(:mod:`.sim_rig_node`) and the estimator (:mod:`.estimator_node`), on a
+:func:`run` starts three child processes, the recorder
+(:mod:`.recorder_node`, unless ``record`` is off), the estimator
+(:mod:`.estimator_node`) and, once the recorder listens, the simulated rig
+(:mod:`.sim_rig_node`), on a
 private ROS domain (``WET_EHA_LIVE_DOMAIN_ID``, or the first domain with no
 ROS node on this machine from one picked by the process id; discovery
 limited to this machine), and a small
@@ -10,9 +12,13 @@ node in this process that follows the estimates, the alerts and
 /diagnostics and prints one status line about twice a second (updated in
 place on a terminal, one line every few seconds otherwise). After
 ``duration_s``, or on Ctrl-C / SIGTERM, it stops the children (SIGINT, then
-SIGTERM, then SIGKILL, each after a timeout), prints a summary and returns
-the exit status: 0 when both children ran to the end, shut down cleanly and
-estimates came, 1 otherwise (with the last lines a failed child printed).
+SIGTERM, then SIGKILL, each after a timeout; the recorder last, so that it
+keeps everything the others sent), prints a summary (with the recording's
+path and message count) and returns the exit status: 0 when every child ran
+to the end, shut down cleanly and estimates came, 1 otherwise (with the last
+lines a failed child printed). The recording (``runs/live_<UTC time>.mcap``
+by default) holds the configuration and the estimator's parameters file, so
+the run can be replayed from it alone.
 
 The children run in their own session, so a Ctrl-C on the terminal reaches
 this process only and the shutdown stays in order; they also get SIGKILL
@@ -42,7 +48,9 @@ from rclpy.qos import QoSProfile
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import Temperature
 from std_msgs.msg import String
+from wet_eha_thermal.bag.reader import BagError, open_bag
 from wet_eha_thermal.ros import topics
+from wet_eha_thermal.ros.recorder_node import default_output, NODE_NAME as RECORDER_NODE
 
 #: Environment variable that fixes the ROS domain of a live run (0..232).
 DOMAIN_ENV = 'WET_EHA_LIVE_DOMAIN_ID'
@@ -56,6 +64,10 @@ WATCHED = ('winding_hotspot', 'winding_mean', 'magnet', 'oil')
 TTY_PERIOD_S, LOG_PERIOD_S = 0.5, 5.0
 #: Shutdown timeouts (s) after SIGINT, then after SIGTERM.
 SIGINT_WAIT_S, SIGTERM_WAIT_S = 6.0, 3.0
+#: Longest wait for the recorder to subscribe before the rig starts anyway (s).
+RECORDER_READY_S = 15.0
+#: History depth of the recorder's subscriptions (1 s of a 1 kHz topic).
+RECORDER_DEPTH = 1000
 ESTIMATE_STATUS = 'wet_eha_thermal: estimate'
 INPUT_STATUS = 'wet_eha_thermal: input '
 RIG_STATUS = 'eha_sim_rig: rig'
@@ -73,6 +85,8 @@ class LiveOptions:
     config: Optional[Path] = None
     noise: bool = True
     executor: str = 'events'
+    record: bool = True
+    record_path: Optional[Path] = None      # None: runs/live_<UTC time>.mcap
 
 
 def domain_from_env() -> Optional[int]:
@@ -120,8 +134,15 @@ def open_domain(domain: Optional[int] = None):
     raise AssertionError('unreachable')
 
 
-def child_commands(opts: LiveOptions, hardware_id: str) -> Dict[str, List[str]]:
-    """Return the command lines of the two children: ``{'rig': [...], 'estimator': [...]}``."""
+def child_commands(opts: LiveOptions, hardware_id: str,
+                   record_path: Optional[Path] = None) -> Dict[str, List[str]]:
+    """
+    Return the command lines of the children: ``{'rig': [...], 'estimator': [...], ...}``.
+
+    With ``record_path``, also ``'recorder'``: it takes the estimator's
+    parameters file and configuration (to store them) and always the events
+    executor (the single-threaded one loses messages above about 2 k msg/s).
+    """
     py = sys.executable
     rig = [py, '-m', 'wet_eha_thermal.ros.sim_rig_node', '--executor', opts.executor,
            '--ros-args', '-p', f'rate_Hz:={float(opts.rate_Hz)!r}',
@@ -135,11 +156,21 @@ def child_commands(opts: LiveOptions, hardware_id: str) -> Dict[str, List[str]]:
     if PARAMS_FILE.is_file():
         est += ['--params-file', str(PARAMS_FILE)]
     est += ['-p', 'qos:=sensor_data', '-p', f'hardware_id:={hardware_id}']
+    rec = [py, '-m', 'wet_eha_thermal.ros.recorder_node', '--executor', 'events', '--ros-args']
+    if PARAMS_FILE.is_file():
+        rec += ['--params-file', str(PARAMS_FILE), '-p', f'params_file:={PARAMS_FILE}']
+    # its own depth, not the file's 100: a 20 ms stall of the recorder would lose samples
+    rec += ['-p', 'qos:=sensor_data', '-p', f'qos_depth:={RECORDER_DEPTH}',
+            '-p', f'hardware_id:={hardware_id}', '-p', f'output:={record_path}']
     if opts.config is not None:
         cfg = str(Path(opts.config).resolve())
         rig += ['-p', f'config_file:={cfg}']
         est += ['-p', f'config_file:={cfg}']
-    return {'rig': rig, 'estimator': est}
+        rec += ['-p', f'config_file:={cfg}']
+    commands = {'rig': rig, 'estimator': est}
+    if record_path is not None:
+        commands['recorder'] = rec
+    return commands
 
 
 def _die_with_parent() -> None:
@@ -422,9 +453,31 @@ def _monitor_node(context, state: TwinState):
     return node
 
 
+def recording_text(path: Path) -> str:
+    """Return what a finished recording holds, in words."""
+    try:
+        bag = open_bag(path)
+    except (OSError, BagError) as exc:
+        return f'{path}: not readable ({exc})'
+    size_MiB = path.stat().st_size / 2 ** 20
+    text = (f'{path}: {bag.message_count} messages on {len(bag.topics)} topics, '
+            f'{size_MiB:.1f} MiB')
+    return text + (f' (cut: {bag.problem})' if bag.truncated else '')
+
+
+def _wait_for_recorder(node: Node, recorder: Child, stop: Dict[str, Optional[str]]) -> None:
+    """Wait until the recorder subscribes to every input (or it ends, a signal, a timeout)."""
+    end = time.monotonic() + RECORDER_READY_S
+    while stop['why'] is None and recorder.running() and time.monotonic() < end:
+        if all(any(i.node_name == RECORDER_NODE for i in node.get_subscriptions_info_by_topic(t))
+               for t in topics.INPUT_TOPICS.values()):
+            return
+        time.sleep(0.05)
+
+
 def summary(opts: LiveOptions, state: TwinState, children: List[Child], run_s: float,
-            domain: int, stopped_by: str) -> List[str]:
-    """Return the lines of the end-of-run summary."""
+            domain: int, stopped_by: str, recording: Optional[Path] = None) -> List[str]:
+    """Return the lines of the end-of-run summary; ``recording`` is the recorder's file."""
     out = ['', 'Live twin summary',
            f'  run             {run_s:.1f} s ({stopped_by}); {_what(opts)} on the simulated rig '
            f'at {opts.rate_Hz:g} Hz, noise {"on" if opts.noise else "off"}, ROS domain {domain}']
@@ -464,7 +517,8 @@ def summary(opts: LiveOptions, state: TwinState, children: List[Child], run_s: f
         'including the start'
     out.append(f'  stale events    {sum(during.values())} ({since})' + (f': {per}' if per else '')
                + f'; inputs on fallback at the end: {state.fallback}')
-    rig_lines = [ln for ln in children[0].tail(40) if 'rig summary:' in ln] if children else []
+    rig = next((c for c in children if c.name == 'rig'), None)
+    rig_lines = [ln for ln in rig.tail(40) if 'rig summary:' in ln] if rig is not None else []
     rig_figures = rig_lines[-1].split('rig summary:', 1)[1].strip() if rig_lines else ''
     if state.received:
         mean = sum(state.received.values()) / len(state.received)
@@ -475,6 +529,9 @@ def summary(opts: LiveOptions, state: TwinState, children: List[Child], run_s: f
         out.append(f'  {c.name:<15} {c.describe()}')
     if rig_figures:
         out.append(f'  rig figures     {rig_figures}')
+    if recording is not None:
+        text = recording_text(recording) if recording.exists() else f'{recording}: not written'
+        out.append(f'  recording       {text}')
     return out
 
 
@@ -484,7 +541,14 @@ def run(opts: LiveOptions, out: TextIO = sys.stdout, err: TextIO = sys.stderr,
     Run the live twin for ``opts.duration_s`` (or until Ctrl-C); return the exit status.
 
     ``domain``: the ROS domain to use; None picks a free one (see :func:`open_domain`).
+    Returns 2 at once when the recording's file exists.
     """
+    record_path = None
+    if opts.record:
+        record_path = Path(opts.record_path or default_output('live')).resolve()
+        if record_path.exists():
+            print(f'error: {record_path} exists: a recording is never overwritten', file=err)
+            return 2
     log_dir = Path(tempfile.mkdtemp(prefix='wet-eha-live-'))
     stop = {'why': None}
 
@@ -507,9 +571,16 @@ def run(opts: LiveOptions, out: TextIO = sys.stdout, err: TextIO = sys.stderr,
         env.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
                    PYTHONUNBUFFERED='1', RCUTILS_COLORIZED_OUTPUT='0')
         env.setdefault('OPENBLAS_NUM_THREADS', '1')
-        for name, cmd in child_commands(opts, state.hardware_id).items():
-            children.append(Child(name, cmd, env, log_dir))
+        commands = child_commands(opts, state.hardware_id, record_path)
         node = _monitor_node(context, state)
+        # the rig publishes from its start: it starts once the recorder listens
+        for name in ('recorder', 'estimator'):
+            if name in commands:
+                children.append(Child(name, commands[name], env, log_dir))
+        if record_path is not None:
+            _wait_for_recorder(node, children[0], stop)
+        children.append(Child('rig', commands['rig'], env, log_dir))
+        children.sort(key=lambda c: ('rig', 'estimator', 'recorder').index(c.name))
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node)
         deadline = t0 + opts.duration_s
@@ -530,7 +601,9 @@ def run(opts: LiveOptions, out: TextIO = sys.stdout, err: TextIO = sys.stderr,
     finally:
         printer.finish()
         run_s = time.monotonic() - t0
-        stop_children(children)
+        # the recorder last, so that it keeps what the others sent until they stopped
+        stop_children([c for c in children if c.name != 'recorder'])
+        stop_children([c for c in children if c.name == 'recorder'])
         for c in children:
             c.close()
         if node is not None:
@@ -541,7 +614,8 @@ def run(opts: LiveOptions, out: TextIO = sys.stdout, err: TextIO = sys.stderr,
             rclpy.try_shutdown(context=context)
         for s, handler in old.items():
             signal.signal(s, handler)
-    for line in summary(opts, state, children, run_s, domain, stop['why'] or 'stopped'):
+    for line in summary(opts, state, children, run_s, domain, stop['why'] or 'stopped',
+                        record_path):
         print(line, file=out)
     out.flush()
     ok = early is None and state.estimates > 0 and all(c.clean() for c in children)

@@ -1,5 +1,5 @@
 """
-Executors and spinning for the nodes of this package.
+Executors, spinning and parameter helpers for the nodes of this package.
 
 Measured with the ROS 2 Jazzy wheels (rclpy 7.1.6): ``EventsExecutor.spin()``
 never runs a callback and ignores Ctrl-C, so :func:`spin` turns the executor
@@ -10,6 +10,7 @@ subscription and is not offered.
 import signal
 from typing import Mapping
 
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
@@ -68,3 +69,14 @@ def accept_whole_numbers(node: Node, defaults: Mapping[str, object]) -> None:
         if isinstance(default, float) and given is not None \
                 and given.type_ == Parameter.Type.INTEGER:
             overrides[name] = Parameter(name, Parameter.Type.DOUBLE, float(given.value))
+
+
+def descriptor(text: str, low=None, high=None, read_only: bool = True) -> ParameterDescriptor:
+    """Return a parameter descriptor; ``low``/``high`` (ints or floats) give its range."""
+    d = ParameterDescriptor(description=text, read_only=read_only)
+    if isinstance(low, int):
+        d.integer_range = [IntegerRange(from_value=low, to_value=high, step=1)]
+    elif low is not None:
+        d.floating_point_range = [FloatingPointRange(from_value=float(low),
+                                                     to_value=float(high), step=0.0)]
+    return d

@@ -28,9 +28,6 @@ last one); acknowledgements on /eha/alerts/ack (std_msgs/String: a quantity, or
 empty for all).
 """
 
-from rclpy.qos import (DurabilityPolicy, HistoryPolicy, qos_profile_sensor_data, QoSProfile,
-                       ReliabilityPolicy)
-
 PREFIX = '/eha'
 INPUT_TOPICS = {
     'current_A': f'{PREFIX}/current',
@@ -59,6 +56,13 @@ THERMOCOUPLES = {'winding': 'winding_mean', 'frame': 'frame', 'pump_inlet': 'pum
                  'motor_oil_outlet': 'motor_oil_outlet'}
 
 
+def prefixed(topic: str, prefix: str) -> str:
+    """Return ``topic`` (one of this module's, under ``/eha``) moved under ``prefix``."""
+    if not topic.startswith(PREFIX):
+        return topic
+    return prefix.rstrip('/') + topic[len(PREFIX):]
+
+
 def publish_inputs(publishers, messages, is_pressure, values, stamp) -> None:
     """Publish one sample of every input; pressures carry ``stamp`` in their header."""
     for pub, msg, pressure, value in zip(publishers, messages, is_pressure, values):
@@ -70,8 +74,11 @@ def publish_inputs(publishers, messages, is_pressure, values, stamp) -> None:
         pub.publish(msg)
 
 
-def input_qos(kind: str, depth: int = 100) -> QoSProfile:
+def input_qos(kind: str, depth: int = 100):
     """Return the QoS of the sensor inputs: 'sensor_data' (best effort) or 'reliable'."""
+    # rclpy is imported here so that the names above serve code without ROS
+    from rclpy.qos import (DurabilityPolicy, HistoryPolicy, qos_profile_sensor_data,
+                           QoSProfile, ReliabilityPolicy)
     if kind == 'sensor_data':
         q = QoSProfile(**{k: getattr(qos_profile_sensor_data, k) for k in
                           ('history', 'reliability', 'durability')}, depth=depth)
@@ -83,8 +90,9 @@ def input_qos(kind: str, depth: int = 100) -> QoSProfile:
     raise ValueError(f'qos {kind!r}: expected sensor_data or reliable')
 
 
-def latched_qos() -> QoSProfile:
+def latched_qos():
     """Return the QoS of the alert topic: reliable, transient local, last message kept."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
     return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                       reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.TRANSIENT_LOCAL)

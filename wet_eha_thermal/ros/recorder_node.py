@@ -1,0 +1,413 @@
+"""
+The recorder: every topic of the twin to a rosbag2-compatible MCAP file.
+
+Node ``eha_recorder``. It subscribes at start to every topic the twin uses
+(``topic_prefix`` replaces ``/eha``; see :mod:`.topics`): each estimator
+input of ``INPUT_TOPICS`` (all of them: three pressures and the differential
+one), the ambient temperature, the thermocouples, the estimates, the state,
+the alerts (transient local, so the last summary published before the
+recorder started is recorded too), the acknowledgements and /diagnostics (its
+own status included). ``extra_topics`` names further topics, subscribed once
+they appear in the ROS graph, with their type and a QoS adapted to their
+publishers as rosbag2 does (reliable and transient local only when every
+publisher is).
+
+QoS of the fixed subscriptions: the sensor topics (inputs, ambient,
+thermocouples) take ``qos`` (sensor_data, best effort, hears every
+publisher; or reliable, which hears only reliable publishers but loses
+nothing they send); the outputs and acknowledgements are reliable; the
+alerts reliable and transient local. Depth ``qos_depth``.
+
+Messages are taken raw (CDR bytes, never deserialised) and written with
+:class:`~wet_eha_thermal.bag.writer.BagWriter`; a topic becomes a channel at
+its first message, with the QoS of its publisher at that moment as
+``offered_qos_profiles`` (the subscription's when no publisher is known), so
+topics that never carry a message are left out of the file. Log time is the
+node's ROS clock at receipt, as ``ros2 bag record`` does: the system clock,
+or /clock under ``use_sim_time``, where messages received before the first
+/clock are dropped and counted (they would have log time 0). The publish time
+is the log time too: the EventsExecutor of the Jazzy wheels fails on
+callbacks that ask for the message info (source timestamp).
+
+So that a run can be reproduced from the file alone, it holds Metadata
+records: ``wet_eha_thermal.config`` (``path``, ``yaml``: the text of the
+estimator configuration ``config_file``), ``wet_eha_thermal.params`` (the
+estimator's parameters file ``params_file``, when given) and
+``wet_eha_thermal.recorder`` (package ``version``, ``node``,
+``started_utc`` and the recorder's ``parameters`` as YAML).
+
+The writer closes a chunk every ``flush_interval_s``, so a SIGKILL loses
+about that much. SIGINT or SIGTERM stop it cleanly: the messages already
+received are written, the file is closed (summary, rosbag2 metadata) and a
+one-line summary goes to stderr. /diagnostics at 1 Hz (status
+``wet_eha_thermal: recorder``): messages written, dropped, errors, bytes,
+files. An existing file is never overwritten (exit status 2).
+
+Run: ``wet-eha-thermal-record --ros-args -p output:=runs/test.mcap`` or
+``python -m wet_eha_thermal.ros.recorder_node``.
+"""
+
+import argparse
+from datetime import datetime, timezone
+import functools
+from importlib import import_module
+from importlib.metadata import version
+from pathlib import Path
+import signal
+import sys
+import time
+from typing import Dict, List, Optional, Tuple
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import ParameterDescriptor, ParameterType
+import rclpy
+from rclpy.clock import Clock, ClockType
+from rclpy.exceptions import NameValidationException, ParameterException
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+from rclpy.utilities import remove_ros_args
+from wet_eha_thermal.bag.writer import BagWriter, COMPRESSIONS
+from wet_eha_thermal.config import ConfigError, default_config_path, load_config
+from wet_eha_thermal.ros import topics
+from wet_eha_thermal.ros.runtime import (accept_whole_numbers, descriptor, EXECUTORS,
+                                         make_executor, spin)
+import yaml
+
+NODE_NAME = 'eha_recorder'
+#: Metadata record names in the file (see the module docstring).
+CONFIG_METADATA = 'wet_eha_thermal.config'
+PARAMS_METADATA = 'wet_eha_thermal.params'
+RECORDER_METADATA = 'wet_eha_thermal.recorder'
+STATUS_NAME = 'wet_eha_thermal: recorder'
+DIAGNOSTICS_PERIOD_S = 1.0
+#: How often the graph is searched for extra topics not subscribed yet (steady clock, s).
+DISCOVERY_PERIOD_S = 0.5
+#: After a stop signal, messages are written until none came for DRAIN_IDLE_S (s), at most
+#: DRAIN_MAX_S.
+DRAIN_IDLE_S, DRAIN_MAX_S = 0.2, 3.0
+_OK, _WARN, _ERROR = 0, 1, 2
+TEMPERATURE = 'sensor_msgs/msg/Temperature'
+
+
+# Not the rig's helpers: importing the rig loads the model and SciPy (0.2 s), and in
+# `wet-eha-thermal live` the rig waits for the recorder to start.
+
+
+# name -> (default, descriptor); every parameter is read once, at start
+PARAMETERS = {
+    'output': ('', descriptor(
+        "file to write; '' = runs/eha_<UTC time>.mcap; with splitting <stem>_0.mcap, "
+        '<stem>_1.mcap, ... (never overwritten)')),
+    'split_bytes': (0, descriptor('start a new file after this many bytes (0 = never)',
+                                  0, 2 ** 62)),
+    'split_duration_s': (0.0, descriptor(
+        'start a new file after this much log time, s (0 = never)', 0.0, 1.0e7)),
+    'flush_interval_s': (1.0, descriptor(
+        'close a chunk after this much time: the most a SIGKILL loses, s', 0.05, 60.0)),
+    'compression': ('zstd', descriptor('chunk compression: ' + ', '.join(COMPRESSIONS))),
+    'qos': ('sensor_data', descriptor(
+        "QoS of the sensor subscriptions: 'sensor_data' (best effort) or 'reliable'")),
+    'qos_depth': (1000, descriptor('history depth of every subscription', 1, 100000)),
+    'topic_prefix': (topics.PREFIX, descriptor(
+        "replaces '/eha' in every topic name (not /diagnostics)")),
+    # declared by type: rclpy takes an empty list for a byte array; unset, it reads None
+    'extra_topics': (Parameter.Type.STRING_ARRAY, ParameterDescriptor(
+        type=ParameterType.PARAMETER_STRING_ARRAY, read_only=True,
+        description='further topics to record (names; type and QoS from their publishers)')),
+    'config_file': ('', descriptor(
+        "estimator configuration stored in the file; '' = the shipped "
+        'config/reference_eha.yaml')),
+    'params_file': ('', descriptor(
+        "estimator parameters file stored in the file ('' = none)")),
+    'hardware_id': ('wet-eha-rig', descriptor('hardware_id of the diagnostic status')),
+    'executor': ('events', descriptor(
+        "executor used by main(): 'events' or 'single'; the --executor option overrides it")),
+}
+
+
+def recorded_topics(prefix: str = topics.PREFIX) -> Dict[str, Tuple[str, str]]:
+    """
+    Return the fixed topics of the recorder under ``prefix``: topic -> (type, QoS kind).
+
+    The QoS kind is 'sensor' (the ``qos`` parameter), 'output' (reliable) or
+    'latched' (reliable, transient local).
+    """
+    found = {topics.INPUT_TOPICS[name]: (
+        'sensor_msgs/msg/FluidPressure' if name in topics.PRESSURE_INPUTS
+        else 'std_msgs/msg/Float64', 'sensor') for name in topics.INPUT_TOPICS}
+    found[topics.AMBIENT_TOPIC] = (TEMPERATURE, 'sensor')
+    for tc in topics.THERMOCOUPLES:
+        found[f'{topics.MEASURED_PREFIX}/{tc}'] = (TEMPERATURE, 'sensor')
+    for name in topics.ESTIMATES:
+        found[f'{topics.ESTIMATE_PREFIX}/{name}'] = (TEMPERATURE, 'output')
+    found[topics.STATE_TOPIC] = ('std_msgs/msg/Float64MultiArray', 'output')
+    found[topics.ALERT_TOPIC] = ('std_msgs/msg/String', 'latched')
+    found[topics.ACK_TOPIC] = ('std_msgs/msg/String', 'output')
+    found[topics.DIAGNOSTICS_TOPIC] = ('diagnostic_msgs/msg/DiagnosticArray', 'output')
+    return {topics.prefixed(topic, prefix): spec for topic, spec in found.items()}
+
+
+def default_output(stem: str = 'eha') -> Path:
+    """Return ``runs/<stem>_<UTC time>.mcap`` (relative to the working folder)."""
+    return Path('runs') / f'{stem}_{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}.mcap'
+
+
+def message_class(type_name: str):
+    """Return the Python class of a message type 'pkg/msg/Type'."""
+    package, kind, name = type_name.split('/')
+    return getattr(import_module(f'{package}.{kind}'), name)
+
+
+def _text_record(path: Path) -> Dict[str, str]:
+    try:
+        return {'path': str(path.resolve()), 'yaml': path.read_text()}
+    except OSError as exc:
+        raise ConfigError(f'cannot read {path}: {exc.strerror}') from exc
+
+
+def _mib(n_bytes: int) -> str:
+    return f'{n_bytes / 2 ** 20:.2f} MiB'
+
+
+class RecorderNode(Node):
+    """Record the twin's topics raw to an MCAP bag (see the module docstring)."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        accept_whole_numbers(self, {name: d for name, (d, _) in PARAMETERS.items()})
+        p = {name: self.declare_parameter(name, default, desc).value
+             for name, (default, desc) in PARAMETERS.items()}
+        p['extra_topics'] = list(p['extra_topics'] or [])
+        p['use_sim_time'] = self.get_parameter('use_sim_time').value
+        if p['executor'] not in EXECUTORS:
+            raise ValueError(f"parameter executor = {p['executor']!r}: expected one of "
+                             f'{", ".join(EXECUTORS)}')
+        if not p['topic_prefix'].startswith('/'):
+            raise ValueError(f"parameter topic_prefix = {p['topic_prefix']!r}: must start with /")
+        qos_of = {'sensor': topics.input_qos(p['qos'], p['qos_depth']),  # ValueError: bad kind
+                  'output': topics.input_qos('reliable', p['qos_depth']),
+                  'latched': topics.latched_qos()}
+        self.hardware_id = p['hardware_id']
+        self.depth = p['qos_depth']
+        # check the configuration as the estimator will, and keep its text
+        config_path = Path(p['config_file']) if p['config_file'] else default_config_path()
+        load_config(config_path)
+        metadata = {CONFIG_METADATA: _text_record(config_path)}
+        if p['params_file']:
+            metadata[PARAMS_METADATA] = _text_record(Path(p['params_file']))
+        self.started_utc = datetime.now(timezone.utc).isoformat(timespec='seconds')
+        metadata[RECORDER_METADATA] = {
+            'version': version('wet_eha_thermal'), 'node': self.get_fully_qualified_name(),
+            'started_utc': self.started_utc,
+            'parameters': yaml.safe_dump(p, sort_keys=False)}
+        self.output = Path(p['output']) if p['output'] else default_output()
+        self.output.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            self.writer = BagWriter(
+                self.output, metadata=metadata, flush_interval_s=p['flush_interval_s'],
+                split_bytes=p['split_bytes'] or None,
+                split_duration_s=p['split_duration_s'] or None, compression=p['compression'])
+        except FileExistsError as exc:   # the first file (<stem>_0.mcap when splitting)
+            raise FileExistsError(f'{exc.filename} exists: a recording is never '
+                                  'overwritten') from None
+
+        self.types: Dict[str, str] = {}             # subscribed topic -> type
+        self.qos: Dict[str, QoSProfile] = {}        # ... and its subscription's QoS
+        self.counts: Dict[str, int] = {}            # topics written so far -> messages
+        self.total = 0
+        self.before_clock = 0                       # dropped: no /clock yet under use_sim_time
+        self.errors = 0
+        self.last_error = ''
+        self.write_failed = False                   # the writer gave up (disk full, ...)
+        self.started_s = time.monotonic()
+        for topic, (type_name, kind) in recorded_topics(p['topic_prefix']).items():
+            self._subscribe(topic, type_name, qos_of[kind])
+        extra = ['/' + t.lstrip('/') for t in p['extra_topics']]    # as rosbag2 names them
+        self.extra_wanted = [t for t in extra if t not in self.types]
+        self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS_TOPIC,
+                                              QoSProfile(depth=10))
+        self.create_timer(DIAGNOSTICS_PERIOD_S, self._on_diagnostics)
+        if self.extra_wanted:
+            # steady clock: under use_sim_time an extra topic may be /clock itself
+            self._discovery = self.create_timer(DISCOVERY_PERIOD_S, self._discover,
+                                                clock=Clock(clock_type=ClockType.STEADY_TIME))
+            self._discover()
+        self.get_logger().info(
+            f'recording {len(self.types)} topics under {p["topic_prefix"]} ({p["qos"]} QoS for '
+            f'the sensors, depth {self.depth}) to {self.output}'
+            + (f'; waiting for {", ".join(self.extra_wanted)}' if self.extra_wanted else ''))
+
+    # ------------------------------------------------------------ subscriptions
+    def _subscribe(self, topic: str, type_name: str, qos: QoSProfile) -> None:
+        self.create_subscription(message_class(type_name), topic,
+                                 functools.partial(self._on_message, topic), qos, raw=True)
+        self.types[topic] = type_name
+        self.qos[topic] = qos
+
+    def _discover(self) -> None:
+        """Subscribe to the extra topics that have appeared, with their publishers' QoS."""
+        for topic in list(self.extra_wanted):
+            try:
+                infos = self.get_publishers_info_by_topic(topic)
+                if not infos:
+                    continue
+                reliable = all(i.qos_profile.reliability == ReliabilityPolicy.RELIABLE
+                               for i in infos)
+                latched = all(i.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL
+                              for i in infos)
+                qos = QoSProfile(
+                    history=HistoryPolicy.KEEP_LAST, depth=self.depth,
+                    reliability=(ReliabilityPolicy.RELIABLE if reliable
+                                 else ReliabilityPolicy.BEST_EFFORT),
+                    durability=(DurabilityPolicy.TRANSIENT_LOCAL if latched
+                                else DurabilityPolicy.VOLATILE))
+                self._subscribe(topic, infos[0].topic_type, qos)
+                self.get_logger().info(f'recording {topic} ({infos[0].topic_type})')
+            except Exception as exc:  # noqa: B902 - a bad name or type: report, record the rest
+                self._failed(topic, exc)
+            self.extra_wanted.remove(topic)
+        if not self.extra_wanted:
+            self._discovery.cancel()
+
+    def _offered_qos(self, topic: str) -> QoSProfile:
+        """Return the QoS of the topic's publisher (the subscription's when none is known)."""
+        type_name = self.types[topic]
+        for info in self.get_publishers_info_by_topic(topic):
+            if info.topic_type == type_name:
+                return info.qos_profile
+        return self.qos[topic]
+
+    def _on_message(self, topic: str, data: bytes) -> None:
+        try:
+            log_time_ns = self.get_clock().now().nanoseconds
+            if log_time_ns == 0:
+                self.before_clock += 1
+                return
+            if topic not in self.counts:
+                self.writer.add_topic(topic, self.types[topic], self._offered_qos(topic))
+                self.counts[topic] = 0
+            self.writer.write(topic, data, log_time_ns)
+            self.counts[topic] += 1
+            self.total += 1
+        except Exception as exc:  # noqa: B902 - never raise into the executor
+            self.write_failed = self.write_failed or isinstance(exc, OSError)
+            self._failed(topic, exc)
+
+    def _failed(self, where: str, exc: BaseException) -> None:
+        self.errors += 1
+        self.last_error = f'{where}: {type(exc).__name__}: {exc}'
+        self.get_logger().error(self.last_error, throttle_duration_sec=5.0)
+
+    # ------------------------------------------------------------ reporting
+    def bytes_written(self) -> int:
+        """Return the size of the files written so far."""
+        return sum(path.stat().st_size for path in self.writer.paths if path.exists())
+
+    def _on_diagnostics(self) -> None:
+        try:
+            level, message = _OK, f'recording to {self.writer.paths[-1]}'
+            if self.write_failed:
+                level, message = _ERROR, f'writing failed: {self.last_error}'
+            elif self.errors:
+                level, message = _WARN, f'{self.errors} errors, last: {self.last_error}'
+            elif self.before_clock:
+                level, message = _WARN, f'{self.before_clock} messages before the first /clock'
+            values = [('messages written', self.total), ('topics written', len(self.counts)),
+                      ('topics subscribed', len(self.types)),
+                      ('dropped before /clock', self.before_clock), ('errors', self.errors),
+                      ('bytes', self.bytes_written()),
+                      ('files', ', '.join(str(p) for p in self.writer.paths)),
+                      ('waiting for', ', '.join(self.extra_wanted) or 'none')]
+            arr = DiagnosticArray()
+            arr.header.stamp = self.get_clock().now().to_msg()
+            arr.status = [DiagnosticStatus(
+                level=bytes([level]), name=STATUS_NAME, message=message,
+                hardware_id=self.hardware_id,
+                values=[KeyValue(key=k, value=str(v)) for k, v in values])]
+            self.diag_pub.publish(arr)
+        except Exception as exc:  # noqa: B902
+            self._failed('diagnostics', exc)
+
+    def drain(self, executor) -> None:
+        """Spin until no message came for ``DRAIN_IDLE_S`` (at most ``DRAIN_MAX_S``)."""
+        start = idle_since = time.monotonic()
+        total = self.total
+        while True:
+            executor.spin_once(timeout_sec=DRAIN_IDLE_S / 4)
+            now = time.monotonic()
+            if self.total != total:
+                total, idle_since = self.total, now
+            if now - idle_since >= DRAIN_IDLE_S or now - start >= DRAIN_MAX_S:
+                return
+
+    def close(self) -> str:
+        """Close the bag (summary, rosbag2 metadata) and return the one-line summary."""
+        try:
+            self.writer.close()
+        except OSError as exc:
+            self.write_failed = True
+            self._failed('close', exc)
+        run_s = time.monotonic() - self.started_s
+        per_topic = ', '.join(f'{t} {n}' for t, n in sorted(self.counts.items()))
+        return (f'recorder summary: {self.total} messages on {len(self.counts)} topics in '
+                f'{run_s:.1f} s to {", ".join(str(p) for p in self.writer.paths)} '
+                f'({_mib(self.bytes_written())}); dropped before /clock {self.before_clock}, '
+                f'errors {self.errors}; per topic: {per_topic or "none"}')
+
+
+def _parse_args(argv: List[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(
+        prog='wet-eha-thermal-record',
+        description='Record the topics of the wet-EHA twin to a rosbag2-compatible MCAP file '
+                    '(ROS 2 node eha_recorder). ROS arguments follow --ros-args, e.g. '
+                    '--ros-args -p output:=runs/test.mcap -p qos:=reliable')
+    parser.add_argument('--executor', choices=EXECUTORS, default=None,
+                        help="'events' (rclpy.experimental.EventsExecutor) or 'single' "
+                             '(SingleThreadedExecutor); default: the executor parameter, '
+                             'which defaults to events')
+    return parser.parse_args(argv)
+
+
+def main(args: Optional[List[str]] = None) -> int:
+    """Record until Ctrl-C or SIGTERM; return the exit status (2: bad parameter or file)."""
+    argv = list(sys.argv if args is None else args)
+    opts = _parse_args(remove_ros_args(argv)[1:])
+    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    node = None
+    ok = True
+    old = {}
+    try:
+        try:
+            node = RecorderNode()
+        except (ConfigError, FileExistsError, NameValidationException, ParameterException,
+                ValueError) as exc:                # bad parameter, config or output: one line
+            print(f'wet-eha-thermal-record: {exc}', file=sys.stderr)
+            return 2
+        kind = opts.executor or node.get_parameter('executor').value
+        executor = make_executor(kind)
+        executor.add_node(node)
+        try:
+            spin(executor)
+            # a second signal must not cut the last chunk or the summary being written
+            old = {s: signal.signal(s, signal.SIG_IGN) for s in (signal.SIGINT, signal.SIGTERM)}
+            node.drain(executor)
+        except (KeyboardInterrupt, ExternalShutdownException):
+            pass
+        finally:
+            executor.shutdown()
+    finally:
+        if node is not None:
+            print(node.close(), file=sys.stderr, flush=True)
+            ok = not node.write_failed
+            node.destroy_node()
+        rclpy.try_shutdown()
+        for s, handler in old.items():
+            signal.signal(s, handler)
+    return 0 if ok else 1
+
+
+if __name__ == '__main__':
+    sys.exit(main())
