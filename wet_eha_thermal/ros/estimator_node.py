@@ -207,9 +207,7 @@ class EstimatorNode(Node):
     # ------------------------------------------------------------- helpers
     def _topic(self, name: str) -> str:
         """Return ``name`` with the topic prefix in place of topics.PREFIX."""
-        if name.startswith(topics.PREFIX):
-            return self.prefix + name[len(topics.PREFIX):]
-        return name
+        return topics.prefixed(name, self.prefix)
 
     def _now_s(self) -> Optional[float]:
         """Return the ROS clock in seconds, or None while sim time has not started."""

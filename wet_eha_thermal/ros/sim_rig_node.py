@@ -49,57 +49,31 @@ from typing import Dict, List, Optional
 from builtin_interfaces.msg import Time as TimeMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 import numpy as np
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 import rclpy
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64
 from wet_eha_thermal.config import ConfigError, load_config
-from wet_eha_thermal.estimator.core import sensor_inputs, sensor_signal
-from wet_eha_thermal.model.eha import EHAModel
-from wet_eha_thermal.model.kinetics import (DutyError, KineticModel, load_duty_csv, stage_duty,
-                                            STAGES, ThermalFeedback)
+from wet_eha_thermal.model.kinetics import DutyError, load_duty_csv, stage_duty, STAGES
 from wet_eha_thermal.model.motor import C_TO_K
-from wet_eha_thermal.ros.runtime import accept_whole_numbers, EXECUTORS, make_executor, spin
+from wet_eha_thermal.ros.runtime import (accept_whole_numbers, descriptor, EXECUTORS,
+                                         make_executor, spin)
 from wet_eha_thermal.ros.topics import (AMBIENT_TOPIC, DIAGNOSTICS_TOPIC, input_qos,
-                                        INPUT_TOPICS, MEASURED_PREFIX, PREFIX, PRESSURE_INPUTS,
-                                        publish_inputs, THERMOCOUPLES)
-from wet_eha_thermal.simulation import feedback
+                                        INPUT_TOPICS, MEASURED_PREFIX, PREFIX, prefixed,
+                                        PRESSURE_INPUTS, publish_inputs, THERMOCOUPLES)
+from wet_eha_thermal.simulated_rig import (AMBIENT_SIGMA_K, BLOCK_S, NOISE_SIGMA, SimulatedRig,
+                                           THERMOCOUPLE_SIGMA_K)
 
 NODE_NAME = 'eha_sim_rig'
-#: Length of one kinetics block and one truth-model step (s).
-BLOCK_S = 0.02
 #: Most sample time published in one tick when catching up (s); older samples are skipped.
 MAX_BURST_S = 0.1
-#: Sensor noise, 1 sigma, in the units of each input.
-NOISE_SIGMA = {'current_A': 0.05, 'speed_rad_s': 2.0, 'p_a_Pa': 20.0e3, 'p_b_Pa': 20.0e3,
-               'p_acc_Pa': 20.0e3, 'dp_Pa': 20.0e3, 'position_m': 10.0e-6}
-THERMOCOUPLE_SIGMA_K = 0.2
-AMBIENT_SIGMA_K = 0.05
 #: Tick intervals and publish lags kept for the jitter figures (a ring of this many).
 STATS_WINDOW = 20000
 
 
-def prefixed(topic: str, prefix: str) -> str:
-    """Return ``topic`` (one of :mod:`.topics`, under ``/eha``) moved under ``prefix``."""
-    if not topic.startswith(PREFIX):
-        return topic
-    return prefix.rstrip('/') + topic[len(PREFIX):]
-
-
 def _stamp(ns: int) -> TimeMsg:
     return TimeMsg(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
-
-
-def _descriptor(text: str, lo=None, hi=None, step=None) -> ParameterDescriptor:
-    d = ParameterDescriptor(description=text, read_only=True)
-    if isinstance(lo, int):
-        d.integer_range = [IntegerRange(from_value=lo, to_value=hi, step=step or 1)]
-    elif lo is not None:
-        d.floating_point_range = [FloatingPointRange(from_value=float(lo), to_value=float(hi),
-                                                     step=0.0)]
-    return d
 
 
 class _Ring:
@@ -127,34 +101,25 @@ class SimRigNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__(NODE_NAME, **kwargs)
         p = self._declare_parameters()
-        self.rate_Hz = p['rate_Hz']
-        self.n_block = max(1, int(round(self.rate_Hz * BLOCK_S)))
-        self.period_s = BLOCK_S / self.n_block       # exact: a block is a whole number of samples
-        self.period_ns = int(round(self.period_s * 1e9))
-        self.noise = p['noise']
-        self.ambient_C = p['ambient_C']
         self.cfg = load_config(p['config_file'] or None)
         act = self.cfg.hydraulics.actuator
         if p['duty_file']:
-            self.duty = load_duty_csv(p['duty_file'], act.area_m2, act.half_stroke_m)
+            duty = load_duty_csv(p['duty_file'], act.area_m2, act.half_stroke_m)
         else:
-            self.duty = stage_duty(self.cfg, p['stage'])
-        self.rng = np.random.default_rng(p['seed'])
-        # truth model, initialised at ambient with the duty's first sample
-        self.truth = EHAModel(self.cfg)
-        self.kin = KineticModel(self.cfg, self.truth.oil, self.truth.log)
-        amb_K = self.ambient_C + C_TO_K
-        self.truth.T_hyd = np.full(self.truth.circuit.n, amb_K)
-        first = self.kin.sample(self.duty, np.array([0.0]), ThermalFeedback.uniform(amb_K))
-        self.truth.initialise(amb_K, first)
-        self.tc_lag = {name: amb_K for name in THERMOCOUPLES}
-        lag = p['thermocouple_lag_s']
-        self.tc_alpha = 1.0 - math.exp(-BLOCK_S / lag) if lag > 0.0 else 1.0
+            duty = stage_duty(self.cfg, p['stage'])
+        self.rig = SimulatedRig(self.cfg, duty, rate_Hz=p['rate_Hz'], noise=p['noise'],
+                                seed=p['seed'], ambient_C=p['ambient_C'],
+                                thermocouple_lag_s=p['thermocouple_lag_s'])
+        self.truth = self.rig.truth
+        self.n_block = self.rig.n_block
+        self.period_s = self.rig.period_s
+        self.period_ns = int(round(self.period_s * 1e9))
+        self.noise = p['noise']
         # publishers
         prefix = p['topic_prefix']
         q = input_qos(p['qos'], depth=max(10, self.n_block * 5))
         # the inputs the configured estimator takes (three pressures or one differential)
-        self.inputs = sensor_inputs(self.cfg)
+        self.inputs = self.rig.inputs
         self.pubs = {}
         for name in self.inputs:
             kind = FluidPressure if name in PRESSURE_INPUTS else Float64
@@ -192,29 +157,29 @@ class SimRigNode(Node):
         self.create_timer(1.0, self._publish_ambient)
         self.create_timer(1.0 / p['thermocouple_rate_Hz'], self._publish_thermocouples)
         self.create_timer(1.0, self._publish_diagnostics)
-        what = self.duty.name if p['duty_file'] else f'stage {p["stage"]}'
+        what = duty.name if p['duty_file'] else f'stage {p["stage"]}'
         self.get_logger().info(
             f'rig: {what} at {1.0 / self.period_s:g} Hz ({self.n_block} samples per '
             f'{BLOCK_S * 1e3:g} ms block), noise {"on" if self.noise else "off"}, ambient '
-            f'{self.ambient_C:g} degC, qos {p["qos"]}, topics under {prefix}')
+            f'{p["ambient_C"]:g} degC, qos {p["qos"]}, topics under {prefix}')
 
     # ------------------------------------------------------------ parameters
     def _declare_parameters(self) -> Dict[str, object]:
         stages = sorted(STAGES)
         specs = [
-            ('stage', 6, _descriptor('reference stage 1-6 (ignored with duty_file)',
-                                     stages[0], stages[-1])),
-            ('duty_file', '', _descriptor('duty CSV (time_s, flow_L_min, load_MPa); '
-                                          'empty: use the stage')),
-            ('rate_Hz', 1000.0, _descriptor('sensor sample rate, Hz', 50.0, 10000.0)),
-            ('noise', True, _descriptor('add sensor noise')),
-            ('seed', 1, _descriptor('seed of the noise', 0, 2 ** 31 - 1)),
-            ('ambient_C', 20.0, _descriptor('ambient temperature, degC', -40.0, 60.0)),
-            ('thermocouple_rate_Hz', 10.0, _descriptor('thermocouple rate, Hz', 0.1, 100.0)),
-            ('thermocouple_lag_s', 1.0, _descriptor('thermocouple time constant, s', 0.0, 60.0)),
-            ('config_file', '', _descriptor('YAML configuration; empty: the reference rig')),
-            ('topic_prefix', PREFIX, _descriptor('namespace of the rig topics')),
-            ('qos', 'sensor_data', _descriptor('QoS of the inputs: sensor_data or reliable')),
+            ('stage', 6, descriptor('reference stage 1-6 (ignored with duty_file)',
+                                    stages[0], stages[-1])),
+            ('duty_file', '', descriptor('duty CSV (time_s, flow_L_min, load_MPa); '
+                                         'empty: use the stage')),
+            ('rate_Hz', 1000.0, descriptor('sensor sample rate, Hz', 50.0, 10000.0)),
+            ('noise', True, descriptor('add sensor noise')),
+            ('seed', 1, descriptor('seed of the noise', 0, 2 ** 31 - 1)),
+            ('ambient_C', 20.0, descriptor('ambient temperature, degC', -40.0, 60.0)),
+            ('thermocouple_rate_Hz', 10.0, descriptor('thermocouple rate, Hz', 0.1, 100.0)),
+            ('thermocouple_lag_s', 1.0, descriptor('thermocouple time constant, s', 0.0, 60.0)),
+            ('config_file', '', descriptor('YAML configuration; empty: the reference rig')),
+            ('topic_prefix', PREFIX, descriptor('namespace of the rig topics')),
+            ('qos', 'sensor_data', descriptor('QoS of the inputs: sensor_data or reliable')),
         ]
         accept_whole_numbers(self, {name: default for name, default, _ in specs})
         values = {}
@@ -230,24 +195,11 @@ class SimRigNode(Node):
 
     # -------------------------------------------------------------- kinetics
     def _next_block(self) -> None:
-        """Compute the next block of samples and step the truth model over it."""
+        """Compute the next block of samples (the rig steps its truth model over it)."""
         t_start = time.perf_counter()
         first = self.block_first if self.block is None else self.block_first + self.n_block
-        t = (first + np.arange(self.n_block)) * self.period_s
-        s = self.kin.sample(self.duty, t, feedback(self.truth))
-        self.truth.step(s, self.ambient_C + C_TO_K)
-        out = self.truth.outputs()
-        for name, quantity in THERMOCOUPLES.items():
-            self.tc_lag[name] += self.tc_alpha * (out[quantity] - self.tc_lag[name])
-        cols = []
-        for name in self.inputs:
-            v = sensor_signal(s, name)
-            if self.noise:
-                v = v + self.rng.normal(0.0, NOISE_SIGMA[name], v.size)
-                if name == 'current_A':
-                    np.abs(v, out=v)       # an RMS reading is never negative
-            cols.append(v)
-        self.block = np.column_stack(cols).tolist()
+        block = self.rig.next_block()
+        self.block = np.column_stack([block[name] for name in self.inputs]).tolist()
         self.block_first = first
         self.block_ms.add((time.perf_counter() - t_start) * 1e3)
 
@@ -299,9 +251,8 @@ class SimRigNode(Node):
         msg = Temperature()
         msg.header.stamp = now.to_msg()
         msg.header.frame_id = NODE_NAME
-        sigma = AMBIENT_SIGMA_K if self.noise else 0.0
-        msg.temperature = self.ambient_C + (self.rng.normal(0.0, sigma) if sigma else 0.0)
-        msg.variance = sigma ** 2
+        msg.temperature = self.rig.ambient_reading_C()
+        msg.variance = AMBIENT_SIGMA_K ** 2 if self.noise else 0.0
         self.ambient_pub.publish(msg)
 
     def _publish_thermocouples(self) -> None:
@@ -309,16 +260,14 @@ class SimRigNode(Node):
         if now.nanoseconds == 0 or self.block is None:
             return
         stamp = now.to_msg()
-        sigma = THERMOCOUPLE_SIGMA_K if self.noise else 0.0
-        noise = self.rng.normal(0.0, sigma, len(THERMOCOUPLES)) if sigma else \
-            np.zeros(len(THERMOCOUPLES))
-        for (name, pub), e in zip(self.tc_pubs.items(), noise):
+        variance = THERMOCOUPLE_SIGMA_K ** 2 if self.noise else 0.0
+        for name, value in self.rig.thermocouples_C().items():
             msg = Temperature()
             msg.header.stamp = stamp
             msg.header.frame_id = f'{NODE_NAME}/{name}'
-            msg.temperature = self.tc_lag[name] - C_TO_K + float(e)
-            msg.variance = sigma ** 2
-            pub.publish(msg)
+            msg.temperature = value
+            msg.variance = variance
+            self.tc_pubs[name].publish(msg)
 
     # ------------------------------------------------------------ statistics
     def statistics(self) -> Dict[str, float]:

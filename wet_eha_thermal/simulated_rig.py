@@ -1,0 +1,165 @@
+"""
+The simulated rig without ROS: a duty in, the rig's sensor signals and thermocouples out.
+
+The kinetic model turns the duty into the estimator's input signals, in
+blocks of ``BLOCK_S``; a "truth" thermal model
+(:class:`~wet_eha_thermal.model.eha.EHAModel`) is stepped with the same,
+noise-free samples every block, and its temperatures, through a first-order
+sensor lag, are the thermocouples. Seeded Gaussian noise (1 sigma):
+current 0.05 A (an RMS reading, so its magnitude is kept), speed 2 rad/s,
+pressures 20 kPa, position 10 um, thermocouples 0.2 K, ambient 0.05 K.
+
+The ROS node (:mod:`wet_eha_thermal.ros.sim_rig_node`) publishes these
+blocks in real time; :func:`write_rig_bag` writes them straight to a bag,
+as the recorder would have recorded the rig, for replays and tests.
+"""
+
+import math
+import os
+from typing import Callable, Dict, Optional
+
+import numpy as np
+
+from .config import Config
+from .estimator.core import sensor_inputs, sensor_signal
+from .model.eha import EHAModel
+from .model.kinetics import Duty, KineticModel, ThermalFeedback
+from .model.motor import C_TO_K
+from .ros.topics import THERMOCOUPLES
+from .simulation import feedback
+
+#: Length of one kinetics block and one truth-model step (s).
+BLOCK_S = 0.02
+#: Sensor noise, 1 sigma, in the units of each input.
+NOISE_SIGMA = {'current_A': 0.05, 'speed_rad_s': 2.0, 'p_a_Pa': 20.0e3, 'p_b_Pa': 20.0e3,
+               'p_acc_Pa': 20.0e3, 'dp_Pa': 20.0e3, 'position_m': 10.0e-6}
+THERMOCOUPLE_SIGMA_K = 0.2
+AMBIENT_SIGMA_K = 0.05
+
+
+class SimulatedRig:
+    """The reference rig playing a duty: sensor blocks, thermocouples, the truth model."""
+
+    def __init__(self, cfg: Config, duty: Duty, rate_Hz: float = 1000.0, noise: bool = True,
+                 seed: int = 1, ambient_C: float = 20.0,
+                 thermocouple_lag_s: float = 1.0) -> None:
+        self.cfg = cfg
+        self.duty = duty
+        self.inputs = sensor_inputs(cfg)      # three pressures or one differential
+        self.n_block = max(1, int(round(rate_Hz * BLOCK_S)))
+        self.period_s = BLOCK_S / self.n_block   # exact: a block is a whole number of samples
+        self.noise = noise
+        self.ambient_C = ambient_C
+        self.rng = np.random.default_rng(seed)
+        self.truth = EHAModel(cfg)
+        self.kin = KineticModel(cfg, self.truth.oil, self.truth.log)
+        amb_K = ambient_C + C_TO_K
+        first = self.kin.sample(duty, np.array([0.0]), ThermalFeedback.uniform(amb_K))
+        self.truth.initialise(amb_K, first)
+        self.tc_lag_K = {name: amb_K for name in THERMOCOUPLES}
+        self.tc_alpha = 1.0 - math.exp(-BLOCK_S / thermocouple_lag_s) \
+            if thermocouple_lag_s > 0.0 else 1.0
+        self.blocks = 0
+
+    def next_block(self) -> Dict[str, np.ndarray]:
+        """
+        Return the next block's samples: ``t_s`` (duty time) and one array per input.
+
+        Steps the truth model over the block and the thermocouple lags.
+        """
+        first = 1 + self.blocks * self.n_block
+        t = (first + np.arange(self.n_block)) * self.period_s
+        s = self.kin.sample(self.duty, t, feedback(self.truth))
+        self.truth.step(s, self.ambient_C + C_TO_K)
+        out = self.truth.outputs()
+        for name, quantity in THERMOCOUPLES.items():
+            self.tc_lag_K[name] += self.tc_alpha * (out[quantity] - self.tc_lag_K[name])
+        block = {'t_s': t}
+        for name in self.inputs:
+            v = sensor_signal(s, name)
+            if self.noise:
+                v = v + self.rng.normal(0.0, NOISE_SIGMA[name], v.size)
+                if name == 'current_A':
+                    np.abs(v, out=v)       # an RMS reading is never negative
+            block[name] = v
+        self.blocks += 1
+        return block
+
+    def thermocouples_C(self) -> Dict[str, float]:
+        """Return the thermocouple readings now (degC, lagged, with noise)."""
+        sigma = THERMOCOUPLE_SIGMA_K if self.noise else 0.0
+        noise = self.rng.normal(0.0, sigma, len(THERMOCOUPLES)) if sigma else \
+            np.zeros(len(THERMOCOUPLES))
+        return {name: self.tc_lag_K[name] - C_TO_K + float(e)
+                for name, e in zip(THERMOCOUPLES, noise)}
+
+    def ambient_reading_C(self) -> float:
+        """Return an ambient reading (degC, with noise)."""
+        sigma = AMBIENT_SIGMA_K if self.noise else 0.0
+        return self.ambient_C + (float(self.rng.normal(0.0, sigma)) if sigma else 0.0)
+
+
+def write_rig_bag(path: os.PathLike, rig: SimulatedRig, seconds: float, *,
+                  start_ns: int = 1_700_000_000 * 10**9, thermocouple_rate_Hz: float = 10.0,
+                  metadata: Optional[Dict[str, Dict[str, str]]] = None,
+                  on_progress: Optional[Callable[[float], None]] = None) -> int:
+    """
+    Write ``seconds`` of the rig's topics to a bag, as the recorder records them; return the count.
+
+    Log times are the samples' times from ``start_ns``; pressures carry the
+    same stamp in their header. Thermocouples and ambient come at
+    ``thermocouple_rate_Hz`` and 1 Hz.
+    """
+    from rclpy.qos import QoSProfile
+    from sensor_msgs.msg import FluidPressure, Temperature
+    from std_msgs.msg import Float64
+    from .bag.writer import BagWriter
+    from .ros import topics
+
+    q_in = topics.input_qos('sensor_data')
+    msgs = {name: (FluidPressure() if name in topics.PRESSURE_INPUTS else Float64())
+            for name in rig.inputs}
+    count = 0
+    n_blocks = int(round(seconds / BLOCK_S))
+    tc_every = max(1, int(round(1.0 / (thermocouple_rate_Hz * BLOCK_S))))
+    amb_every = int(round(1.0 / BLOCK_S))
+    with BagWriter(path, metadata=metadata) as bag:
+        for name in rig.inputs:
+            bag.add_topic(topics.INPUT_TOPICS[name], (
+                'sensor_msgs/msg/FluidPressure' if name in topics.PRESSURE_INPUTS
+                else 'std_msgs/msg/Float64'), q_in)
+        for tc in THERMOCOUPLES:
+            bag.add_topic(f'{topics.MEASURED_PREFIX}/{tc}', 'sensor_msgs/msg/Temperature',
+                          QoSProfile(depth=10))
+        bag.add_topic(topics.AMBIENT_TOPIC, 'sensor_msgs/msg/Temperature', QoSProfile(depth=10))
+        temp = Temperature()
+        for k in range(n_blocks):
+            block = rig.next_block()
+            stamps = (start_ns + np.round(block['t_s'] * 1e9)).astype(np.int64).tolist()
+            cols = [(topics.INPUT_TOPICS[n], msgs[n], n in topics.PRESSURE_INPUTS,
+                     block[n].tolist()) for n in rig.inputs]
+            for j, ns in enumerate(stamps):
+                for topic, msg, pressure, values in cols:
+                    if pressure:
+                        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(ns, 10**9)
+                        msg.fluid_pressure = values[j]
+                    else:
+                        msg.data = values[j]
+                    bag.write(topic, msg, ns)
+            count += len(stamps) * len(cols)
+            ns = stamps[-1]
+            temp.header.stamp.sec, temp.header.stamp.nanosec = divmod(ns, 10**9)
+            if k % tc_every == 0:
+                for tc, value in rig.thermocouples_C().items():
+                    temp.temperature = value
+                    temp.variance = THERMOCOUPLE_SIGMA_K ** 2 if rig.noise else 0.0
+                    bag.write(f'{topics.MEASURED_PREFIX}/{tc}', temp, ns)
+                    count += 1
+            if k % amb_every == 0:
+                temp.temperature = rig.ambient_reading_C()
+                temp.variance = AMBIENT_SIGMA_K ** 2 if rig.noise else 0.0
+                bag.write(topics.AMBIENT_TOPIC, temp, ns)
+                count += 1
+            if on_progress is not None and k % 500 == 0:
+                on_progress((k + 1) / n_blocks)
+    return count
