@@ -250,10 +250,39 @@ def test_stamps_since_the_epoch_give_the_same_estimates_as_small_stamps(cfg):
     small, big = Estimator(cfg), Estimator(cfg)
     for est, t0 in ((small, 0.0), (big, epoch)):
         feed(est, t0, 20.0, current=lambda t, t0=t0: 15.0 + 5.0 * math.sin(t - t0))
-    assert big.latest.stamp_s == pytest.approx(epoch + 20.0, abs=1e-6)
+    assert big.latest.stamp_s - epoch == pytest.approx(small.latest.stamp_s, abs=1e-6)
     assert small.model.time_s < 21.0
     expm = [e.model.motor.net.discretise_count for e in (small, big)]
     assert expm[0] == expm[1] < small.steps / 5
     assert big.model.time_s == pytest.approx(small.model.time_s, abs=1e-9)
     for name, value in small.latest.temperatures_C.items():
         assert big.latest.temperatures_C[name] == pytest.approx(value, abs=1e-6), name
+
+
+def test_add_many_counts_and_keeps_exactly_what_add_does(cfg):
+    # a replay feeds arrays: the same samples must be accepted and rejected for the
+    # same reasons as one by one (NaN, out of range, backwards, duplicate, late)
+    rng = np.random.default_rng(3)
+    t = np.cumsum(rng.uniform(0.0005, 0.0015, 3000))
+    v = rng.uniform(5.0, 30.0, t.size)
+    v[rng.choice(t.size, 30, replace=False)] = np.nan
+    v[rng.choice(t.size, 30, replace=False)] = 500.0          # above the 60 A range
+    t[rng.choice(np.arange(1, t.size), 30, replace=False)] -= 0.01   # backwards
+    t[rng.choice(t.size, 5, replace=False)] = np.inf
+    one, many = Estimator(cfg), Estimator(cfg)
+    for est in (one, many):
+        for ch in INPUTS:
+            est.add(ch, 0.0, STEADY.get(ch, 10.0))
+        est.advance()                   # starts the model at t = 0
+    for a, b in ((0, 1000), (1000, 1001), (1001, t.size)):
+        for k in range(a, b):
+            one.add('current_A', float(t[k]), float(v[k]))
+        many.add_many('current_A', t[a:b], v[a:b])
+    h1, h2 = one.health['current_A'], many.health['current_A']
+    assert vars(h1) == vars(h2)
+    assert h1.non_finite >= 30 and h1.out_of_range >= 25 and h1.backwards >= 20
+    assert one._buf['current_A'] == many._buf['current_A']
+    late = Estimator(cfg)
+    late.t_model = 1.0
+    assert late.add_many('current_A', np.array([0.5, 1.0, 1.5]), np.array([1.0, 1.0, 1.0])) == 1
+    assert late.health['current_A'].late == 2

@@ -210,8 +210,59 @@ def _live(args: argparse.Namespace) -> int:
         raise BadArgument(str(exc)) from None
     opts = live.LiveOptions(stage=stage, duty=args.duty, duration_s=args.duration,
                             rate_Hz=args.rate_Hz, config=args.config, noise=not args.no_noise,
-                            executor=args.executor)
+                            executor=args.executor, record=not args.no_record,
+                            record_path=args.record)
     return live.run(opts, domain=domain)
+
+
+def _replay(args: argparse.Namespace) -> int:
+    from . import replay as rp
+
+    if not args.output_rate_Hz > 0.0:
+        raise BadArgument(f'--output-rate-Hz {args.output_rate_Hz}: must be > 0')
+    try:
+        plan = rp.plan_replay(args.bag, args.config, rp.parse_mapping(args.map))
+    except rp.ReplayError as exc:
+        raise BadArgument(str(exc)) from None
+    info = plan.info
+    print(f'{info.path}: {info.message_count} messages, '
+          f'{(info.end_time_ns - info.start_time_ns) * 1e-9:.1f} s; configuration: '
+          f'{plan.config_source}')
+    print('inputs: ' + ', '.join(f'{n} <- {t}' for n, t in plan.inputs.items())
+          + (f'; no topic, on fallback: {", ".join(plan.missing)}' if plan.missing else '')
+          + f'; thermocouples: {", ".join(plan.thermocouples) or "none"}')
+    if info.truncated:
+        print(f'warning: {info.path} is truncated ({info.problem}); replaying the '
+              f'{info.message_count} messages recovered up to the cut', file=sys.stderr)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    progress = Progress()
+
+    def on_progress(fraction: float, sample_s: float, wall_s: float) -> None:
+        speed = sample_s / wall_s if wall_s > 0 else 0.0
+        progress(int(round(1000 * fraction)), 1000,
+                 f'{sample_s:.0f} s of log, {speed:.0f}x real time')
+
+    try:
+        result = rp.replay(plan, output_rate_Hz=args.output_rate_Hz, on_progress=on_progress)
+    except (rp.ReplayError, rp.BagError) as exc:
+        raise BadArgument(str(exc)) from None
+    progress(1000, 1000, 'done')
+    files = [rp.write_csv(result, out / 'estimates.csv'), rp.write_mcap(result,
+                                                                        out / 'estimates.mcap')]
+    if not args.no_report:
+        files.append(rp.write_report(result, out))
+    print(f'replayed {result.messages} messages: {result.steps} steps, '
+          f'{result.sample_time_s:.1f} s of sample time in {result.wall_s:.1f} s '
+          f'({result.speed_x:.0f}x real time)')
+    for tc, e in rp.thermocouple_errors(result).items():
+        print(f'  {e["estimate"]:<17} - {tc:<17} max |e| {e["max_abs_K"]:5.2f} K, RMS '
+              f'{e["rms_K"]:5.2f} K, bias {e["bias_K"]:+5.2f} K')
+    if result.truncated:
+        print(f'warning: the bag ended early ({result.problem}): the outputs cover the '
+              f'{result.messages} messages recovered', file=sys.stderr)
+    print('wrote ' + ', '.join(str(f) for f in files))
+    return 0
 
 
 def _add_duty_arguments(p: argparse.ArgumentParser, required: bool) -> None:
@@ -273,8 +324,9 @@ def build_parser() -> argparse.ArgumentParser:
                                    'file, the estimator (eha_thermal_estimator) follows them, and '
                                    'a status line shows the estimated temperatures, margin, time '
                                    'to limit, alerts and stale inputs. Ends after --duration or '
-                                   'on Ctrl-C with a summary. Both nodes run on a private ROS '
-                                   'domain (from the process id, or $WET_EHA_LIVE_DOMAIN_ID).')
+                                   'on Ctrl-C with a summary. The recorder (eha_recorder) writes '
+                                   'the run to MCAP. The nodes run on a private ROS domain (from '
+                                   'the process id, or $WET_EHA_LIVE_DOMAIN_ID).')
     _add_duty_arguments(p, required=False)
     p.add_argument('--duration', type=float, default=60.0,
                    help='how long to run, s (default: %(default)g)')
@@ -285,12 +337,46 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--no-noise', action='store_true', help='publish noise-free sensor values')
     p.add_argument('--executor', choices=('events', 'single'), default='events',
                    help='rclpy executor of both nodes (default: %(default)s)')
+    p.add_argument('--record', type=Path, default=None, metavar='PATH',
+                   help='recording of the run, MCAP (default: runs/live_<UTC time>.mcap)')
+    p.add_argument('--no-record', action='store_true', help='do not record the run')
     p.set_defaults(func=_live)
+
+    p = sub.add_parser('replay', help='run the estimator over a recorded bag, offline',
+                       description='Replay a rosbag2-style MCAP (ours, or ros2 bag record -s mcap '
+                                   'with the same message types) through the estimator in sample '
+                                   'time, as fast as it goes. Writes estimates.csv and '
+                                   'estimates.mcap, and a report (report.md, PNG plots of inputs, '
+                                   'temperatures, errors against the thermocouples and alerts). '
+                                   'The configuration is --config, else the one stored in the '
+                                   'bag, else the reference rig.')
+    p.add_argument('bag', type=Path, help='the MCAP file')
+    p.add_argument('--out', default='out/replay', help='output folder (default: %(default)s)')
+    p.add_argument('--config', type=Path, default=None,
+                   help='YAML configuration (default: stored in the bag, else the reference rig)')
+    p.add_argument('--map', action='append', default=[], metavar='NAME=/TOPIC',
+                   help='topic of an input (current_A, speed_rad_s, p_a_Pa, p_b_Pa, p_acc_Pa, '
+                        'dp_Pa, position_m), a thermocouple (measured/frame, ...) or ambient; '
+                        'repeatable')
+    p.add_argument('--output-rate-Hz', type=float, default=10.0,
+                   help='rate of the estimates written (default: %(default)g; the model steps '
+                        'at 50 Hz)')
+    p.add_argument('--no-report', action='store_true', help='skip the plots and report.md')
+    p.set_defaults(func=_replay)
+
+    # parsed by the player itself (main() hands it everything after 'play')
+    sub.add_parser('play', add_help=False,
+                   help='publish a bag on the ROS graph with /clock (wet-eha-thermal play BAG '
+                        '[--rate R] [--loop] ...; play --help for all options)')
     return parser
 
 
 def main(argv: Optional[List[str]] = None) -> int:
     """Run the command line; return the exit status."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] == ['play']:
+        from .ros import player
+        return player.main(argv[1:])
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)

@@ -522,10 +522,16 @@ def load_config(path: Optional[os.PathLike] = None,
         text = p.read_text()
     except OSError as exc:
         raise ConfigError(f'cannot read config file {p}: {exc.strerror}') from exc
+    return config_from_yaml(text, str(p), overrides)
+
+
+def config_from_yaml(text: str, origin: str = 'config',
+                     overrides: Optional[Dict[str, Any]] = None) -> Config:
+    """Validate a configuration given as YAML text (``origin`` names it in messages)."""
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        raise ConfigError(f'{p}: not valid YAML: {exc}') from exc
+        raise ConfigError(f'{origin}: not valid YAML: {exc}') from exc
     for dotted, value in (overrides or {}).items():
         node = data
         *parents, last = dotted.split('.')

@@ -28,6 +28,7 @@ winding, the magnets and the oil reach their limits, and the thermal margin
 (the largest continuous current at the present oil temperature).
 """
 
+import bisect
 from collections import deque
 import copy
 from dataclasses import dataclass, field
@@ -45,6 +46,10 @@ from ..model.motor import C_TO_K, MotorInputs, WetMotor
 INPUTS = ('current_A', 'speed_rad_s', 'p_a_Pa', 'p_b_Pa', 'p_acc_Pa', 'position_m')
 # with one differential pressure sensor (estimator.pressure_inputs: differential)
 DIFFERENTIAL_INPUTS = ('current_A', 'speed_rad_s', 'dp_Pa', 'position_m')
+
+
+def _stamp_of(sample: tuple) -> float:
+    return sample[0]
 
 
 def sensor_inputs(cfg: Config) -> Tuple[str, ...]:
@@ -179,6 +184,42 @@ class Estimator:
         self._buf[channel].append((stamp_s, value))
         return True
 
+    def add_many(self, channel: str, stamps_s: np.ndarray, values: np.ndarray) -> int:
+        """
+        Take many samples of one input at once, as ``add`` would one by one; return how many.
+
+        The same checks, vectorised, for replaying logs: non-finite, out of
+        range, not after the previous accepted stamp, or at or before the
+        model time are counted and dropped.
+        """
+        h = self.health[channel]
+        c = self.channel_cfg[channel]
+        t = np.asarray(stamps_s, dtype=float)
+        v = np.asarray(values, dtype=float)
+        h.received += t.size
+        finite = np.isfinite(t) & np.isfinite(v)
+        in_range = finite & (v >= c.low) & (v <= c.high)
+        # backwards: not after the latest accepted stamp so far; only samples after the
+        # model time can be accepted, and a backwards one never raises the maximum
+        after_model = t > self.t_model + self._eps if self.t_model is not None else finite
+        last = h.last_stamp_s if h.last_stamp_s is not None else -np.inf
+        before = np.maximum.accumulate(np.concatenate(
+            [[last], np.where(in_range & after_model, t, -np.inf)]))[:-1]
+        backwards = in_range & (t <= before)
+        late = in_range & ~backwards & ~after_model
+        ok = in_range & ~backwards & after_model
+        h.non_finite += int(np.count_nonzero(~finite))
+        h.out_of_range += int(np.count_nonzero(finite & ~in_range))
+        h.backwards += int(np.count_nonzero(backwards))
+        h.late += int(np.count_nonzero(late))
+        n = int(np.count_nonzero(ok))
+        if n:
+            h.accepted += n
+            ts, vs = t[ok], v[ok]
+            h.last_stamp_s, h.last_value = float(ts[-1]), float(vs[-1])
+            self._buf[channel].extend(zip(ts.tolist(), vs.tolist()))
+        return n
+
     def add_ambient(self, stamp_s: float, value_C: float) -> bool:
         """Take an ambient temperature (degC) for the housings' heat loss."""
         if not (math.isfinite(value_C) and -60.0 <= value_C <= 150.0):
@@ -236,8 +277,19 @@ class Estimator:
         fresh = [n for n in self.inputs if n not in stale]
         horizon = min(self.health[n].last_stamp_s for n in fresh) if fresh else ref
         if self.t_model is None:
-            self._start(horizon)
-            return []
+            # start once every input has spoken (or its timeout passed), at the latest
+            # first stamp: each input then has a value at the start, live or replayed
+            firsts = [self._buf[n][0][0] for n in self.inputs if self._buf[n]]
+            if not firsts:
+                self._start(horizon)
+                return []
+            patience_s = max(c.timeout_s for c in self.channel_cfg.values())
+            if len(firsts) < len(self.inputs) and ref - min(firsts) <= patience_s:
+                return []
+            self._start(max(firsts))
+            stale = self._update_staleness(ref)
+            fresh = [n for n in self.inputs if n not in stale]
+            horizon = min(self.health[n].last_stamp_s for n in fresh) if fresh else ref
         out = []
         # step ends from an integer count: a sum of dt drifts, and a sample stamped on
         # a boundary would then land in the neighbouring step (a phase-locked ripple
@@ -268,29 +320,30 @@ class Estimator:
         for n in self.inputs:
             self._drop_until(n, t0)
 
+    def _count_until(self, name: str, t: float) -> int:
+        """Return how many buffered samples of ``name`` are stamped at or before ``t``."""
+        # accepted stamps strictly increase: a replay buffers a whole block, so bisect
+        return bisect.bisect_right(self._buf[name], t + self._eps, key=_stamp_of)
+
     def _value_at(self, name: str, t: float) -> float:
         """Return the last value at or before ``t`` (fallback: last good, else at rest)."""
-        best = self._prev[name]
-        for s in self._buf[name]:
-            if s[0] <= t:
-                best = s
+        k = self._count_until(name, t)
+        best = self._buf[name][k - 1] if k else self._prev[name]
         if best is not None:
             return best[1]
         h = self.health[name]
         return h.last_value if h.last_value is not None else self.rest[name]
 
     def _drop_until(self, name: str, t: float) -> None:
-        buf = self._buf[name]
-        k = 0
-        while k < len(buf) and buf[k][0] <= t + self._eps:
-            k += 1
+        k = self._count_until(name, t)
         if k:
+            buf = self._buf[name]
             self._prev[name] = buf[k - 1]
             del buf[:k]
 
     def _grid_values(self, name: str, t0: float, t1: float, grid: np.ndarray) -> np.ndarray:
         """Average one input onto the grid intervals of (t0, t1] (I^2 for the current)."""
-        buf = [s for s in self._buf[name] if s[0] <= t1 + self._eps]
+        buf = self._buf[name][:self._count_until(name, t1)]
         prev = self._prev[name]
         start = prev[1] if prev is not None else self._value_at(name, t0)
         n = grid.size

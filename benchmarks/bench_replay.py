@@ -1,0 +1,118 @@
+"""
+Offline replay of a rig log through the estimator: rate, ratio to the plain reader loop, memory.
+
+Run: OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_replay.py
+     [--minutes 60] [--bag EXISTING.mcap] [--keep] [--dir DIR]
+
+Without ``--bag`` it first writes a log of the simulated rig on stage 6
+(:func:`~wet_eha_thermal.simulated_rig.write_rig_bag`: current, speed, one
+differential pressure and position at 1 kHz, thermocouples at 10 Hz, ambient
+at 1 Hz), ``--minutes`` long. Then, each in its own process so that its peak
+RSS is its own:
+
+- ``plain``: the reference loop of the issue, ``mcap.reader.make_reader``
+  ``iter_messages()`` with a struct unpack of every message's double
+  (``read_plain`` of ``bench_replay_read.py``);
+- ``replay``: :func:`wet_eha_thermal.replay.replay` of the whole log (read,
+  decode, estimator in sample time at its 20 ms step) plus the CSV and MCAP
+  outputs, as ``wet-eha-thermal replay --no-report`` does.
+
+Printed: messages per second of both, their ratio, multiples of real time,
+and peak RSS.
+"""
+
+import argparse
+import json
+from pathlib import Path
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_replay_read import read_plain  # noqa: E402,I100 - the same reference loop
+
+
+def peak_rss_MB() -> float:
+    """Return the peak resident memory of this process (MB)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def run_phase(phase: str, path: Path) -> None:
+    """Child process: one pass over the log, its figures as JSON on stdout."""
+    from wet_eha_thermal import replay as rp
+
+    before = peak_rss_MB()
+    t = time.perf_counter()
+    if phase == 'plain':
+        messages = read_plain(path)
+        extra = {}
+    else:
+        with tempfile.TemporaryDirectory() as out:
+            result = rp.replay(rp.plan_replay(path))
+            rp.write_csv(result, Path(out) / 'estimates.csv')
+            rp.write_mcap(result, Path(out) / 'estimates.mcap')
+        messages = result.messages
+        extra = {'steps': result.steps, 'sample_time_s': result.sample_time_s}
+    seconds = time.perf_counter() - t
+    print(json.dumps({'messages': messages, 'seconds': seconds, 'rss_before_MB': before,
+                      'peak_rss_MB': peak_rss_MB(), **extra}))
+
+
+def write_log(path: Path, minutes: float) -> None:
+    """Write ``minutes`` of the simulated rig on stage 6 to ``path``, with progress."""
+    from wet_eha_thermal.config import load_config
+    from wet_eha_thermal.model.kinetics import stage_duty
+    from wet_eha_thermal.simulated_rig import SimulatedRig, write_rig_bag
+
+    cfg = load_config(overrides={'estimator.pressure_inputs': 'differential'})
+    t = time.perf_counter()
+    count = write_rig_bag(path, SimulatedRig(cfg, stage_duty(cfg, 6)), minutes * 60.0,
+                          on_progress=lambda f: print(f'\rwriting {100 * f:5.1f} %', end='',
+                                                      file=sys.stderr, flush=True))
+    print(f'\rwrote {count} messages ({minutes:g} min) in {time.perf_counter() - t:.0f} s, '
+          f'{path.stat().st_size / 1e6:.0f} MB -> {path}')
+
+
+def main() -> None:
+    """Run the benchmark and print the figures."""
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser.add_argument('--minutes', type=float, default=60.0)
+    parser.add_argument('--bag', type=Path, help='replay this log instead of writing one')
+    parser.add_argument('--dir', type=Path, help='where to write the log (default: temp dir)')
+    parser.add_argument('--keep', action='store_true', help='keep the log written')
+    parser.add_argument('--phase', choices=('plain', 'replay'), help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.phase:
+        run_phase(args.phase, args.bag)
+        return
+    print('command: OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_replay.py '
+          + ' '.join(sys.argv[1:]), flush=True)
+    path = args.bag
+    if path is None:
+        path = (args.dir or Path(tempfile.gettempdir())) / (
+            f'bench_replay_stage6_{args.minutes:g}min_{time.strftime("%Y%m%d_%H%M%S")}.mcap')
+        write_log(path, args.minutes)
+    try:
+        r = {}
+        for phase in ('plain', 'replay'):
+            out = subprocess.run([sys.executable, __file__, '--phase', phase, '--bag', str(path)],
+                                 check=True, capture_output=True, text=True)
+            r[phase] = json.loads(out.stdout)
+            rate = r[phase]['messages'] / r[phase]['seconds']
+            print(f'{phase:6s}: {r[phase]["messages"]} messages in {r[phase]["seconds"]:.1f} s '
+                  f'= {rate:.0f} msg/s, peak RSS {r[phase]["peak_rss_MB"]:.0f} MB (after '
+                  f'imports {r[phase]["rss_before_MB"]:.0f} MB)')
+        rp = r['replay']
+        ratio = (rp['messages'] / rp['seconds']) / (r['plain']['messages'] / r['plain']['seconds'])
+        print(f'replay / plain loop: {ratio:.2f}x; {rp["steps"]} model steps, '
+              f'{rp["sample_time_s"]:.0f} s of sample time in {rp["seconds"]:.1f} s = '
+              f'{rp["sample_time_s"] / rp["seconds"]:.1f}x real time')
+    finally:
+        if args.bag is None and not args.keep:
+            path.unlink()
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,493 @@
+"""
+Offline replay of recorded runs through the estimator: no ROS graph, sample time, full speed.
+
+A bag (rosbag2-style MCAP: ours, or ``ros2 bag record -s mcap`` with the same
+message types) is read in blocks of decoded columns
+(:func:`~wet_eha_thermal.bag.reader.iter_column_blocks`), so memory stays flat
+however long the log. Each block's samples go to the estimator core with the
+stamps the live estimator used: the header stamp of a FluidPressure (the log
+time when it is zero) and the log (receive) time of a Float64, which has no
+header. The core steps in sample time, so a replay gives the estimates of the
+live run up to the difference between the recorder's and the estimator's
+receive times of the stamp-less inputs.
+
+The topics that feed each input are the live defaults (:mod:`.ros.topics`)
+unless mapped otherwise; thermocouples (``/eha/measured/<name>``) are compared
+with the estimate each one measures. The configuration is, in this order, the
+one given, the one the recorder stored in the bag, or the shipped reference
+rig.
+
+Outputs go to one folder, each written under a ``.partial`` name and renamed
+when complete: ``estimates.csv`` and ``estimates.mcap`` at ``output_rate_Hz``,
+and with :func:`write_report` the plots and ``report.md``.
+"""
+
+import dataclasses
+from dataclasses import dataclass, field
+import math
+import os
+from pathlib import Path
+import time
+from typing import Callable, Dict, List, Mapping, Optional, Sequence
+
+import numpy as np
+
+from .bag.reader import (BagError, BagInfo, FLOAT64, FLUID_PRESSURE, iter_column_blocks,
+                         open_bag, TEMPERATURE)
+from .config import Config, config_from_yaml, default_config_path, load_config
+from .estimator.core import Estimator, INPUTS, sensor_inputs
+from .ros import topics
+
+#: Metadata record in which the recorder stores the estimator's configuration YAML.
+CONFIG_METADATA = 'wet_eha_thermal.config'
+CONFIG_METADATA_KEY = 'yaml'
+#: Message type of each input.
+INPUT_TYPES = {name: (FLUID_PRESSURE if name in topics.PRESSURE_INPUTS else FLOAT64)
+               for name in topics.INPUT_TOPICS}
+#: Estimates written to the outputs (degC), in column order.
+OUTPUT_ESTIMATES = topics.ESTIMATES
+
+
+class ReplayError(ValueError):
+    """A bag or a topic mapping that cannot be replayed; the message says why."""
+
+
+@dataclass
+class ReplayPlan:
+    """What feeds what: the configuration and the topic of every input and thermocouple."""
+
+    cfg: Config
+    config_source: str
+    inputs: Dict[str, str]                 # estimator input -> topic (found in the bag)
+    missing: List[str]                     # inputs with no topic in the bag: on fallback
+    thermocouples: Dict[str, str]          # thermocouple name -> topic
+    ambient: Optional[str]
+    info: BagInfo
+
+    @property
+    def specs(self) -> Dict[str, str]:
+        """Return topic -> message type of every topic to decode."""
+        specs = {topic: INPUT_TYPES[name] for name, topic in self.inputs.items()}
+        specs.update({topic: TEMPERATURE for topic in self.thermocouples.values()})
+        if self.ambient is not None:
+            specs[self.ambient] = TEMPERATURE
+        return specs
+
+
+def _config(info: BagInfo, config_path: Optional[os.PathLike]) -> tuple:
+    if config_path is not None:
+        return load_config(config_path), str(config_path)
+    stored = info.metadata.get(CONFIG_METADATA, {}).get(CONFIG_METADATA_KEY)
+    if stored:
+        return config_from_yaml(stored, f'{info.path} (stored configuration)'), \
+            f'stored in {info.path.name}'
+    return load_config(None), 'shipped reference_eha.yaml (the bag stores none)'
+
+
+def _match_pressure_inputs(cfg: Config, wanted, source: str, info: BagInfo,
+                           mapping: Mapping[str, str]) -> tuple:
+    """Switch between three pressures and one differential when the bag holds only the other."""
+    def present(names):
+        return any(mapping.get(n, topics.INPUT_TOPICS[n]) in info.topics for n in names)
+
+    ports, differential = ('p_a_Pa', 'p_b_Pa', 'p_acc_Pa'), ('dp_Pa',)
+    mine, other, mode = (ports, differential, 'differential') if 'p_a_Pa' in wanted else \
+        (differential, ports, 'ports')
+    if present(mine) or not present(other):
+        return cfg, wanted, source
+    cfg = dataclasses.replace(cfg, estimator=dataclasses.replace(cfg.estimator,
+                                                                 pressure_inputs=mode))
+    return cfg, sensor_inputs(cfg), f'{source}, with pressure_inputs: {mode} (what the bag holds)'
+
+
+def plan_replay(path: os.PathLike, config_path: Optional[os.PathLike] = None,
+                mapping: Optional[Mapping[str, str]] = None) -> ReplayPlan:
+    """
+    Open a bag and decide which topics feed the estimator; raise ReplayError when none does.
+
+    ``mapping`` maps input or thermocouple names (``current_A``, ...,
+    ``measured/frame``, ``ambient``) to topics, replacing the defaults.
+    """
+    try:
+        info = open_bag(path)
+    except BagError as exc:
+        raise ReplayError(str(exc)) from exc
+    cfg, source = _config(info, config_path)
+    mapping = dict(mapping or {})
+    known = set(INPUTS) | {'dp_Pa', 'ambient'} | {f'measured/{tc}' for tc in
+                                                  topics.THERMOCOUPLES}
+    unknown = sorted(set(mapping) - known)
+    if unknown:
+        raise ReplayError(f'cannot map {unknown[0]!r}: the names are '
+                          f'{", ".join(sorted(known))}')
+    wanted = sensor_inputs(cfg)
+    cfg, wanted, source = _match_pressure_inputs(cfg, wanted, source, info, mapping)
+    inputs, missing = {}, []
+    for name in wanted:
+        topic = mapping.get(name, topics.INPUT_TOPICS[name])
+        found = info.topics.get(topic)
+        if found is None:
+            missing.append(name)
+            continue
+        if found.type_name != INPUT_TYPES[name]:
+            raise ReplayError(f'{info.path}: topic {topic} (input {name}) holds '
+                              f'{found.type_name}; expected {INPUT_TYPES[name]}')
+        inputs[name] = topic
+    if not inputs:
+        listing = ', '.join(f'{t} ({i.type_name})' for t, i in sorted(info.topics.items()))
+        raise ReplayError(
+            f'{info.path}: no topic of the mapping is in the bag (looked for '
+            f'{", ".join(mapping.get(n, topics.INPUT_TOPICS[n]) for n in wanted)}); the bag '
+            f'has: {listing or "no topics"}. Map them with --map name=/topic.')
+    thermocouples = {}
+    for tc in topics.THERMOCOUPLES:
+        topic = mapping.get(f'measured/{tc}', f'{topics.MEASURED_PREFIX}/{tc}')
+        found = info.topics.get(topic)
+        if found is not None and found.type_name == TEMPERATURE:
+            thermocouples[tc] = topic
+    amb = mapping.get('ambient', topics.AMBIENT_TOPIC)
+    ambient = amb if amb in info.topics and info.topics[amb].type_name == TEMPERATURE else None
+    return ReplayPlan(cfg=cfg, config_source=source, inputs=inputs, missing=missing,
+                      thermocouples=thermocouples, ambient=ambient, info=info)
+
+
+@dataclass
+class ReplayResult:
+    """Estimates at the output rate, thermocouple series and the run's figures."""
+
+    plan: ReplayPlan
+    stamp_s: np.ndarray                      # estimate stamps (sample time, s)
+    temperatures_C: Dict[str, np.ndarray]
+    sigma_K: np.ndarray
+    alert_level: np.ndarray
+    stale_inputs: np.ndarray                 # number of inputs on fallback per estimate
+    measured: Dict[str, tuple]               # thermocouple -> (stamps s, degC)
+    inputs: Dict[str, tuple]                 # input -> (stamps s, values), decimated for plots
+    alert_events: List[tuple]                # (stamp s, message)
+    messages: int
+    steps: int
+    sample_time_s: float
+    wall_s: float
+    truncated: bool
+    problem: Optional[str]
+    health: Dict[str, dict] = field(default_factory=dict)
+
+    @property
+    def speed_x(self) -> float:
+        """Return the replay speed in multiples of real time."""
+        return self.sample_time_s / self.wall_s if self.wall_s > 0 else math.inf
+
+
+class _Decimator:
+    """Keep about one sample per ``interval_s`` of a series (for plots of long runs)."""
+
+    def __init__(self, interval_s: float) -> None:
+        self.interval_s = interval_s
+        self.next_s = -math.inf
+        self.t: List[np.ndarray] = []
+        self.v: List[np.ndarray] = []
+
+    def add(self, t: np.ndarray, v: np.ndarray) -> None:
+        if not t.size:
+            return
+        bins = np.floor(t / self.interval_s)
+        keep = np.concatenate([[True], bins[1:] != bins[:-1]]) & (t >= self.next_s)
+        self.t.append(t[keep])
+        self.v.append(v[keep])
+        self.next_s = (bins[-1] + 1) * self.interval_s
+
+    def arrays(self) -> tuple:
+        if not self.t:
+            return np.zeros(0), np.zeros(0)
+        return np.concatenate(self.t), np.concatenate(self.v)
+
+
+def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
+           on_progress: Optional[Callable[[float, float, float], None]] = None,
+           plot_interval_s: float = 0.1) -> ReplayResult:
+    """
+    Run the estimator over the bag of ``plan`` in sample time; return the estimates.
+
+    Estimates are kept at ``output_rate_Hz`` (every step when it is at least
+    the step rate). ``on_progress(fraction, sample_time_s, wall_s)`` is called
+    after each block of about 10 s of log.
+    """
+    est = Estimator(plan.cfg)
+    step_s = plan.cfg.estimator.step_s
+    every = max(1, int(round(1.0 / (output_rate_Hz * step_s))))
+    rows: List[np.ndarray] = []
+    events: List[tuple] = []
+    measured = {tc: ([], []) for tc in plan.thermocouples}
+    inputs_plot = {name: _Decimator(plot_interval_s) for name in plan.inputs}
+    t_wall = time.perf_counter()
+    first_s: Optional[float] = None
+    by_topic = {topic: name for name, topic in plan.inputs.items()}
+    size = max(os.path.getsize(plan.info.path), 1)
+    done_bytes = [0]
+    blocks = iter_column_blocks(plan.info.path, plan.specs,
+                                on_progress=lambda done, total: done_bytes.__setitem__(0, done))
+
+    def advance() -> None:
+        for e in est.advance():
+            for ev in e.alert_events:
+                events.append((e.stamp_s, ev.message))
+            if e.step % every == 0:
+                rows.append(np.array(
+                    [e.stamp_s] + [e.temperatures_C[n] for n in OUTPUT_ESTIMATES]
+                    + [max(e.uncertainty_K.values()), e.alert_level, len(e.stale)]))
+
+    for block in blocks:
+        series = {}
+        ambient = (np.zeros(0), np.zeros(0))
+        for topic, columns in block.items():
+            if not len(columns):
+                continue
+            t = columns.time_ns * 1e-9
+            first_s = float(t[0]) if first_s is None else min(first_s, float(t[0]))
+            if topic in by_topic:
+                name = by_topic[topic]
+                series[name] = (t, next(iter(columns.values.values())))
+                inputs_plot[name].add(*series[name])
+            elif topic == plan.ambient:
+                ambient = (t, columns.values['temperature'])
+            else:
+                for tc, tc_topic in plan.thermocouples.items():
+                    if tc_topic == topic:
+                        measured[tc][0].append(t)
+                        measured[tc][1].append(columns.values['temperature'])
+        # an ambient reading applies from its stamp on, as it does live: feed the inputs
+        # up to each reading, step, then take it
+        cuts = {name: np.searchsorted(t, ambient[0], side='right')
+                for name, (t, _) in series.items()}
+        for k in range(ambient[0].size + 1):
+            for name, (t, v) in series.items():
+                lo = cuts[name][k - 1] if k else 0
+                hi = cuts[name][k] if k < ambient[0].size else t.size
+                if hi > lo:
+                    est.add_many(name, t[lo:hi], v[lo:hi])
+            advance()
+            if k < ambient[0].size:
+                est.add_ambient(float(ambient[0][k]), float(ambient[1][k]))
+        if on_progress is not None:
+            wall = time.perf_counter() - t_wall
+            t_model = (est.t_model - first_s) if est.t_model is not None and first_s else 0.0
+            on_progress(done_bytes[0] / size, t_model, wall)
+    wall = time.perf_counter() - t_wall
+    if not rows:
+        raise ReplayError(f'{plan.info.path}: not one model step could be made: the bag holds '
+                          f'{blocks.message_count} messages of the mapped topics')
+    table = np.vstack(rows)
+    n = len(OUTPUT_ESTIMATES)
+    return ReplayResult(
+        plan=plan, stamp_s=table[:, 0],
+        temperatures_C={name: table[:, 1 + k] for k, name in enumerate(OUTPUT_ESTIMATES)},
+        sigma_K=table[:, 1 + n], alert_level=table[:, 2 + n].astype(int),
+        stale_inputs=table[:, 3 + n].astype(int),
+        measured={tc: (np.concatenate(t) if t else np.zeros(0),
+                       np.concatenate(v) if v else np.zeros(0))
+                  for tc, (t, v) in measured.items()},
+        inputs={name: d.arrays() for name, d in inputs_plot.items()},
+        alert_events=events, messages=blocks.message_count, steps=est.steps,
+        sample_time_s=est.steps * step_s, wall_s=wall, truncated=blocks.truncated,
+        problem=blocks.problem,
+        health={name: dict(vars(h)) for name, h in est.health.items()})
+
+
+# ------------------------------------------------------------------ outputs
+def _partial(path: Path) -> Path:
+    return path.with_name(path.name + '.partial')
+
+
+def write_csv(result: ReplayResult, path: Path) -> Path:
+    """Write the estimates (degC) with stamps, uncertainty and alert level; return the path."""
+    header = ['stamp_s'] + [f'{n}_C' for n in OUTPUT_ESTIMATES] + [
+        'sigma_K', 'alert_level', 'inputs_on_fallback']
+    table = np.column_stack([result.stamp_s] + [result.temperatures_C[n]
+                                                for n in OUTPUT_ESTIMATES]
+                            + [result.sigma_K, result.alert_level, result.stale_inputs])
+    tmp = _partial(path)
+    fmt = ['%.6f'] + ['%.4f'] * len(OUTPUT_ESTIMATES) + ['%.3f', '%d', '%d']
+    np.savetxt(tmp, table, fmt=fmt, delimiter=',', header=','.join(header), comments='')
+    tmp.replace(path)
+    return path
+
+
+def write_mcap(result: ReplayResult, path: Path) -> Path:
+    """Write the estimates as /eha/estimate/<name> Temperature messages, with the config."""
+    from rclpy.qos import QoSProfile
+    from sensor_msgs.msg import Temperature
+    from std_msgs.msg import String
+    from .bag.writer import BagWriter
+
+    tmp = _partial(path)
+    if tmp.exists():
+        tmp.unlink()
+    cfg_yaml = _config_text(result.plan)
+    with BagWriter(tmp, metadata={CONFIG_METADATA: {CONFIG_METADATA_KEY: cfg_yaml,
+                                                    'source': result.plan.config_source}}) as w:
+        qos = QoSProfile(depth=10)
+        names = {n: f'{topics.ESTIMATE_PREFIX}/{n}' for n in OUTPUT_ESTIMATES}
+        for topic in names.values():
+            w.add_topic(topic, TEMPERATURE, qos)
+        w.add_topic(topics.ALERT_TOPIC, 'std_msgs/msg/String', topics.latched_qos())
+        msg = Temperature()
+        msg.header.frame_id = 'eha'
+        for k, stamp in enumerate(result.stamp_s.tolist()):
+            ns = int(round(stamp * 1e9))
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(ns, 1_000_000_000)
+            msg.variance = float(result.sigma_K[k]) ** 2
+            for name, topic in names.items():
+                msg.temperature = float(result.temperatures_C[name][k])
+                w.write(topic, msg, ns)
+        for stamp, text in result.alert_events:
+            w.write(topics.ALERT_TOPIC, String(data=text), int(round(stamp * 1e9)))
+    tmp.replace(path)
+    return path
+
+
+def _config_text(plan: ReplayPlan) -> str:
+    stored = plan.info.metadata.get(CONFIG_METADATA, {}).get(CONFIG_METADATA_KEY)
+    if stored and plan.config_source.startswith('stored'):
+        return stored
+    src = plan.config_source
+    p = Path(src) if not src.startswith('shipped') else default_config_path()
+    return p.read_text()
+
+
+def thermocouple_errors(result: ReplayResult) -> Dict[str, dict]:
+    """
+    Return, per thermocouple, the error of its estimate (estimate - measured, K).
+
+    The estimate is interpolated at the thermocouple's stamps inside the
+    estimated span: max abs, RMS, bias (mean) and the count compared.
+    """
+    out = {}
+    for tc, (t, v) in result.measured.items():
+        est = result.temperatures_C[topics.THERMOCOUPLES[tc]]
+        inside = (t >= result.stamp_s[0]) & (t <= result.stamp_s[-1])
+        if not np.any(inside):
+            continue
+        err = np.interp(t[inside], result.stamp_s, est) - v[inside]
+        out[tc] = {'estimate': topics.THERMOCOUPLES[tc], 'n': int(err.size),
+                   'max_abs_K': float(np.max(np.abs(err))),
+                   'rms_K': float(np.sqrt(np.mean(err ** 2))), 'bias_K': float(np.mean(err)),
+                   't_s': t[inside], 'error_K': err}
+    return out
+
+
+def write_report(result: ReplayResult, out_dir: Path) -> Path:
+    """Write PNG plots (inputs, temperatures, errors, alerts) and report.md; return its path."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    t0 = float(result.stamp_s[0])
+    t_min = (result.stamp_s - t0) / 60.0
+    images = []
+
+    fig, axes = plt.subplots(len(result.inputs), 1, figsize=(10, 1.8 * len(result.inputs) + 1),
+                             sharex=True, squeeze=False)
+    for ax, (name, (t, v)) in zip(axes[:, 0], result.inputs.items()):
+        ax.plot((t - t0) / 60.0, v, lw=0.6)
+        ax.set_ylabel(name, fontsize=8)
+        ax.grid(alpha=0.3)
+    axes[-1, 0].set_xlabel('time since the first estimate [min]')
+    fig.suptitle(f'inputs of {result.plan.info.path.name}')
+    images.append(_save(fig, out_dir / 'inputs.png', plt))
+
+    fig, ax = plt.subplots(figsize=(10, 5))
+    for name in ('winding_hotspot', 'winding_mean', 'magnet', 'frame', 'pump_case', 'oil'):
+        ax.plot(t_min, result.temperatures_C[name], lw=1.0, label=f'{name} (estimate)')
+    for tc, (t, v) in result.measured.items():
+        if t.size:
+            ax.plot((t - t0) / 60.0, v, '.', ms=1.5, label=f'{tc} (thermocouple)')
+    limits = {'winding hot-spot limit': result.plan.cfg.motor.winding.insulation_limit_C,
+              'magnet limit': result.plan.cfg.motor.rotor.magnet_limit_C,
+              'oil limit': result.plan.cfg.fluid.oil_limit_C}
+    for label, value in limits.items():
+        if value < 1.3 * max(float(np.max(v)) for v in result.temperatures_C.values()):
+            ax.axhline(value, ls='--', lw=0.8, color='grey')
+            ax.text(t_min[0], value, label, fontsize=7, va='bottom')
+    ax.set_xlabel('time [min]')
+    ax.set_ylabel('temperature [degC]')
+    ax.legend(fontsize=7, ncol=2)
+    ax.grid(alpha=0.3)
+    images.append(_save(fig, out_dir / 'temperatures.png', plt))
+
+    errors = thermocouple_errors(result)
+    if errors:
+        fig, ax = plt.subplots(figsize=(10, 4))
+        for tc, e in errors.items():
+            ax.plot((e['t_s'] - t0) / 60.0, e['error_K'], lw=0.8,
+                    label=f'{e["estimate"]} - {tc}')
+        ax.axhline(0.0, color='k', lw=0.5)
+        ax.set_xlabel('time [min]')
+        ax.set_ylabel('estimate - thermocouple [K]')
+        ax.legend(fontsize=7)
+        ax.grid(alpha=0.3)
+        images.append(_save(fig, out_dir / 'errors.png', plt))
+
+    fig, ax = plt.subplots(figsize=(10, 2.2))
+    ax.step(t_min, result.alert_level, where='post')
+    ax.set_yticks([0, 1, 2], ['OK', 'WARN', 'CRITICAL'])
+    ax.set_xlabel('time [min]')
+    ax.set_title('alert level')
+    ax.grid(alpha=0.3)
+    images.append(_save(fig, out_dir / 'alerts.png', plt))
+
+    lines = [f'# Replay of {result.plan.info.path.name}', '',
+             f'- configuration: {result.plan.config_source}',
+             '- inputs: ' + ', '.join(f'{n} <- {t}' for n, t in result.plan.inputs.items()),
+             f'- on fallback all along (no topic): {", ".join(result.plan.missing) or "none"}',
+             f'- {result.messages} messages, {result.steps} model steps, '
+             f'{result.sample_time_s:.1f} s of sample time in {result.wall_s:.1f} s '
+             f'({result.speed_x:.0f}x real time)']
+    if result.truncated:
+        lines.append(f'- **the bag is truncated**: replayed up to the cut ({result.problem})')
+    lines += ['', '## Temperatures at the end and at their peak (degC)', '',
+              '| estimate | end | peak |', '| --- | --- | --- |']
+    lines += [f'| {n} | {v[-1]:.1f} | {np.max(v):.1f} |'
+              for n, v in result.temperatures_C.items()]
+    lines += ['', '## Estimate minus thermocouple (K)', '']
+    if errors:
+        lines += ['| thermocouple | estimate | samples | max abs | RMS | bias |',
+                  '| --- | --- | --- | --- | --- | --- |']
+        lines += [f'| {tc} | {e["estimate"]} | {e["n"]} | {e["max_abs_K"]:.2f} | '
+                  f'{e["rms_K"]:.2f} | {e["bias_K"]:+.2f} |' for tc, e in errors.items()]
+    else:
+        lines.append('The bag holds no thermocouple topics.')
+    lines += ['', '## Alerts', '']
+    lines += [f'- {s - t0:9.1f} s: {text}' for s, text in result.alert_events] or ['- none']
+    lines += ['', '## Input health', '', '| input | received | accepted | rejected |',
+              '| --- | --- | --- | --- |']
+    for name, h in result.health.items():
+        rejected = h['non_finite'] + h['out_of_range'] + h['backwards'] + h['late']
+        lines.append(f'| {name} | {h["received"]} | {h["accepted"]} | {rejected} |')
+    lines += [''] + [f'![{p.stem}]({p.name})' for p in images]
+    report = out_dir / 'report.md'
+    tmp = _partial(report)
+    tmp.write_text('\n'.join(lines) + '\n')
+    tmp.replace(report)
+    return report
+
+
+def _save(fig, path: Path, plt) -> Path:
+    fig.tight_layout()
+    tmp = path.with_name(path.stem + '.partial.png')
+    fig.savefig(tmp, dpi=110)
+    plt.close(fig)
+    tmp.replace(path)
+    return path
+
+
+def parse_mapping(items: Sequence[str]) -> Dict[str, str]:
+    """Parse ``name=/topic`` items of the command line into a mapping."""
+    out = {}
+    for item in items:
+        name, sep, topic = item.partition('=')
+        if not sep or not name or not topic.startswith('/'):
+            raise ReplayError(f'--map {item!r}: expected name=/topic, e.g. '
+                              'current_A=/rig/phase_current')
+        out[name] = topic
+    return out
