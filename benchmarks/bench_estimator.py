@@ -3,7 +3,7 @@ Load benchmark of the estimator node: CPU, lost samples and step latency at 1 kH
 
 Run: OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_estimator.py
      [--minutes 10] [--pressure differential|ports] [--rate-Hz 1000] [--stage 6]
-     [--depth 100] [--executor events] [--warmup-s 5]
+     [--depth 1000] [--executor events] [--warmup-s 5]
 
 The issue's setting is "four sensor topics at 1 kHz each and estimates
 published at 50 Hz": current, speed, one differential pressure and position
@@ -233,7 +233,8 @@ def main() -> None:
                         'and the accumulator (six topics)')
     p.add_argument('--rate-Hz', type=float, default=1000.0, help='rate of every input')
     p.add_argument('--stage', type=int, default=6, help='reference stage of the signals')
-    p.add_argument('--depth', type=int, default=100, help='reliable history depth')
+    p.add_argument('--depth', type=int, default=1000,
+                   help='reliable history depth (default 1000, as the estimator)')
     p.add_argument('--executor', choices=('events', 'single'), default='events')
     p.add_argument('--warmup-s', type=float, default=5.0)
     p.add_argument('--role', choices=('main', 'publisher'), default='main',

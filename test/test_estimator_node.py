@@ -19,7 +19,6 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray
 import pytest
 import rclpy
-from rclpy.context import Context
 from rclpy.exceptions import InvalidParameterValueException
 from rclpy.experimental import EventsExecutor
 from rclpy.parameter import Parameter
@@ -42,14 +41,6 @@ ROOT = Path(__file__).resolve().parents[1]
 OK, WARN, ERROR, STALE = 0, 1, 2, 3
 VALUES = {'current_A': 20.0, 'speed_rad_s': 800.0, 'p_a_Pa': 1.0e6, 'p_b_Pa': 1.0e6,
           'p_acc_Pa': 1.0e6, 'dp_Pa': 0.0, 'position_m': 0.002}
-
-
-@pytest.fixture(scope='module')
-def context():
-    ctx = Context()
-    rclpy.init(context=ctx, domain_id=DOMAIN_ID)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
 
 
 class Rig:

@@ -15,7 +15,6 @@ import time
 
 import pytest
 import rclpy
-from rclpy.context import Context
 from rclpy.experimental import EventsExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -86,14 +85,6 @@ def bag_payloads(path):
     for m in iter_raw(path):
         out.setdefault(m.topic, []).append(m.data)
     return out
-
-
-@pytest.fixture(scope='module')
-def context():
-    ctx = Context()
-    rclpy.init(context=ctx, domain_id=DOMAIN_ID)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
 
 
 @pytest.fixture(scope='module')

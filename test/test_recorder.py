@@ -19,9 +19,7 @@ from builtin_interfaces.msg import Time as TimeMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
-import pytest
 import rclpy
-from rclpy.context import Context
 from rclpy.experimental import EventsExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
@@ -45,14 +43,6 @@ PARAMS_FILE = ROOT / 'config' / 'estimator.params.yaml'
 N = 40                         # messages per topic
 ESTIMATE = f'{topics.ESTIMATE_PREFIX}/winding_hotspot'
 EXTRA = '/probe/extra'
-
-
-@pytest.fixture(scope='module')
-def context():
-    ctx = Context()
-    rclpy.init(context=ctx, domain_id=DOMAIN_ID)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
 
 
 def _stamp(k):

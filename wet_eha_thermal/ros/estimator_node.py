@@ -18,7 +18,6 @@ Run it with ``wet-eha-thermal-estimator --ros-args --params-file
 config/estimator.params.yaml`` or ``python -m wet_eha_thermal.ros.estimator_node``.
 """
 
-import argparse
 from collections import deque
 import functools
 import json
@@ -38,13 +37,13 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from rclpy.signals import SignalHandlerOptions
-from rclpy.utilities import remove_ros_args
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension, String
 from wet_eha_thermal.config import ConfigError, load_config
 from wet_eha_thermal.estimator.core import Estimate, Estimator
 from wet_eha_thermal.ros import topics
-from wet_eha_thermal.ros.runtime import accept_whole_numbers, EXECUTORS, make_executor, spin
+from wet_eha_thermal.ros.runtime import (accept_whole_numbers, EXECUTORS, make_executor,
+                                         parse_node_options, spin)
 
 NODE_NAME = 'eha_thermal_estimator'
 LIMITED = ('winding_hotspot', 'magnet', 'oil')   # quantities with limits and a forecast
@@ -77,8 +76,8 @@ PARAMETERS = {
         "'' = the shipped config/reference_eha.yaml")),
     'qos': ('sensor_data', _str_param(
         "QoS of the sensor subscriptions: 'sensor_data' (best effort) or 'reliable'")),
-    'qos_depth': (100, _int_param('history depth of the sensor subscriptions', 1, 10000,
-                                  read_only=True)),
+    'qos_depth': (1000, _int_param('history depth of the sensor subscriptions', 1, 10000,
+                                   read_only=True)),
     'publish_rate_Hz': (50.0, _float_param(
         'rate of the estimate, state and alert publication (and of advance(now))', 1.0, 500.0)),
     'background_budget_ms': (2.0, _float_param(
@@ -519,23 +518,15 @@ class EstimatorNode(Node):
         return self._status('plausibility', level, message, list(counts.items()))
 
 
-def _parse_args(argv: List[str]) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(
-        prog='wet-eha-thermal-estimator',
-        description='Live thermal estimator of the wet EHA (ROS 2 node). ROS arguments follow '
-                    '--ros-args, e.g. --ros-args --params-file config/estimator.params.yaml '
-                    '-p publish_rate_Hz:=20 -p use_sim_time:=true')
-    parser.add_argument('--executor', choices=EXECUTORS, default=None,
-                        help="'events' (rclpy.experimental.EventsExecutor) or 'single' "
-                             '(SingleThreadedExecutor); default: the executor parameter, '
-                             'which defaults to events')
-    return parser.parse_args(argv)
+_DESCRIPTION = ('Live thermal estimator of the wet EHA (ROS 2 node). ROS arguments follow '
+                '--ros-args, e.g. --ros-args --params-file config/estimator.params.yaml '
+                '-p publish_rate_Hz:=20 -p use_sim_time:=true')
 
 
 def main(args: Optional[List[str]] = None) -> int:
     """Run the estimator node until Ctrl-C or shutdown; return the exit status."""
     argv = list(sys.argv if args is None else args)
-    opts = _parse_args(remove_ros_args(argv)[1:])
+    opts = parse_node_options(argv, 'wet-eha-thermal-estimator', _DESCRIPTION)
     rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     status = 0

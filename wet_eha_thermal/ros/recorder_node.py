@@ -47,7 +47,6 @@ Run: ``wet-eha-thermal-record --ros-args -p output:=runs/test.mcap`` or
 ``python -m wet_eha_thermal.ros.recorder_node``.
 """
 
-import argparse
 from datetime import datetime, timezone
 import functools
 from importlib import import_module
@@ -68,12 +67,11 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
-from rclpy.utilities import remove_ros_args
 from wet_eha_thermal.bag.writer import BagWriter, COMPRESSIONS
 from wet_eha_thermal.config import ConfigError, default_config_path, load_config
 from wet_eha_thermal.ros import topics
 from wet_eha_thermal.ros.runtime import (accept_whole_numbers, descriptor, EXECUTORS,
-                                         make_executor, spin)
+                                         make_executor, parse_node_options, spin)
 import yaml
 
 NODE_NAME = 'eha_recorder'
@@ -358,23 +356,15 @@ class RecorderNode(Node):
                 f'errors {self.errors}; per topic: {per_topic or "none"}')
 
 
-def _parse_args(argv: List[str]) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(
-        prog='wet-eha-thermal-record',
-        description='Record the topics of the wet-EHA twin to a rosbag2-compatible MCAP file '
-                    '(ROS 2 node eha_recorder). ROS arguments follow --ros-args, e.g. '
-                    '--ros-args -p output:=runs/test.mcap -p qos:=reliable')
-    parser.add_argument('--executor', choices=EXECUTORS, default=None,
-                        help="'events' (rclpy.experimental.EventsExecutor) or 'single' "
-                             '(SingleThreadedExecutor); default: the executor parameter, '
-                             'which defaults to events')
-    return parser.parse_args(argv)
+_DESCRIPTION = ('Record the topics of the wet-EHA twin to a rosbag2-compatible MCAP file '
+                '(ROS 2 node eha_recorder). ROS arguments follow --ros-args, e.g. '
+                '--ros-args -p output:=runs/test.mcap -p qos:=reliable')
 
 
 def main(args: Optional[List[str]] = None) -> int:
     """Record until Ctrl-C or SIGTERM; return the exit status (2: bad parameter or file)."""
     argv = list(sys.argv if args is None else args)
-    opts = _parse_args(remove_ros_args(argv)[1:])
+    opts = parse_node_options(argv, 'wet-eha-thermal-record', _DESCRIPTION)
     rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     ok = True

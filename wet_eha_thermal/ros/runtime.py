@@ -7,14 +7,16 @@ in slices instead; the MultiThreadedExecutor loses most messages of a 1 kHz
 subscription and is not offered.
 """
 
+import argparse
 import signal
-from typing import Mapping
+from typing import List, Mapping
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.utilities import remove_ros_args
 
 EXECUTORS = ('events', 'single')
 
@@ -80,3 +82,17 @@ def descriptor(text: str, low=None, high=None, read_only: bool = True) -> Parame
         d.floating_point_range = [FloatingPointRange(from_value=float(low),
                                                      to_value=float(high), step=0.0)]
     return d
+
+
+def parse_node_options(argv: List[str], prog: str, description: str) -> argparse.Namespace:
+    """
+    Parse a node's own options from ``argv`` (with the program name), ROS arguments removed.
+
+    The one option is ``--executor``; None means the node's ``executor`` parameter.
+    """
+    parser = argparse.ArgumentParser(prog=prog, description=description)
+    parser.add_argument('--executor', choices=EXECUTORS, default=None,
+                        help="'events' (rclpy.experimental.EventsExecutor) or 'single' "
+                             '(SingleThreadedExecutor); default: the executor parameter, '
+                             'which defaults to events')
+    return parser.parse_args(remove_ros_args(argv)[1:])

@@ -40,7 +40,6 @@ Run: ``python -m wet_eha_thermal.ros.sim_rig_node [--executor events|single]
 --ros-args -p stage:=3``.
 """
 
-import argparse
 import math
 import sys
 import time
@@ -57,8 +56,8 @@ from std_msgs.msg import Float64
 from wet_eha_thermal.config import ConfigError, load_config
 from wet_eha_thermal.model.kinetics import DutyError, load_duty_csv, stage_duty, STAGES
 from wet_eha_thermal.model.motor import C_TO_K
-from wet_eha_thermal.ros.runtime import (accept_whole_numbers, descriptor, EXECUTORS,
-                                         make_executor, spin)
+from wet_eha_thermal.ros.runtime import (accept_whole_numbers, descriptor, make_executor,
+                                         parse_node_options, spin)
 from wet_eha_thermal.ros.topics import (AMBIENT_TOPIC, DIAGNOSTICS_TOPIC, input_qos,
                                         INPUT_TOPICS, MEASURED_PREFIX, PREFIX, prefixed,
                                         PRESSURE_INPUTS, publish_inputs, THERMOCOUPLES)
@@ -325,12 +324,9 @@ class SimRigNode(Node):
 def main(args: Optional[List[str]] = None) -> int:
     """Run the simulated rig until Ctrl-C (or SIGTERM); return the exit status."""
     argv = list(sys.argv if args is None else args)
-    parser = argparse.ArgumentParser(
-        prog='wet-eha-thermal-rig', description='Simulated wet-EHA rig (ROS 2 node eha_sim_rig);'
-        ' parameters go after --ros-args, e.g. --ros-args -p stage:=3')
-    parser.add_argument('--executor', choices=EXECUTORS, default='events',
-                        help='rclpy executor (default: %(default)s)')
-    opts = parser.parse_args(rclpy.utilities.remove_ros_args(argv)[1:])
+    opts = parse_node_options(argv, 'wet-eha-thermal-rig', 'Simulated wet-EHA rig (ROS 2 node '
+                              'eha_sim_rig); parameters go after --ros-args, e.g. --ros-args '
+                              '-p stage:=3')
     rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     try:
@@ -341,7 +337,7 @@ def main(args: Optional[List[str]] = None) -> int:
                 rclpy.exceptions.InvalidParameterTypeException) as exc:
             print(f'error: {exc}', file=sys.stderr)
             return 2
-        executor = make_executor(opts.executor)
+        executor = make_executor(opts.executor or 'events')
         executor.add_node(node)
         spin(executor)
         return 0
