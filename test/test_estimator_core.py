@@ -286,3 +286,38 @@ def test_add_many_counts_and_keeps_exactly_what_add_does(cfg):
     late.t_model = 1.0
     assert late.add_many('current_A', np.array([0.5, 1.0, 1.5]), np.array([1.0, 1.0, 1.0])) == 1
     assert late.health['current_A'].late == 2
+
+
+def test_a_burst_of_bunched_position_stamps_is_rate_limited(cfg):
+    # a receiver that stalls 0.4 s stamps the LVDT samples of the stall on arrival, all
+    # within a millisecond: differentiated, the position would jump at 100 m/s and the
+    # model would book the throttling heat of that flow
+    def run(burst, limit=True):
+        est = Estimator(cfg)
+        if not limit:
+            est.max_stroke_speed_m_s = math.inf
+        held = []
+        for k in range(1, 10001):
+            t = k / 1000.0
+            x = 0.02 * math.sin(2 * math.pi * t / 2.0)       # 63 mm/s peak
+            for ch in INPUTS[:-1]:
+                est.add(ch, t, 15.0 if ch == 'current_A' else STEADY[ch])
+            if burst and 4000 < k <= 4400:
+                held.append(x)                                 # stalled receiver
+            elif held:
+                for j, xj in enumerate(held):                  # stamped on arrival
+                    est.add('position_m', t - 0.001 + (j + 1) * 1e-6, xj)
+                held = []
+                est.add('position_m', t, x)
+            else:
+                est.add('position_m', t, x)
+            est.advance()
+        return est
+
+    smooth, limited, raw = run(False), run(True), run(True, limit=False)
+    assert smooth.implausible_counts['position_faster_than_pump'] == 0
+    assert limited.implausible_counts['position_faster_than_pump'] >= 1
+    for name in ('chamber_a', 'chamber_b', 'pump_case'):
+        ok = abs(limited.latest.temperatures_C[name] - smooth.latest.temperatures_C[name])
+        bad = abs(raw.latest.temperatures_C[name] - smooth.latest.temperatures_C[name])
+        assert ok < 0.2 * bad, (name, ok, bad)

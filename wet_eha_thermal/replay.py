@@ -171,6 +171,7 @@ class ReplayResult:
     truncated: bool
     problem: Optional[str]
     health: Dict[str, dict] = field(default_factory=dict)
+    implausible: Dict[str, int] = field(default_factory=dict)   # steps, per combination
 
     @property
     def speed_x(self) -> float:
@@ -290,7 +291,8 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
         alert_events=events, messages=blocks.message_count, steps=est.steps,
         sample_time_s=est.steps * step_s, wall_s=wall, truncated=blocks.truncated,
         problem=blocks.problem,
-        health={name: dict(vars(h)) for name, h in est.health.items()})
+        health={name: dict(vars(h)) for name, h in est.health.items()},
+        implausible=dict(est.implausible_counts))
 
 
 # ------------------------------------------------------------------ outputs
@@ -464,6 +466,8 @@ def write_report(result: ReplayResult, out_dir: Path) -> Path:
     for name, h in result.health.items():
         rejected = h['non_finite'] + h['out_of_range'] + h['backwards'] + h['late']
         lines.append(f'| {name} | {h["received"]} | {h["accepted"]} | {rejected} |')
+    implausible = ', '.join(f'{k} {v}' for k, v in result.implausible.items())
+    lines += ['', f'Implausible steps: {implausible}']
     lines += [''] + [f'![{p.stem}]({p.name})' for p in images]
     report = out_dir / 'report.md'
     tmp = _partial(report)

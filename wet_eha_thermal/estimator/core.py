@@ -20,7 +20,8 @@ fallback (the last good value held; an input never seen takes its resting
 value: no current, no speed, accumulator pressure, mid-stroke), says so in
 every estimate, and widens the uncertainty for as long as it lasts.
 Implausible combinations (speed with no current; actuator flow with no
-speed) are counted per step.
+speed; the position moving faster than the pump can drive it, which is then
+rate-limited) are counted per step.
 
 ``background(budget_s)`` does the slow work in slices that fit a budget: a
 forecast that repeats the last ``forecast_window_s`` of duty to find when the
@@ -148,7 +149,14 @@ class Estimator:
         self.t_model: Optional[float] = None
         self.steps = 0
         self.latest: Optional[Estimate] = None
-        self.implausible_counts = {'speed_without_current': 0, 'flow_without_speed': 0}
+        self.implausible_counts = {'speed_without_current': 0, 'flow_without_speed': 0,
+                                   'position_faster_than_pump': 0}
+        # the pump's geometric flow at the top of the speed range, over the piston area
+        speed = s.channels.speed_rad_s
+        self.max_stroke_speed_m_s = (cfg.hydraulics.pump.displacement_m3_rev / (2 * math.pi)
+                                     * max(abs(speed.low), abs(speed.high))
+                                     / cfg.hydraulics.actuator.area_m2)
+        self._position_limited = False
         self._window: Deque[SampleBlock] = deque(maxlen=max(1, int(round(
             s.forecast_window_s / s.step_s))))
         self._forecast: Optional[_Forecast] = None
@@ -375,6 +383,7 @@ class Estimator:
         frac = np.arange(1, self.n_grid + 1) / self.n_grid
         grid = t0 + (t1 - t0) * frac
         values = self._model_inputs({n: self._grid_values(n, t0, t1, grid) for n in self.inputs})
+        values['position_m'] = self._limit_position(values['position_m'], (t1 - t0) / self.n_grid)
         since_start = (self.steps + frac) * self.settings.step_s
         block = SampleBlock(since_start, *(values[n] for n in INPUTS))
         self.model.step(block, self.ambient_K)
@@ -423,6 +432,31 @@ class Estimator:
         """
         return self.model.prepare(self.settings.step_s)
 
+    def _limit_position(self, x: np.ndarray, h: float) -> np.ndarray:
+        """
+        Rate-limit the position on the grid to the fastest stroke the pump can drive.
+
+        The actuator flow is the position's difference quotient: samples whose
+        stamps bunch up (a receiver that stalled stamps a burst on arrival)
+        would make a step in position look like a huge flow, and the model
+        would book its throttling heat. Limited at the pump's geometric flow
+        at the top of the speed range, the position catches up within a few
+        steps; each limited step is counted as implausible.
+        """
+        x_prev = self.model._last[1]
+        step = self.max_stroke_speed_m_s * h
+        out = np.empty_like(x)
+        clipped = False
+        for k, target in enumerate(x.tolist()):
+            move = target - x_prev
+            if abs(move) > step:
+                move = math.copysign(step, move)
+                clipped = True
+            x_prev += move
+            out[k] = x_prev
+        self._position_limited = clipped
+        return out
+
     def _plausibility(self, values: Dict[str, np.ndarray], dt: float) -> List[str]:
         """Count physically implausible combinations of the step's inputs."""
         found = []
@@ -434,6 +468,8 @@ class Estimator:
             found.append('speed_without_current')
         if flow > 0.5 / 60000 and speed < 20.0:        # 0.5 L/min moved, pump nearly still
             found.append('flow_without_speed')
+        if self._position_limited:
+            found.append('position_faster_than_pump')
         for f in found:
             self.implausible_counts[f] += 1
         return found

@@ -146,7 +146,10 @@ def child_commands(opts: LiveOptions, hardware_id: str,
     py = sys.executable
     rig = [py, '-m', 'wet_eha_thermal.ros.sim_rig_node', '--executor', opts.executor,
            '--ros-args', '-p', f'rate_Hz:={float(opts.rate_Hz)!r}',
-           '-p', f'noise:={"true" if opts.noise else "false"}', '-p', 'qos:=sensor_data']
+           '-p', f'noise:={"true" if opts.noise else "false"}', '-p', 'qos:=reliable',
+           # start the duty once the estimator (and the recorder) hear every input: with
+           # best effort or before the match, a loaded machine lost seconds of a recording
+           '-p', f'wait_for_subscribers:={2 if record_path is not None else 1}']
     if opts.duty is not None:
         rig += ['-p', f'duty_file:={Path(opts.duty).resolve()}']
     else:
@@ -155,12 +158,12 @@ def child_commands(opts: LiveOptions, hardware_id: str,
            '--ros-args']
     if PARAMS_FILE.is_file():
         est += ['--params-file', str(PARAMS_FILE)]
-    est += ['-p', 'qos:=sensor_data', '-p', f'hardware_id:={hardware_id}']
+    est += ['-p', 'qos:=reliable', '-p', f'hardware_id:={hardware_id}']
     rec = [py, '-m', 'wet_eha_thermal.ros.recorder_node', '--executor', 'events', '--ros-args']
     if PARAMS_FILE.is_file():
         rec += ['--params-file', str(PARAMS_FILE), '-p', f'params_file:={PARAMS_FILE}']
     # its own depth, not the file's 100: a 20 ms stall of the recorder would lose samples
-    rec += ['-p', 'qos:=sensor_data', '-p', f'qos_depth:={RECORDER_DEPTH}',
+    rec += ['-p', 'qos:=reliable', '-p', f'qos_depth:={RECORDER_DEPTH}',
             '-p', f'hardware_id:={hardware_id}', '-p', f'output:={record_path}']
     if opts.config is not None:
         cfg = str(Path(opts.config).resolve())

@@ -67,6 +67,8 @@ from wet_eha_thermal.simulated_rig import (AMBIENT_SIGMA_K, BLOCK_S, NOISE_SIGMA
 NODE_NAME = 'eha_sim_rig'
 #: Most sample time published in one tick when catching up (s); older samples are skipped.
 MAX_BURST_S = 0.1
+#: Longest wait for the subscribers of wait_for_subscribers (s).
+SUBSCRIBER_WAIT_S = 15.0
 #: Tick intervals and publish lags kept for the jitter figures (a ring of this many).
 STATS_WINDOW = 20000
 
@@ -114,9 +116,11 @@ class SimRigNode(Node):
         self.period_s = self.rig.period_s
         self.period_ns = int(round(self.period_s * 1e9))
         self.noise = p['noise']
+        self.wait_for_subscribers = p['wait_for_subscribers']
         # publishers
         prefix = p['topic_prefix']
-        q = input_qos(p['qos'], depth=max(10, self.n_block * 5))
+        # a second of samples: a reliable reader that stalls catches up instead of losing them
+        q = input_qos(p['qos'], depth=max(10, int(round(1.0 / self.period_s))))
         # the inputs the configured estimator takes (three pressures or one differential)
         self.inputs = self.rig.inputs
         self.pubs = {}
@@ -179,6 +183,9 @@ class SimRigNode(Node):
             ('config_file', '', descriptor('YAML configuration; empty: the reference rig')),
             ('topic_prefix', PREFIX, descriptor('namespace of the rig topics')),
             ('qos', 'sensor_data', descriptor('QoS of the inputs: sensor_data or reliable')),
+            ('wait_for_subscribers', 0, descriptor(
+                'start the duty once every input topic has this many subscribers (at most '
+                f'{SUBSCRIBER_WAIT_S:g} s)', 0, 100)),
         ]
         accept_whole_numbers(self, {name: default for name, default, _ in specs})
         values = {}
@@ -215,6 +222,8 @@ class SimRigNode(Node):
         if now_ns == 0:
             return                      # sim time before the first /clock
         if self.t0_ns is None:
+            if not self._subscribers_ready():
+                return
             self.t0_ns = now_ns - self.period_ns * self.k_next
         elif now_ns < self.last_now_ns:
             # the clock jumped back: keep the duty going from here
@@ -242,6 +251,26 @@ class SimRigNode(Node):
             self.max_lag_s = max(self.max_lag_s, lag)
             self.published += 1
             self.k_next += 1
+
+    def _subscribers_ready(self) -> bool:
+        """
+        Tell whether every input has its ``wait_for_subscribers`` subscribers (or waited long).
+
+        Samples published before a subscriber has matched never reach it; the
+        duty starts once they have, or after ``SUBSCRIBER_WAIT_S`` regardless.
+        """
+        if self.wait_for_subscribers <= 0:
+            return True
+        matched = min(pub.get_subscription_count() for pub in self.pubs.values())
+        if matched >= self.wait_for_subscribers:
+            return True
+        if time.monotonic() - self.started_wall > SUBSCRIBER_WAIT_S:
+            self.get_logger().warning(
+                f'starting with {matched} of {self.wait_for_subscribers} subscribers on some '
+                f'input after {SUBSCRIBER_WAIT_S:g} s')
+            self.wait_for_subscribers = 0
+            return True
+        return False
 
     def _publish_ambient(self) -> None:
         now = self.get_clock().now()
