@@ -49,10 +49,6 @@ INPUTS = ('current_A', 'speed_rad_s', 'p_a_Pa', 'p_b_Pa', 'p_acc_Pa', 'position_
 DIFFERENTIAL_INPUTS = ('current_A', 'speed_rad_s', 'dp_Pa', 'position_m')
 
 
-def _stamp_of(sample: tuple) -> float:
-    return sample[0]
-
-
 def sensor_inputs(cfg: Config) -> Tuple[str, ...]:
     """Return the estimator's inputs under configuration ``cfg``."""
     return DIFFERENTIAL_INPUTS if cfg.estimator.pressure_inputs == 'differential' else INPUTS
@@ -132,7 +128,10 @@ class Estimator:
         self.differential = self.inputs == DIFFERENTIAL_INPUTS
         self.channel_cfg = {name: getattr(s.channels, name) for name in self.inputs}
         self.health = {name: ChannelHealth() for name in self.inputs}
-        self._buf: Dict[str, List[tuple]] = {name: [] for name in self.inputs}
+        # buffered samples per input: (stamps, values), two flat lists (no tuple per sample,
+        # which would also keep the garbage collector busy in a replay)
+        self._buf: Dict[str, Tuple[List[float], List[float]]] = {
+            name: ([], []) for name in self.inputs}
         self._prev: Dict[str, Optional[tuple]] = dict.fromkeys(self.inputs)
         p_acc = cfg.hydraulics.accumulator.pressure_Pa
         self.rest = {'current_A': 0.0, 'speed_rad_s': 0.0, 'p_a_Pa': p_acc, 'p_b_Pa': p_acc,
@@ -144,6 +143,7 @@ class Estimator:
         self.limits_C = {'winding_hotspot': cfg.motor.winding.insulation_limit_C,
                          'magnet': cfg.motor.rotor.magnet_limit_C, 'oil': cfg.fluid.oil_limit_C}
         self.n_grid = max(1, int(round(s.step_s * s.block_rate_Hz)))
+        self._frac = np.arange(1, self.n_grid + 1) / self.n_grid   # grid times in a step
         self._eps = 1e-6 * s.step_s / self.n_grid   # stamps this close count as equal
         self._t_origin = 0.0
         self.t_model: Optional[float] = None
@@ -189,7 +189,9 @@ class Estimator:
             return False
         h.accepted += 1
         h.last_stamp_s, h.last_value = stamp_s, value
-        self._buf[channel].append((stamp_s, value))
+        stamps, vals = self._buf[channel]
+        stamps.append(stamp_s)
+        vals.append(value)
         return True
 
     def add_many(self, channel: str, stamps_s: np.ndarray, values: np.ndarray) -> int:
@@ -225,7 +227,9 @@ class Estimator:
             h.accepted += n
             ts, vs = t[ok], v[ok]
             h.last_stamp_s, h.last_value = float(ts[-1]), float(vs[-1])
-            self._buf[channel].extend(zip(ts.tolist(), vs.tolist()))
+            stamps, vals = self._buf[channel]
+            stamps.extend(ts.tolist())
+            vals.extend(vs.tolist())
         return n
 
     def add_ambient(self, stamp_s: float, value_C: float) -> bool:
@@ -287,7 +291,7 @@ class Estimator:
         if self.t_model is None:
             # start once every input has spoken (or its timeout passed), at the latest
             # first stamp: each input then has a value at the start, live or replayed
-            firsts = [self._buf[n][0][0] for n in self.inputs if self._buf[n]]
+            firsts = [self._buf[n][0][0] for n in self.inputs if self._buf[n][0]]
             if not firsts:
                 self._start(horizon)
                 return []
@@ -302,9 +306,20 @@ class Estimator:
         # step ends from an integer count: a sum of dt drifts, and a sample stamped on
         # a boundary would then land in the neighbouring step (a phase-locked ripple
         # would bias the mean of I^2)
-        while self._step_end(self.steps + 1) <= horizon + self._eps:
-            out.append(self._step(self._step_end(self.steps), self._step_end(self.steps + 1),
-                                  stale))
+        n_steps = 0
+        while self._step_end(self.steps + n_steps + 1) <= horizon + self._eps:
+            n_steps += 1
+        if not n_steps:
+            return out
+        ends = [self._step_end(self.steps + k) for k in range(n_steps + 1)]
+        grid_values = self._grid_block(np.array(ends))
+        try:
+            for k in range(n_steps):
+                out.append(self._step(ends[k], ends[k + 1], stale,
+                                      {n: v[k] for n, v in grid_values.items()}))
+        finally:
+            for n in self.inputs:          # the samples of the steps made are used up
+                self._drop_until(n, self.t_model)
         return out
 
     def ready(self, stamp_s: float) -> bool:
@@ -331,64 +346,109 @@ class Estimator:
     def _count_until(self, name: str, t: float) -> int:
         """Return how many buffered samples of ``name`` are stamped at or before ``t``."""
         # accepted stamps strictly increase: a replay buffers a whole block, so bisect
-        return bisect.bisect_right(self._buf[name], t + self._eps, key=_stamp_of)
+        return bisect.bisect_right(self._buf[name][0], t + self._eps)
 
     def _value_at(self, name: str, t: float) -> float:
         """Return the last value at or before ``t`` (fallback: last good, else at rest)."""
         k = self._count_until(name, t)
-        best = self._buf[name][k - 1] if k else self._prev[name]
-        if best is not None:
-            return best[1]
+        if k:
+            return self._buf[name][1][k - 1]
+        if self._prev[name] is not None:
+            return self._prev[name][1]
         h = self.health[name]
         return h.last_value if h.last_value is not None else self.rest[name]
 
     def _drop_until(self, name: str, t: float) -> None:
         k = self._count_until(name, t)
         if k:
-            buf = self._buf[name]
-            self._prev[name] = buf[k - 1]
-            del buf[:k]
+            stamps, vals = self._buf[name]
+            self._prev[name] = (stamps[k - 1], vals[k - 1])
+            del stamps[:k]
+            del vals[:k]
 
-    def _grid_values(self, name: str, t0: float, t1: float, grid: np.ndarray) -> np.ndarray:
-        """Average one input onto the grid intervals of (t0, t1] (I^2 for the current)."""
-        buf = self._buf[name][:self._count_until(name, t1)]
-        prev = self._prev[name]
-        start = prev[1] if prev is not None else self._value_at(name, t0)
-        n = grid.size
-        if not buf:
-            return np.full(n, start)
-        ts = np.array([s[0] for s in buf])
-        vs = np.array([s[1] for s in buf])
-        if name == 'position_m':
-            # position at the grid times: its differences are the actuator flow
-            t_all = np.concatenate([[prev[0] if prev is not None else t0], ts])
-            v_all = np.concatenate([[start], vs])
-            return np.interp(grid, t_all, v_all)
-        if name == 'current_A':
-            vs = vs * vs
-            start = start * start
-        h = (t1 - t0) / n
-        idx = np.clip(np.ceil((ts - t0 - self._eps) / h).astype(int) - 1, 0, n - 1)
-        sums = np.bincount(idx, weights=vs, minlength=n)
-        counts = np.bincount(idx, minlength=n)
-        out = np.empty(n)
-        last = start
-        for j in range(n):   # empty grid intervals hold the previous value
-            if counts[j]:
-                last = sums[j] / counts[j]
-            out[j] = last
-        return np.sqrt(out) if name == 'current_A' else out
+    def _grid_block(self, ends: np.ndarray) -> Dict[str, np.ndarray]:
+        """
+        Average every input onto the grid of each step between ``ends``: one row per step.
 
-    def _step(self, t0: float, t1: float, stale: List[str]) -> Estimate:
-        frac = np.arange(1, self.n_grid + 1) / self.n_grid
-        grid = t0 + (t1 - t0) * frac
-        values = self._model_inputs({n: self._grid_values(n, t0, t1, grid) for n in self.inputs})
+        Step k takes the samples stamped in (ends[k], ends[k + 1]]: the current
+        as the root of the mean of I^2 and speed and pressures as means over
+        each grid interval (an empty interval holds the previous value, the
+        first the value before the step), the position interpolated at the grid
+        times; a step without samples holds the value before it. All the steps
+        of a call at once, with the arithmetic of one step at a time: a replay
+        makes hundreds of steps per call. The samples stay buffered.
+        """
+        n, n_steps, eps = self.n_grid, ends.size - 1, self._eps
+        t0 = ends[:-1]
+        out = {}
+        for name in self.inputs:
+            k_all = self._count_until(name, ends[-1])
+            prev = self._prev[name]
+            start = prev[1] if prev is not None else self._value_at(name, ends[0])
+            if not k_all:
+                out[name] = np.full((n_steps, n), start)
+                continue
+            stamps, vals = self._buf[name]
+            ts, vs = np.array(stamps[:k_all]), np.array(vals[:k_all])
+            # the samples of step k are ts[lo[k]:hi[k]]; the one before them starts it
+            first = np.searchsorted(ts, ends + eps, side='right')
+            first[0] = 0
+            lo, hi = first[:-1], first[1:]
+            starts = np.where(lo > 0, vs[lo - 1], start)
+            empty = lo == hi
+            if name == 'position_m':
+                # position at the grid times: its differences are the actuator flow
+                t_prev = prev[0] if prev is not None else None
+                grids = t0[:, None] + (ends[1:] - t0)[:, None] * self._frac
+                rows = np.empty((n_steps, n))
+                for k, (a, b) in enumerate(zip(lo.tolist(), hi.tolist())):
+                    if a == b:
+                        rows[k] = starts[k]
+                        continue
+                    t_start = ts[a - 1] if a else (t_prev if t_prev is not None else t0[k])
+                    rows[k] = np.interp(grids[k], np.concatenate([[t_start], ts[a:b]]),
+                                        np.concatenate([[starts[k]], vs[a:b]]))
+                out[name] = rows
+                continue
+            held = starts
+            if name == 'current_A':
+                vs = vs * vs
+                held = starts * starts
+            # grid interval of every sample, counted over all the steps
+            step_of = np.repeat(np.arange(n_steps), hi - lo)
+            idx = np.ceil((ts - t0[step_of] - eps) / ((ends[1:] - t0) / n)[step_of]).astype(int)
+            idx -= 1
+            np.maximum(idx, 0, out=idx)         # np.clip, without its wrapper's overhead
+            np.minimum(idx, n - 1, out=idx)
+            idx += step_of * n
+            counts = np.bincount(idx, minlength=n_steps * n)
+            table = np.empty((n_steps, n + 1))
+            table[:, 0] = held
+            with np.errstate(invalid='ignore'):       # 0/0 in empty intervals: not used
+                table[:, 1:] = (np.bincount(idx, weights=vs, minlength=n_steps * n)
+                                / counts).reshape(n_steps, n)
+            # an empty interval takes the last filled one before it in its step (column 0
+            # holds the value before the step)
+            filled = np.ones((n_steps, n + 1), dtype=bool)
+            filled[:, 1:] = counts.reshape(n_steps, n) > 0
+            pick = np.where(filled, np.arange(n + 1), 0)
+            np.maximum.accumulate(pick, axis=1, out=pick)
+            rows = np.take_along_axis(table, pick[:, 1:], axis=1)
+            if name == 'current_A':
+                rows = np.sqrt(rows)
+            rows[empty] = starts[empty, None]
+            out[name] = rows
+        return out
+
+    def _step(self, t0: float, t1: float, stale: List[str],
+              grid_values: Dict[str, np.ndarray]) -> Estimate:
+        """Step the model over (t0, t1] with the inputs on the step's grid; return the estimate."""
+        frac = self._frac
+        values = self._model_inputs(grid_values)
         values['position_m'] = self._limit_position(values['position_m'], (t1 - t0) / self.n_grid)
         since_start = (self.steps + frac) * self.settings.step_s
         block = SampleBlock(since_start, *(values[n] for n in INPUTS))
         self.model.step(block, self.ambient_K)
-        for n in self.inputs:
-            self._drop_until(n, t1)
         self.t_model = t1
         self.steps += 1
         self._window.append(block)
@@ -460,8 +520,10 @@ class Estimator:
     def _plausibility(self, values: Dict[str, np.ndarray], dt: float) -> List[str]:
         """Count physically implausible combinations of the step's inputs."""
         found = []
-        speed = float(np.mean(np.abs(values['speed_rad_s'])))
-        current = float(np.sqrt(np.mean(values['current_A'] ** 2)))
+        # means as np.mean forms them (the sum over the count), without its overhead
+        w, i = values['speed_rad_s'], values['current_A']
+        speed = float(np.abs(w).sum() / w.size)
+        current = float(np.sqrt((i ** 2).sum() / i.size))
         x = values['position_m']
         flow = abs(x[-1] - x[0]) / dt * self.cfg.hydraulics.actuator.area_m2
         if speed > 200.0 and current < 0.05:          # spinning oil needs torque

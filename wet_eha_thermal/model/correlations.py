@@ -18,6 +18,7 @@ included), ``r_bore`` = r2 (stator bore radius), gap delta = r2 - r1,
 mean radius R_m = (r1 + r2) / 2.
 """
 
+import functools
 from typing import NamedTuple, Optional
 
 import numpy as np
@@ -187,19 +188,49 @@ def bilgen_boulos_torque_coefficient(Re_d, gap_ratio, log: Optional[ValidityLog]
         check(log, 'Bilgen-Boulos airgap friction', 'delta/r1', gap_ratio,
               *BILGEN_BOULOS_GAP_RATIO, 'gap ratio outside the data of Bilgen and Boulos (1973)')
     re = np.asarray(Re_d, dtype=float)
-    coef, expo, regime = _bilgen_boulos_constants(re)
+    k = _bilgen_boulos_regime_index(re)
     with np.errstate(divide='ignore'):
-        cm = coef * np.power(gap_ratio, 0.3) * np.power(re, -expo)
-    return _scalar(cm), _scalar(regime)
+        cm = _BB_COEF[k] * np.power(gap_ratio, 0.3) * np.power(re, _BB_NEG_EXPO[k])
+    return _scalar(cm), _scalar(k + 1)
 
 
-def _bilgen_boulos_constants(re):
-    """Return the regime constants ``(c, n, regime)`` of C_M = c g^0.3 Re^-n."""
-    regime = (1 + np.greater_equal(re, 64.0).astype(int) + np.greater_equal(re, 500.0)
-              + np.greater_equal(re, 1.0e4))
-    coef = np.choose(regime - 1, (10.0, 2.0, 1.03, 0.065))
-    expo = np.choose(regime - 1, (1.0, 0.6, 0.5, 0.2))
-    return coef, expo, regime
+#: Bilgen-Boulos constants c and n of C_M = c g^0.3 Re^-n, regimes 1-4 (table above).
+_BB_COEF = np.array([10.0, 2.0, 1.03, 0.065])
+_BB_EXPO = np.array([1.0, 0.6, 0.5, 0.2])
+_BB_NEG_EXPO = -_BB_EXPO
+#: Per regime index, for the friction power: 0.5 pi c, the exponent -n of Re/w and 3 - n of w.
+_BB_POWER_TABLE = np.stack([0.5 * np.pi * _BB_COEF, _BB_NEG_EXPO, 3.0 - _BB_EXPO])
+
+
+def _bilgen_boulos_regime_index(re):
+    """Return the Bilgen-Boulos regime minus one (an index of the tables) at each Re_d."""
+    k = np.greater_equal(re, 64.0).astype(np.intp)
+    k += np.greater_equal(re, 500.0)
+    k += np.greater_equal(re, 1.0e4)
+    return k
+
+
+@functools.lru_cache(maxsize=16)
+def _airgap_friction_factors(r_rotor: float, r_bore: float, L: float) -> tuple:
+    """
+    Return the geometric factors of :func:`airgap_friction` for one airgap (cached).
+
+    ``(couette, re_per_rho_w, gap_ratio, gap_in_data, g03, bb_rho)``: the
+    Couette power is 4 pi mu w^2 couette; Re_d = re_per_rho_w rho w / mu; the
+    Bilgen-Boulos power of regime index k is 0.5 pi c g03 (Re_d / w)^(-n)
+    w^(3 - n) rho bb_rho, g03 = g^0.3 (see ``_BB_POWER_TABLE``); gap_in_data
+    tells whether g is inside the data of Bilgen and Boulos. Each factor is
+    formed as the full expressions form it, so the powers come out the same
+    to the last bit.
+    """
+    delta = np.subtract(r_bore, r_rotor)
+    r1s = np.square(r_rotor)
+    r2s = np.square(r_bore)
+    gap_ratio = delta / np.asarray(r_rotor, dtype=float)
+    low, high = BILGEN_BOULOS_GAP_RATIO
+    gap_in_data = bool(np.all((gap_ratio >= low) & (gap_ratio <= high)))
+    return (np.multiply(L, r1s * r2s / (r2s - r1s)), np.multiply(r_rotor, delta), gap_ratio,
+            gap_in_data, np.power(gap_ratio, 0.3), np.multiply(np.square(r1s), L))
 
 
 def airgap_friction(rho, mu, omega, r_rotor, r_bore, L, log: Optional[ValidityLog] = None):
@@ -232,26 +263,34 @@ def airgap_friction(rho, mu, omega, r_rotor, r_bore, L, log: Optional[ValidityLo
 
     """
     w = np.abs(omega)
-    delta = np.subtract(r_bore, r_rotor)
-    r1s = np.square(r_rotor)
-    r2s = np.square(r_bore)
-    p_couette = 4.0 * np.pi * np.multiply(mu, w * w) * np.multiply(L, r1s * r2s / (r2s - r1s))
+    try:      # a machine's dimensions come back every call: their factors are cached
+        couette_geo, re_geo, gap_ratio, gap_in_data, g03, bb_rho = \
+            _airgap_friction_factors(r_rotor, r_bore, L)
+    except TypeError:           # array dimensions (not hashable)
+        couette_geo, re_geo, gap_ratio, gap_in_data, g03, bb_rho = \
+            _airgap_friction_factors.__wrapped__(r_rotor, r_bore, L)
+    p_couette = 4.0 * np.pi * np.multiply(mu, w * w) * couette_geo
     # Re_d = w * re_per_w; write w^3 Re^-n = w^(3-n) re_per_w^-n (no 0 ** negative).
-    re_per_w = np.multiply(rho, np.multiply(r_rotor, delta)) / np.asarray(mu, dtype=float)
+    re_per_w = np.multiply(rho, re_geo) / np.asarray(mu, dtype=float)
     re = w * re_per_w
-    gap_ratio = delta / np.asarray(r_rotor, dtype=float)
-    coef, expo, bb_regime = _bilgen_boulos_constants(re)
-    p_bb = (0.5 * np.pi * coef * np.power(gap_ratio, 0.3) * np.power(re_per_w, -expo)
-            * np.power(w, 3.0 - expo) * np.multiply(rho, np.multiply(np.square(r1s), L)))
+    k = _bilgen_boulos_regime_index(re)
+    coef, re_expo, w_expo = _BB_POWER_TABLE[:, k]
+    p_bb = (coef * g03 * np.power(re_per_w, re_expo) * np.power(w, w_expo)
+            * np.multiply(rho, bb_rho))
     couette = p_couette >= p_bb
     power = np.where(couette, p_couette, p_bb)
-    regime = np.where(couette, 0, bb_regime)
+    regime = np.where(couette, 0, k + 1)
     if log is not None:
-        check(log, 'Bilgen-Boulos airgap friction', 'Re_d', np.where(couette, np.nan, re),
-              0.0, BILGEN_BOULOS_RE_MAX,
-              'Couette Reynolds number above the data of Bilgen and Boulos (1973)')
-        check(log, 'Bilgen-Boulos airgap friction', 'delta/r1', gap_ratio,
-              *BILGEN_BOULOS_GAP_RATIO, 'gap ratio outside the data of Bilgen and Boulos (1973)')
+        # only where Bilgen-Boulos set the torque
+        bb = ~couette
+        if np.any(bb):
+            check(log, 'Bilgen-Boulos airgap friction', 'Re_d', np.asarray(re)[bb],
+                  0.0, BILGEN_BOULOS_RE_MAX,
+                  'Couette Reynolds number above the data of Bilgen and Boulos (1973)')
+        if not gap_in_data:     # (a ratio inside the data is never flagged)
+            check(log, 'Bilgen-Boulos airgap friction', 'delta/r1', gap_ratio,
+                  *BILGEN_BOULOS_GAP_RATIO,
+                  'gap ratio outside the data of Bilgen and Boulos (1973)')
     return _scalar(power), _scalar(regime)
 
 
@@ -349,16 +388,21 @@ def _laminar_turbulent_nusselt(Re, Pr, nu_laminar, correlation, log):
     there). Flags Re > 5e6, and Pr outside 0.5-2000 where Re > 2300.
     """
     re = np.asarray(Re, dtype=float)
-    re_t = np.maximum(re, _RE_TURBULENT)
-    f8 = 0.125 / np.square(0.790 * np.log(re_t) - 1.64)
-    denominator = 1.0 + 12.7 * np.sqrt(f8) * (np.power(Pr, 2.0 / 3.0) - 1.0)
-    nu_gn = f8 * (re_t - 1000.0) * Pr / denominator
-    weight = np.clip((re - _RE_LAMINAR) / (_RE_TURBULENT - _RE_LAMINAR), 0.0, 1.0)
     if log is not None:
         check(log, correlation, 'Re', re, 0.0, 5.0e6,
               'Reynolds number above the Gnielinski range; extrapolated')
         check(log, correlation, 'Pr', np.where(re > _RE_LAMINAR, Pr, np.nan), 0.5, 2000.0,
               'Prandtl number outside the Gnielinski range; extrapolated')
+    pr = np.asarray(Pr)
+    if (re <= _RE_LAMINAR).all() and ((pr >= 0.0) & (pr < 1e300)).all():
+        # laminar throughout, the usual case: the blend weight is zero, and the blend
+        # below gives exactly the laminar value (for any physical Prandtl number)
+        return _scalar(np.full(np.broadcast(re, pr).shape, float(nu_laminar)))
+    re_t = np.maximum(re, _RE_TURBULENT)
+    f8 = 0.125 / np.square(0.790 * np.log(re_t) - 1.64)
+    denominator = 1.0 + 12.7 * np.sqrt(f8) * (np.power(Pr, 2.0 / 3.0) - 1.0)
+    nu_gn = f8 * (re_t - 1000.0) * Pr / denominator
+    weight = np.clip((re - _RE_LAMINAR) / (_RE_TURBULENT - _RE_LAMINAR), 0.0, 1.0)
     return _scalar(nu_laminar + weight * (nu_gn - nu_laminar))
 
 

@@ -28,7 +28,7 @@ from typing import Dict, Optional
 import numpy as np
 
 from . import fluid_power as fp
-from .hydraulics import HydraulicCircuit, StepFlows
+from .hydraulics import HydraulicCircuit, LINKS, StepFlows
 from .motor import MotorInputs, WetMotor
 from .oil import get_oil, Oil
 from .validity import ValidityLog
@@ -83,9 +83,14 @@ class EHAModel:
                               max_substep_s=1.0, coefficient_filter_s=coefficient_filter_s,
                               defer_refresh=defer_refresh)
         self.circuit = HydraulicCircuit(cfg.hydraulics, self.oil)
+        ci = self.circuit
+        self._i_case = ci.index('case')
+        self._i_lines = (ci.index('line_a'), ci.index('line_b'))
         h = cfg.hydraulics
         self.area = h.actuator.area_m2
         self.d_rad = fp.displacement_per_rad(h.pump.displacement_m3_rev)
+        self._leak_coeffs = np.array([[h.pump.internal_leak_coeff_m3],
+                                      [h.pump.external_leak_coeff_m3]])
         self.T_hyd: Optional[np.ndarray] = None
         self.case_buffer_m3 = 0.0      # case oil above its nominal volume
         self._case_prev_K, self._dt_prev = 0.0, 0.0
@@ -128,15 +133,28 @@ class EHAModel:
     # ------------------------------------------------------------ the samples
     def _node_pressures(self, sensed: np.ndarray, flow_m3_s) -> np.ndarray:
         """Return the pressure (Pa) of every oil node (8 x n) from sensed p_a, p_b, p_acc."""
-        ci = self.circuit
         ln = self.cfg.hydraulics.lines
         # both lines at their mean temperature and the low-side pressure, as the kinetics
-        T_l = 0.5 * (self.T_hyd[ci.index('line_a')] + self.T_hyd[ci.index('line_b')])
+        i_a, i_b = self._i_lines
+        T_l = 0.5 * (self.T_hyd[i_a] + self.T_hyd[i_b])
         pa, pb, pacc = sensed
         p_l = float(pacc[-1])
-        dp = fp.line_pressure_drop(flow_m3_s, ln.length_m, ln.bore_m, self.oil.density(T_l, p_l),
-                                   self.oil.dynamic_viscosity(T_l, p_l), log=self.log)
-        return np.vstack([pa + dp, pb - dp, pacc, pa + 0.5 * dp, pb - 0.5 * dp, pa, pb, pacc])
+        rho = self.oil.density(T_l, p_l)
+        mu = self.oil.kinematic_viscosity(T_l, p_l) * rho     # the dynamic viscosity
+        dp = fp.line_pressure_drop(flow_m3_s, ln.length_m, ln.bore_m, rho, mu, log=self.log)
+        half = 0.5 * dp
+        # rows in OIL_NODES order: pump ports A and B (line ends), case (at the accumulator's
+        # pressure), lines A and B (mid-line), chambers A and B, accumulator
+        P = np.empty((8, pa.size))
+        np.add(pa, dp, out=P[0])
+        np.subtract(pb, dp, out=P[1])
+        P[2] = pacc
+        np.add(pa, half, out=P[3])
+        np.subtract(pb, half, out=P[4])
+        P[5] = pa
+        P[6] = pb
+        P[7] = pacc
+        return P
 
     def step_flows(self, b: SampleBlock):
         """
@@ -149,26 +167,43 @@ class EHAModel:
         by half an interval and book spurious load work).
         """
         t0, x0, raw0, p0 = self._last
-        t = np.concatenate([[t0], b.t_s])
-        dts = np.diff(t)
-        if np.any(dts <= 0.0):
+        n = b.t_s.size
+        # times, positions and pressures with the last sample of the previous step in
+        # front (filled in place: per-step arrays are small, building them costs more)
+        t = np.empty(n + 1)
+        t[0] = t0
+        t[1:] = b.t_s
+        dts = t[1:] - t[:-1]
+        if (dts <= 0.0).any():
             raise ValueError('sample times must increase strictly')
         dt = t[-1] - t0
         wgt = dts / dt
-        x = np.concatenate([[x0], b.position_m])
-        q = self.area * np.diff(x) / dts          # into chamber A
-        raw = np.hstack([raw0[:, None], np.vstack([b.p_a_Pa, b.p_b_Pa, b.p_acc_Pa])])
+        x = np.empty(n + 1)
+        x[0] = x0
+        x[1:] = b.position_m
+        q = self.area * (x[1:] - x[:-1]) / dts          # into chamber A
+        raw = np.empty((3, n + 1))
+        raw[:, 0] = raw0
+        raw[0, 1:] = b.p_a_Pa
+        raw[1, 1:] = b.p_b_Pa
+        raw[2, 1:] = b.p_acc_Pa
         P = self._node_pressures(0.5 * (raw[:, 1:] + raw[:, :-1]), q)
         pump = self.cfg.hydraulics.pump
-        T_case = self.T_hyd[self.circuit.index('case')]
-        # viscosity at the mean pressure of each gap: port to port, high port to case
+        T_case = self.T_hyd[self._i_case]
+        # the two leakage gaps, in one evaluation: port to port (internal) and high port
+        # to case (external), each with the viscosity at its mean pressure
         p_high = np.maximum(P[0], P[1])
-        mu = self.oil.dynamic_viscosity(T_case, 0.5 * (P[0] + P[1]))
-        mu_ext = self.oil.dynamic_viscosity(T_case, 0.5 * (p_high + P[2]))
-        q_int = fp.laminar_leakage(pump.internal_leak_coeff_m3, P[0] - P[1], mu)
+        gap_dp = np.empty((2, n))
+        np.subtract(P[0], P[1], out=gap_dp[0])
+        np.subtract(p_high, P[2], out=gap_dp[1])
+        gap_p = np.empty((2, n))
+        np.add(P[0], P[1], out=gap_p[0])
+        np.add(p_high, P[2], out=gap_p[1])
+        gap_mu = self.oil.dynamic_viscosity(T_case, 0.5 * gap_p)
+        q_int, q_ext = fp.laminar_leakage(self._leak_coeffs, gap_dp, gap_mu)
+        dp_ports, mu = gap_dp[0], gap_mu[0]
         high_a = P[0] >= P[1]
-        q_ext = np.maximum(fp.laminar_leakage(pump.external_leak_coeff_m3, p_high - P[2],
-                                              mu_ext), 0.0)
+        q_ext = np.maximum(q_ext, 0.0)
         q_ext_a = np.where(high_a, q_ext, 0.0)
         q_ext_b = q_ext - q_ext_a
         # The pump's transfer into the high port closes that port's balance (line flow,
@@ -176,19 +211,28 @@ class EHAModel:
         # accumulator (check valves), by the external leakage. Measured speed and
         # position never agree exactly (sampling, noise): closing the balance through
         # the high port would pass that mismatch across the full load pressure.
-        q_pump = np.where(high_a, q + q_int + q_ext_a, q + q_int - q_ext_b)   # into port A
+        q_line_int = q + q_int
+        q_pump = np.where(high_a, q_line_int + q_ext_a, q_line_int - q_ext_b)   # into port A
         make_up_a = np.where(high_a, 0.0, q_ext)
         make_up_b = q_ext - make_up_a
-        pos, neg = np.maximum, lambda v: np.maximum(-v, 0.0)
-        zero = np.zeros_like(q)
-        F = np.vstack([pos(q_pump, 0), neg(q_pump), pos(q_int, 0), neg(q_int), q_ext_a, q_ext_b,
-                       pos(q, 0), neg(q), pos(q, 0), neg(q), pos(q, 0), neg(q), pos(q, 0), neg(q),
-                       make_up_a, zero, make_up_b, zero])
+        # flow of every link of LINKS per interval: a signed flow splits into its two
+        # directed links (forward part, reverse part); no make-up flows back
+        F = np.zeros((len(LINKS), n))
+        np.maximum(q_pump, 0.0, out=F[0])
+        np.maximum(-q_pump, 0.0, out=F[1])
+        np.maximum(q_int, 0.0, out=F[2])
+        np.maximum(-q_int, 0.0, out=F[3])
+        F[4] = q_ext_a
+        F[5] = q_ext_b
+        np.maximum(q, 0.0, out=F[6:14:2])       # the four line sections carry q
+        np.maximum(-q, 0.0, out=F[7:14:2])
+        F[14] = make_up_a
+        F[16] = make_up_b
         ci = self.circuit
         dP = P[ci.u] - P[ci.d]
         flow = F @ wgt
         work = (F * dP) @ wgt
-        fric = fp.pump_friction_torque(b.speed_rad_s, P[0] - P[1], mu, self.d_rad,
+        fric = fp.pump_friction_torque(b.speed_rad_s, dp_ports, mu, self.d_rad,
                                        pump.viscous_friction_coeff,
                                        pump.pressure_friction_coeff, pump.coulomb_torque_Nm)
         x_mean = float(np.dot(0.5 * (x[1:] + x[:-1]), wgt))
@@ -198,7 +242,9 @@ class EHAModel:
         dv = self.area * (x[-1] - x[0])
         # integral of V dp per oil node: P holds interval-mean pressures, so between two
         # of them the chamber volume is the one at the sample instant in between
-        dP = np.diff(np.hstack([p0[:, None], P]), axis=1)
+        dP = np.empty((8, n))
+        np.subtract(P[:, 0], p0, out=dP[:, 0])
+        np.subtract(P[:, 1:], P[:, :-1], out=dP[:, 1:])
         vdp = ci.oil_volumes * dP.sum(axis=1)
         va = act.dead_volume_m3 + self.area * (act.half_stroke_m + x[:-1])
         vb = 2 * act.dead_volume_m3 + 2 * self.area * act.half_stroke_m - va
@@ -217,7 +263,7 @@ class EHAModel:
         ci = self.circuit
         # the motor's inlet over the step: the case temperature extrapolated to mid-step
         # (the case moves with the leakage heat; a start-of-step value would lag)
-        T_now = float(self.T_hyd[ci.index('case')])
+        T_now = float(self.T_hyd[self._i_case])
         T_case = T_now + 0.5 * (T_now - self._case_prev_K) * dt / self._dt_prev \
             if self._dt_prev else T_now
         self._case_prev_K, self._dt_prev = T_now, dt
@@ -246,7 +292,7 @@ class EHAModel:
         self._last = self._pending_last
         self.time_s = self._last[0]
         self.heat_W = {
-            'motor_losses': float(np.sum(m.power_W)),
+            'motor_losses': float(m.power_W.sum()),
             'motor_to_oil': float(m_cp * (sf.motor_outlet_K - T_case)),
             'pump_friction': sf.pump_friction_W,
             'hydraulic_sources': float(ci.last_sources.sum()),

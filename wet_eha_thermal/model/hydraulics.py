@@ -36,6 +36,8 @@ SOLID_NODES = ('pump_shell', 'line_a_shell', 'line_b_shell', 'actuator_shell',
                'accumulator_shell')
 NODES = OIL_NODES + SOLID_NODES
 _I = {name: i for i, name in enumerate(NODES)}
+_CASE, _ACC, _PUMP_SHELL = _I['case'], _I['accumulator'], _I['pump_shell']
+_CHAMBER_A, _CHAMBER_B = _I['chamber_a'], _I['chamber_b']
 
 # Directed flow links (upstream, downstream); 'pump' is the displacement flow, the
 # rest are throttles (leaks, line friction, check valves).
@@ -141,6 +143,11 @@ class HydraulicCircuit:
         self.is_pump[list(PUMP_LINKS)] = True
         self.friction_to_case = pump.friction_to_case_fraction
         self.alpha_T_filter_s = 30.0
+        # per-step constants: the lines' oil nodes (adjacent), their flow section, and the
+        # heat capacities with the solids' filled in (the oil's change every step)
+        self._lines = slice(_I['line_a'], _I['line_b'] + 1)
+        self._line_flow_area = 0.25 * np.pi * ln.bore_m ** 2
+        self._capacities = np.concatenate([np.zeros(self.n_oil), self.solid_capacity])
         self._T_alpha: Optional[float] = None
         # energies (J): heat generated, stored (a moving chamber's oil included), to
         # ambient, and the net enthalpy the motor adds to the oil passing through it
@@ -174,7 +181,8 @@ class HydraulicCircuit:
         vol = self.oil_volumes.copy()
         vol[5], vol[6] = sf.chamber_volumes_m3
         vol[2] = sf.case_volume_m3
-        C = np.concatenate([rho * cp * vol, self.solid_capacity])
+        C = self._capacities.copy()
+        np.multiply(rho * cp, vol, out=C[:no])
         rate = rho_cp_flow * sf.flow_m3_s
         g_line = self._line_conductances(T0, p_mid, rho, cp, sf.flow_m3_s)
         motor_rate = rho_cp_flow * sf.motor_flow_m3_s
@@ -184,20 +192,26 @@ class HydraulicCircuit:
                                     [motor_rate]])).reshape(n, n)
         heat = self.sources(T0, dt_s, sf)
         s = self.G_amb * ambient_K + heat
-        s[_I['accumulator']] += motor_rate * sf.motor_outlet_K
+        s[_ACC] += motor_rate * sf.motor_outlet_K
         M = np.zeros((n + 1, n + 1))
         M[:n, :n] = -K * (dt_s / C[:, None])
         M[:n, n] = s * (dt_s / C)
-        T1 = scipy.linalg.expm(M)[:n] @ np.append(T0, 1.0)
-        self.T_mean = np.linalg.solve(K, s * dt_s - C * (T1 - T0)) / dt_s
+        T0_1 = np.empty(n + 1)         # the start temperatures and the constant input's 1
+        T0_1[:n] = T0
+        T0_1[n] = 1.0
+        T1 = scipy.linalg.expm(M)[:n] @ T0_1
+        dT = T1 - T0
+        self.T_mean = Tm = np.linalg.solve(K, s * dt_s - C * dT) / dt_s
+        # the ledger in Python floats: a few scalars, where numpy scalars cost more
         e = self.energy_J
-        Tm = self.T_mean
+        tm = Tm.tolist()
+        dV_a, dV_b = sf.chamber_dV_m3
         e['sources'] += float(heat.sum()) * dt_s
-        e['stored'] += float(np.dot(C, T1 - T0)) + rho_cp_flow * (
-            Tm[_I['chamber_a']] * sf.chamber_dV_m3[0] + Tm[_I['chamber_b']] * sf.chamber_dV_m3[1]
-            + (Tm[_I['case']] - Tm[_I['accumulator']]) * sf.case_dV_m3)
+        e['stored'] += float(np.dot(C, dT)) + rho_cp_flow * (
+            tm[_CHAMBER_A] * dV_a + tm[_CHAMBER_B] * dV_b
+            + (tm[_CASE] - tm[_ACC]) * sf.case_dV_m3)
         e['to_ambient'] += float(np.dot(self.G_amb, Tm - ambient_K)) * dt_s
-        e['motor_loop'] += motor_rate * (sf.motor_outlet_K - Tm[_I['case']]) * dt_s
+        e['motor_loop'] += motor_rate * (sf.motor_outlet_K - tm[_CASE]) * dt_s
         self.last_sources = heat
         return T1
 
@@ -208,15 +222,16 @@ class HydraulicCircuit:
         Fully developed pipe flow (laminar 3.66, Gnielinski above Re 4000);
         ``rho`` and ``cp`` are the oil-node values already evaluated.
         """
-        ln = self.cfg.lines
-        idx = [_I['line_a'], _I['line_b']]
-        T_l, p_l = T[idx], p[idx]
-        mu = self.oil.dynamic_viscosity(T_l, p_l)
+        bore = self.cfg.lines.bore_m
+        lines = self._lines
+        T_l, rho_l = T[lines], rho[lines]
+        # mu = nu rho: the density at these (T, p) is already in rho
+        mu = self.oil.kinematic_viscosity(T_l, p[lines]) * rho_l
         k = self.oil.conductivity(T_l)
-        q = np.array([flows[6] + flows[7], flows[10] + flows[11]])
-        re = rho[idx] * q / (0.25 * np.pi * ln.bore_m ** 2) * ln.bore_m / mu
-        nu = corr.pipe_internal_nusselt(re, mu * cp[idx] / k)
-        return nu * k / ln.bore_m * self.line_inner_area
+        q = flows[6:11:4] + flows[7:12:4]       # links 6 + 7 (line A), 10 + 11 (line B)
+        re = rho_l * q / self._line_flow_area * bore / mu
+        nu = corr.pipe_internal_nusselt(re, mu * cp[lines] / k)
+        return nu * k / bore * self.line_inner_area
 
     def sources(self, T0: np.ndarray, dt_s: float, sf: StepFlows) -> np.ndarray:
         """
@@ -231,7 +246,7 @@ class HydraulicCircuit:
         no pump work pays for). The few kelvin between volumes would change a
         throttle rise by < 0.5 %.
         """
-        T_oil = float(np.mean(T0[:self.n_oil]))
+        T_oil = float(T0[:self.n_oil].sum() / self.n_oil)    # the mean, as np.mean forms it
         if self._T_alpha is None:
             self._T_alpha = T_oil
         else:
@@ -241,10 +256,10 @@ class HydraulicCircuit:
         per_link = np.where(self.is_pump, -alpha_T * sf.work_W, (1 - alpha_T) * sf.work_W)
         heat = np.bincount(self.d, weights=per_link, minlength=self.n)
         heat[:self.n_oil] += alpha_T * sf.volume_dp_m3Pa / dt_s
-        heat[_I['case']] += self.friction_to_case * sf.pump_friction_W
-        heat[_I['pump_shell']] += (1 - self.friction_to_case) * sf.pump_friction_W
+        heat[_CASE] += self.friction_to_case * sf.pump_friction_W
+        heat[_PUMP_SHELL] += (1 - self.friction_to_case) * sf.pump_friction_W
         return heat
 
     def named(self, T: np.ndarray) -> Dict[str, float]:
         """Return the node temperatures (K) by name."""
-        return {name: float(T[i]) for name, i in _I.items()}
+        return dict(zip(NODES, T.tolist()))

@@ -15,7 +15,8 @@ Oil path: oil_inlet -> end_oil_front -> gap_oil.s1 .. s<n> -> end_oil_rear
 ambient (natural convection and radiation, or a fan coefficient).
 """
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
+import math
 from typing import Dict, Optional, Tuple, Union
 
 import numpy as np
@@ -29,6 +30,12 @@ from .validity import ValidityLog
 from ..config import Motor
 
 C_TO_K = 273.15
+
+
+def _mean(a, axis: Optional[int] = None):
+    """Return ``np.mean(a, axis)``, the same sum over the count, without np.mean's overhead."""
+    a = np.asarray(a)
+    return a.sum(axis) / (a.size if axis is None else a.shape[axis])
 
 
 @dataclass
@@ -280,6 +287,11 @@ class WetMotor:
                                          self.idx_frame_outer, self.idx_cap_outer])
         self.watch_scale = np.concatenate([np.ones(self.idx_gap.size),
                                            np.full(self.idx_watch.size - self.idx_gap.size, 4.0)])
+        # per-step constants: the links to ambient (frame, then end caps) for the ledger,
+        # and the weights of the named outputs
+        self._to_ambient_ids = np.array(self.ambient_links + self.cap_links)
+        self._copper_share_sum = self.copper_share.sum()
+        self._frame_volume_sum = self.frame_volumes.sum()
 
     # ------------------------------------------------------------ coefficients
     def _oil_rho_cp(self, T_K, p_Pa):
@@ -296,7 +308,7 @@ class WetMotor:
         """
         c, net, log = self.cfg, self.net, self.log
         st, ro = c.stator, c.rotor
-        w = float(np.mean(np.abs(u.speed_rad_s)))
+        w = float(_mean(np.abs(u.speed_rad_s)))
         p = u.case_pressure_Pa
         self.refresh_count += 1
         T_gap = T[self.idx_gap]
@@ -334,7 +346,7 @@ class WetMotor:
 
     def _coefficient_point(self, dt_s: float, u: MotorInputs):
         """Return the (temperatures, inputs) that set the coefficients, filtered if asked."""
-        raw = np.concatenate([[np.mean(np.abs(u.speed_rad_s)), u.oil_flow_m3_s],
+        raw = np.concatenate([[_mean(np.abs(u.speed_rad_s)), u.oil_flow_m3_s],
                               self.T[self.idx_watch]])
         tau = self.coefficient_filter_s
         if self._filter_state is None or tau <= 0.0:
@@ -355,14 +367,17 @@ class WetMotor:
         f = self._filter_state[1]
         T = self.T.copy()
         T[self.idx_watch] = f[2:]
-        return T, replace(u, speed_rad_s=f[0], oil_flow_m3_s=f[1])
+        # u with the filtered speed and flow (dataclasses.replace, without its overhead)
+        return T, MotorInputs(current_sq_mean_A2=u.current_sq_mean_A2, speed_rad_s=f[0],
+                              oil_inlet_K=u.oil_inlet_K, oil_flow_m3_s=f[1],
+                              ambient_K=u.ambient_K, case_pressure_Pa=u.case_pressure_Pa)
 
     def _refresh_due(self, T: np.ndarray, u: MotorInputs) -> bool:
         """Tell whether a temperature or an input moved too far since the last refresh."""
         if self._refreshed_at is None:
             return True
         w0, q0, tin0, tamb0, p0 = self._refreshed_at
-        drift = np.max(np.abs(T[self.idx_watch] - self._T_refreshed) / self.watch_scale)
+        drift = (np.abs(T[self.idx_watch] - self._T_refreshed) / self.watch_scale).max()
         return (drift > self.refresh_dT_K
                 or abs(float(u.speed_rad_s) - w0) > 0.01 * max(w0, 5.0)
                 or abs(u.oil_flow_m3_s - q0) > 0.01 * max(q0, 1e-8)
@@ -387,9 +402,9 @@ class WetMotor:
             wd.phase_resistance_20C_ohm, wd.copper_tempco_1_K,
             (self.T if T is None else T)[self.idx_copper])
         d_yoke, d_teeth = self._core_loss_density(w)
-        return np.concatenate([p_cu, self.yoke_mass * d_yoke.mean(),
-                               self.teeth_mass * d_teeth.mean(),
-                               self.airgap_friction_W(w, T).mean(axis=0)])
+        return np.concatenate([p_cu, self.yoke_mass * _mean(d_yoke),
+                               self.teeth_mass * _mean(d_teeth),
+                               _mean(self.airgap_friction_W(w, T), axis=0)])
 
     def _core_loss_density(self, speed_rad_s: np.ndarray):
         """Return the Steinmetz loss per kg (W/kg) of yoke and teeth at each speed sample."""
@@ -421,11 +436,13 @@ class WetMotor:
             return memo[2]
         T_gap = T[self.idx_gap]
         p = self._case_pressure_Pa
-        p_fric, _ = corr.airgap_friction(self.oil.density(T_gap, p),
-                                         self.oil.dynamic_viscosity(T_gap, p), w[:, None],
-                                         ro.outer_radius_m, st.bore_radius_m, self.dz,
-                                         log=self.log)
-        out = np.broadcast_to(p_fric, (w.shape[0], self.idx_gap.size))
+        rho = self.oil.density(T_gap, p)
+        mu = self.oil.kinematic_viscosity(T_gap, p) * rho     # the dynamic viscosity
+        out, _ = corr.airgap_friction(rho, mu, w[:, None], ro.outer_radius_m, st.bore_radius_m,
+                                      self.dz, log=self.log)
+        shape = (w.shape[0], self.idx_gap.size)
+        if np.shape(out) != shape:
+            out = np.broadcast_to(out, shape)
         self._friction_memo = (T, w, out)
         return out
 
@@ -504,8 +521,7 @@ class WetMotor:
             raise RuntimeError('set an initial state first (initialise or steady_state)')
         substeps, h = self._substeps(dt_s)
         Tb = self.boundaries(u)
-        self.T_mean = np.zeros(self.net.n)
-        for _ in range(substeps):
+        for k in range(substeps):
             # changes held by defer_refresh in the previous step come into use, discretised
             # before this step's refresh (which is then held in turn)
             self.net.apply_changes(h)
@@ -513,12 +529,12 @@ class WetMotor:
             if self._refresh_due(T_c, u_c):
                 self.refresh(T_c, u_c)
             self.power_W = self.losses(u)
-            x_new, x_mean = self.net.step(self.x, h, Tb, self.power_W, mean=True)
-            T_mean = self.net.temperatures(x_mean, Tb, self.power_W)
-            self._book(h, x_new - self.x, T_mean, u)
-            self.T_mean += T_mean / substeps
+            x_new, T_new, T_mean = self.net.step_temperatures(self.x, h, Tb, self.power_W)
+            self._book(h, x_new - self.x, T_mean, u, Tb)
+            # the mean over the sub-steps (summed from zero, as 0 + x is x)
+            self.T_mean = T_mean / substeps if k == 0 else self.T_mean + T_mean / substeps
             self.x = x_new
-            self.T = self.net.temperatures(self.x, Tb, self.power_W)
+            self.T = T_new
         return self.T
 
     def prepare(self, dt_s: float) -> bool:
@@ -527,17 +543,20 @@ class WetMotor:
 
     def _substeps(self, dt_s: float) -> Tuple[int, float]:
         """Return the number and length (s) of the sub-steps of a step of ``dt_s``."""
-        n = max(1, int(np.ceil(dt_s / self.max_substep_s - 1e-9)))
+        n = max(1, math.ceil(dt_s / self.max_substep_s - 1e-9))
         return n, dt_s / n
 
-    def _book(self, h: float, dx: np.ndarray, T_mean: np.ndarray, u: MotorInputs) -> None:
+    def _book(self, h: float, dx: np.ndarray, T_mean: np.ndarray, u: MotorInputs,
+              Tb: np.ndarray) -> None:
         """Add one step's energies (J) to the ledger, with the coefficients the step used."""
         g, m_cp, cap = self.net.coefficients_in_use()
-        flows = self.net.link_heat_flows(T_mean, self.boundaries(u))
+        # only the links to ambient: the frame's, then the end caps'
+        flows = self.net.link_heat_flows(T_mean, Tb, self._to_ambient_ids)
+        n_frame = len(self.ambient_links)
         e = self.energy_J
-        e['losses'] += float(np.sum(self.power_W)) * h
+        e['losses'] += float(self.power_W.sum()) * h
         e['stored'] += float(np.dot(cap[self.net.dynamic], dx))
-        e['to_ambient'] += float(flows[self.ambient_links].sum() + flows[self.cap_links].sum()) * h
+        e['to_ambient'] += float(flows[:n_frame].sum() + flows[n_frame:].sum()) * h
         e['to_oil'] += float(m_cp[self.adv[0]] * (T_mean[self.idx_oil[-1]] - u.oil_inlet_K)) * h
 
     # --------------------------------------------------------------- outputs
@@ -560,10 +579,9 @@ class WetMotor:
         T = self.T if T is None else T
         Tw = T[self.idx_copper]
         return {
-            'winding_mean': float(np.dot(self.copper_share, Tw) / self.copper_share.sum()),
+            'winding_mean': float(np.dot(self.copper_share, Tw) / self._copper_share_sum),
             'winding_hotspot': float(Tw.max()),
-            'frame': float(np.dot(self.frame_volumes, T[self.idx_frame])
-                           / self.frame_volumes.sum()),
+            'frame': float(np.dot(self.frame_volumes, T[self.idx_frame]) / self._frame_volume_sum),
             'magnet': float(T[self.idx_magnet].max()),
             'airgap_oil_outlet': float(T[self.idx_gap[-1]]),
             'motor_oil_outlet': float(T[self.idx_oil[-1]]),

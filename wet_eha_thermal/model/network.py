@@ -443,9 +443,26 @@ class ThermalNetwork:
             return x_new, disc.Mx @ x + disc.Mw @ w
         return x_new
 
+    def step_temperatures(self, x: np.ndarray, dt_s: float, boundary_K, power_W) -> tuple:
+        """
+        Advance as ``step(..., mean=True)`` and return the node temperatures too.
+
+        Returns the new states, the full node-temperature vector (K) at the
+        end of the step and the one averaged over the step: one input vector
+        and one lookup of the matrices serve all three.
+        """
+        disc = self.discretise(dt_s)
+        w = self.inputs(boundary_K, power_W)
+        x_new = disc.Ad @ x + disc.Bd @ w
+        x_mean = disc.Mx @ x + disc.Mw @ w
+        return x_new, self._full_temperatures(x_new, w), self._full_temperatures(x_mean, w)
+
     def temperatures(self, x: np.ndarray, boundary_K, power_W) -> np.ndarray:
         """Return the full node-temperature vector (K) from states and inputs."""
-        w = self.inputs(boundary_K, power_W)
+        return self._full_temperatures(x, self.inputs(boundary_K, power_W))
+
+    def _full_temperatures(self, x: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """Return the full node-temperature vector (K) from states and the input vector."""
         _, _, d, a, out_x, out_w = self._reduce()
         T = np.empty(self.n)
         T[d] = x
@@ -470,12 +487,19 @@ class ThermalNetwork:
             return self._used
         return self.conductance, self.advection_rate, self.capacity
 
-    def link_heat_flows(self, T_full: np.ndarray, boundary_K) -> np.ndarray:
-        """Return the heat flow (W) through each conductance link, positive from end 1 to end 2."""
+    def link_heat_flows(self, T_full: np.ndarray, boundary_K, ids=None) -> np.ndarray:
+        """
+        Return the heat flow (W) through each conductance link, positive from end 1 to end 2.
+
+        With ``ids`` (an index array of link ids) only those links, in that order.
+        """
         tb = np.asarray(boundary_K, dtype=float).reshape(-1)
         values = np.concatenate([T_full, tb])
         g = self.coefficients_in_use()[0]
-        return g * (values[self._ends[:, 0]] - values[self._ends[:, 1]])
+        if ids is None:
+            return g * (values[self._ends[:, 0]] - values[self._ends[:, 1]])
+        ends = self._ends[ids]
+        return g[ids] * (values[ends[:, 0]] - values[ends[:, 1]])
 
     def heat_flow(self, T_full: np.ndarray, boundary_K, a: str, b: str) -> float:
         """Return the heat flow (W) from ``a`` to ``b`` through the link joining them."""

@@ -240,9 +240,20 @@ class Oil:
             self._check_T(log, 'viscosity', T_K)
             self._check_p(log, 'viscosity', p_Pa)
         log_t = np.log10(T_K)
-        z = np.where(np.greater_equal(T_K, T0_K + 40.0),
-                     self._a_hot - self._b_hot * log_t,
-                     self._a_cold - self._b_cold * log_t)
+        # form only the line(s) in use: one temperature, or all hot or all cold, is the
+        # usual case
+        if np.ndim(T_K) == 0:
+            hot = T_K >= T0_K + 40.0
+            z = self._a_hot - self._b_hot * log_t if hot else self._a_cold - self._b_cold * log_t
+        else:
+            hot = np.greater_equal(T_K, T0_K + 40.0)
+            if hot.all():
+                z = self._a_hot - self._b_hot * log_t
+            elif not hot.any():
+                z = self._a_cold - self._b_cold * log_t
+            else:
+                z = np.where(hot, self._a_hot - self._b_hot * log_t,
+                             self._a_cold - self._b_cold * log_t)
         nu_cst = np.power(10.0, np.power(10.0, z)) - 0.7
         return 1.0e-6 * nu_cst * np.exp(np.multiply(self._barus, p_Pa))
 
