@@ -181,3 +181,16 @@ def test_replay_plan_falls_back_for_a_missing_input(bag, tmp_path):
     assert plan.missing == ['speed_rad_s']
     res = rp.replay(plan)
     assert res.steps > 900 and res.stale_inputs.max() == 1
+
+
+def test_a_given_config_with_the_other_pressure_mode_is_stored_in_the_output(bag, tmp_path):
+    # the shipped file says three pressures, the bag holds one differential: the mode is
+    # switched, and the output stores the given file's text and says what was switched
+    plan = rp.plan_replay(bag, config_path=default_config_path())
+    assert 'pressure_inputs: differential' in plan.config_source
+    assert plan.config_yaml == default_config_path().read_text()
+    result = rp.replay(plan)
+    out = rp.write_mcap(result, tmp_path / 'estimates.mcap')
+    stored = open_bag(out).metadata[rp.CONFIG_METADATA]
+    assert stored[rp.CONFIG_METADATA_KEY] == plan.config_yaml
+    assert 'differential' in stored['source']

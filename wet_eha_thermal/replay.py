@@ -58,6 +58,7 @@ class ReplayPlan:
 
     cfg: Config
     config_source: str
+    config_yaml: str                       # the file's text (before a pressure-input switch)
     inputs: Dict[str, str]                 # estimator input -> topic (found in the bag)
     missing: List[str]                     # inputs with no topic in the bag: on fallback
     thermocouples: Dict[str, str]          # thermocouple name -> topic
@@ -75,13 +76,16 @@ class ReplayPlan:
 
 
 def _config(info: BagInfo, config_path: Optional[os.PathLike]) -> tuple:
+    """Return (configuration, where it came from, its YAML text)."""
     if config_path is not None:
-        return load_config(config_path), str(config_path)
+        cfg = load_config(config_path)        # a ConfigError names an unreadable file
+        return cfg, str(config_path), Path(config_path).read_text()
     stored = info.metadata.get(CONFIG_METADATA, {}).get(CONFIG_METADATA_KEY)
     if stored:
         return config_from_yaml(stored, f'{info.path} (stored configuration)'), \
-            f'stored in {info.path.name}'
-    return load_config(None), 'shipped reference_eha.yaml (the bag stores none)'
+            f'stored in {info.path.name}', stored
+    return load_config(None), 'shipped reference_eha.yaml (the bag stores none)', \
+        default_config_path().read_text()
 
 
 def _match_pressure_inputs(cfg: Config, wanted, source: str, info: BagInfo,
@@ -112,7 +116,7 @@ def plan_replay(path: os.PathLike, config_path: Optional[os.PathLike] = None,
         info = open_bag(path)
     except BagError as exc:
         raise ReplayError(str(exc)) from exc
-    cfg, source = _config(info, config_path)
+    cfg, source, text = _config(info, config_path)
     mapping = dict(mapping or {})
     known = set(INPUTS) | {'dp_Pa', 'ambient'} | {f'measured/{tc}' for tc in
                                                   topics.THERMOCOUPLES}
@@ -147,8 +151,8 @@ def plan_replay(path: os.PathLike, config_path: Optional[os.PathLike] = None,
             thermocouples[tc] = topic
     amb = mapping.get('ambient', topics.AMBIENT_TOPIC)
     ambient = amb if amb in info.topics and info.topics[amb].type_name == TEMPERATURE else None
-    return ReplayPlan(cfg=cfg, config_source=source, inputs=inputs, missing=missing,
-                      thermocouples=thermocouples, ambient=ambient, info=info)
+    return ReplayPlan(cfg=cfg, config_source=source, config_yaml=text, inputs=inputs,
+                      missing=missing, thermocouples=thermocouples, ambient=ambient, info=info)
 
 
 @dataclass
@@ -324,7 +328,7 @@ def write_mcap(result: ReplayResult, path: Path) -> Path:
     tmp = _partial(path)
     if tmp.exists():
         tmp.unlink()
-    cfg_yaml = _config_text(result.plan)
+    cfg_yaml = result.plan.config_yaml
     with BagWriter(tmp, metadata={CONFIG_METADATA: {CONFIG_METADATA_KEY: cfg_yaml,
                                                     'source': result.plan.config_source}}) as w:
         qos = QoSProfile(depth=10)
@@ -345,15 +349,6 @@ def write_mcap(result: ReplayResult, path: Path) -> Path:
             w.write(topics.ALERT_TOPIC, String(data=text), int(round(stamp * 1e9)))
     tmp.replace(path)
     return path
-
-
-def _config_text(plan: ReplayPlan) -> str:
-    stored = plan.info.metadata.get(CONFIG_METADATA, {}).get(CONFIG_METADATA_KEY)
-    if stored and plan.config_source.startswith('stored'):
-        return stored
-    src = plan.config_source
-    p = Path(src) if not src.startswith('shipped') else default_config_path()
-    return p.read_text()
 
 
 def thermocouple_errors(result: ReplayResult) -> Dict[str, dict]:
