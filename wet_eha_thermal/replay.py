@@ -32,8 +32,7 @@ from typing import Callable, Dict, List, Mapping, Optional, Sequence
 
 import numpy as np
 
-from .bag.reader import (BagError, BagInfo, FLOAT64, FLUID_PRESSURE, iter_column_blocks,
-                         open_bag, TEMPERATURE)
+from .bag.reader import BagError, BagInfo, iter_column_blocks, open_bag, TEMPERATURE
 from .config import Config, config_from_yaml, default_config_path, load_config
 from .estimator.core import Estimator, INPUTS, sensor_inputs
 from .ros import topics
@@ -41,9 +40,6 @@ from .ros import topics
 #: Metadata record in which the recorder stores the estimator's configuration YAML.
 CONFIG_METADATA = 'wet_eha_thermal.config'
 CONFIG_METADATA_KEY = 'yaml'
-#: Message type of each input.
-INPUT_TYPES = {name: (FLUID_PRESSURE if name in topics.PRESSURE_INPUTS else FLOAT64)
-               for name in topics.INPUT_TOPICS}
 #: Estimates written to the outputs (degC), in column order.
 OUTPUT_ESTIMATES = topics.ESTIMATES
 
@@ -68,7 +64,7 @@ class ReplayPlan:
     @property
     def specs(self) -> Dict[str, str]:
         """Return topic -> message type of every topic to decode."""
-        specs = {topic: INPUT_TYPES[name] for name, topic in self.inputs.items()}
+        specs = {topic: topics.INPUT_TYPES[name] for name, topic in self.inputs.items()}
         specs.update({topic: TEMPERATURE for topic in self.thermocouples.values()})
         if self.ambient is not None:
             specs[self.ambient] = TEMPERATURE
@@ -133,9 +129,9 @@ def plan_replay(path: os.PathLike, config_path: Optional[os.PathLike] = None,
         if found is None:
             missing.append(name)
             continue
-        if found.type_name != INPUT_TYPES[name]:
+        if found.type_name != topics.INPUT_TYPES[name]:
             raise ReplayError(f'{info.path}: topic {topic} (input {name}) holds '
-                              f'{found.type_name}; expected {INPUT_TYPES[name]}')
+                              f'{found.type_name}; expected {topics.INPUT_TYPES[name]}')
         inputs[name] = topic
     if not inputs:
         listing = ', '.join(f'{t} ({i.type_name})' for t, i in sorted(info.topics.items()))

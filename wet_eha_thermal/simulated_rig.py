@@ -125,9 +125,7 @@ def write_rig_bag(path: os.PathLike, rig: SimulatedRig, seconds: float, *,
     amb_every = int(round(1.0 / BLOCK_S))
     with BagWriter(path, metadata=metadata) as bag:
         for name in rig.inputs:
-            bag.add_topic(topics.INPUT_TOPICS[name], (
-                'sensor_msgs/msg/FluidPressure' if name in topics.PRESSURE_INPUTS
-                else 'std_msgs/msg/Float64'), q_in)
+            bag.add_topic(topics.INPUT_TOPICS[name], topics.INPUT_TYPES[name], q_in)
         for tc in THERMOCOUPLES:
             bag.add_topic(f'{topics.MEASURED_PREFIX}/{tc}', 'sensor_msgs/msg/Temperature',
                           QoSProfile(depth=10))

@@ -133,9 +133,8 @@ def recorded_topics(prefix: str = topics.PREFIX) -> Dict[str, Tuple[str, str]]:
     The QoS kind is 'sensor' (the ``qos`` parameter), 'output' (reliable) or
     'latched' (reliable, transient local).
     """
-    found = {topics.INPUT_TOPICS[name]: (
-        'sensor_msgs/msg/FluidPressure' if name in topics.PRESSURE_INPUTS
-        else 'std_msgs/msg/Float64', 'sensor') for name in topics.INPUT_TOPICS}
+    found = {topics.INPUT_TOPICS[name]: (topics.INPUT_TYPES[name], 'sensor')
+             for name in topics.INPUT_TOPICS}
     found[topics.AMBIENT_TOPIC] = (TEMPERATURE, 'sensor')
     for tc in topics.THERMOCOUPLES:
         found[f'{topics.MEASURED_PREFIX}/{tc}'] = (TEMPERATURE, 'sensor')

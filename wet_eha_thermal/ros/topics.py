@@ -40,6 +40,9 @@ INPUT_TOPICS = {
 }
 # sensor_msgs/FluidPressure; the others are std_msgs/Float64
 PRESSURE_INPUTS = ('p_a_Pa', 'p_b_Pa', 'p_acc_Pa', 'dp_Pa')
+#: message type name of every input, as bags store it
+INPUT_TYPES = {name: ('sensor_msgs/msg/FluidPressure' if name in PRESSURE_INPUTS
+                      else 'std_msgs/msg/Float64') for name in INPUT_TOPICS}
 AMBIENT_TOPIC = f'{PREFIX}/ambient'
 MEASURED_PREFIX = f'{PREFIX}/measured'
 ESTIMATE_PREFIX = f'{PREFIX}/estimate'
