@@ -4,7 +4,8 @@ import csv
 
 import pytest
 from wet_eha_thermal.cli import main
-from wet_eha_thermal.config import ConfigError, default_config_path, load_config
+from wet_eha_thermal.config import (config_value, ConfigError, default_config_path, load_config,
+                                    with_values)
 import yaml
 
 
@@ -101,3 +102,17 @@ def test_maps_command_writes_table_csv_and_plot(tmp_path, capsys):
     assert {'winding_mean_C', 'winding_hotspot_C', 'frame_C', 'oil_friction_W'} <= set(rows[0])
     png = (tmp_path / 'motor_maps.png').read_bytes()
     assert png[:8] == b'\x89PNG\r\n\x1a\n' and len(png) > 20000
+
+
+def test_with_values_sets_dotted_keys_and_validates_them():
+    cfg = load_config()
+    gap = cfg.motor.stator.frame_contact_gap_m
+    truth = with_values(cfg, {'motor.stator.frame_contact_gap_m': 1.3 * gap,
+                              'hydraulics.pump.extra_loss_W': 20.0})
+    assert config_value(truth, 'motor.stator.frame_contact_gap_m') == pytest.approx(1.3 * gap)
+    assert truth.hydraulics.pump.extra_loss_W == 20.0
+    assert cfg.hydraulics.pump.extra_loss_W == 0.0        # the original is untouched
+    with pytest.raises(ConfigError, match=r'hydraulics\.pump\.extra_loss_W = -1\.0: out of range'):
+        with_values(cfg, {'hydraulics.pump.extra_loss_W': -1.0})
+    with pytest.raises(ConfigError, match=r'motor\.stator\.no_such_key: no such key'):
+        with_values(cfg, {'motor.stator.no_such_key': 1.0})

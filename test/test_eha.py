@@ -150,3 +150,22 @@ def test_more_flow_and_frequency_give_more_temperature_rise(cfg):
     for key in ('winding_mean', 'magnet', 'motor_oil_outlet', 'pump_case'):
         r = [x[key] for x in rises]
         assert r[0] < r[1] < r[2], (key, r)
+
+
+def test_extra_loss_is_booked_as_a_source_and_heats_the_case(cfg):
+    # a constant extra loss (a shaft seal the friction law lacks) is heat into the case
+    # oil alone, and the coupled model's books still close with it
+    from wet_eha_thermal.config import with_values
+    hot = with_values(cfg, {'hydraulics.pump.extra_loss_W': 20.0})
+    still = flows({})
+    base = HydraulicCircuit(cfg.hydraulics, get_oil(cfg.fluid.grade))
+    circ = HydraulicCircuit(hot.hydraulics, get_oil(hot.fluid.grade))
+    T0 = np.full(circ.n, 300.0)
+    extra = circ.sources(T0, 1.0, still) - base.sources(T0, 1.0, still)
+    assert extra[circ.index('case')] == pytest.approx(20.0, abs=1e-12)
+    assert np.delete(extra, circ.index('case')) == pytest.approx(0.0, abs=1e-12)
+    a = simulate(cfg, stage_duty(cfg, 6), 300.0, record_every_s=300.0)
+    b = simulate(hot, stage_duty(hot, 6), 300.0, record_every_s=300.0)
+    eb = b.model.energy()
+    assert eb['stored'] + eb['to_ambient'] == pytest.approx(eb['sources'], rel=1e-3)
+    assert b.temperatures_K['pump_case'][-1] - a.temperatures_K['pump_case'][-1] > 1.0

@@ -325,6 +325,9 @@ class Pump:
     pressure_friction_coeff: float = spec(0.0, None, doc='C_f of T_loss = C_f D dp')
     coulomb_torque_Nm: float = spec(0.0, None, doc='T_c')
     friction_to_case_fraction: float = spec(0.0, 1.0, doc='rest heats the shell')
+    extra_loss_W: float = spec(0.0, 1000.0, default=0.0, doc=(
+        'constant heat into the case oil that the friction law lacks (a shaft seal, say); '
+        'fit it from bench logs'))
     port_volume_m3: float = positive('each port (inlet/outlet)')
     case_volume_m3: float = positive()
     shell: Shell
@@ -537,5 +540,28 @@ def config_from_yaml(text: str, origin: str = 'config',
         *parents, last = dotted.split('.')
         for part in parents:
             node = node.setdefault(part, {})
+        node[last] = value
+    return from_dict(Config, data)
+
+
+def config_value(cfg: Config, key: str) -> Any:
+    """Return the value of a dotted key, e.g. ``hydraulics.pump.extra_loss_W``."""
+    node: Any = cfg
+    for part in key.split('.'):
+        if not dataclasses.is_dataclass(node) or not hasattr(node, part):
+            raise ConfigError(f'{key}: no such key in the configuration')
+        node = getattr(node, part)
+    return node
+
+
+def with_values(cfg: Config, values: Dict[str, Any]) -> Config:
+    """Return a validated copy of ``cfg`` with dotted keys set, e.g. for a fit or a truth rig."""
+    data = dataclasses.asdict(cfg)
+    for dotted, value in values.items():
+        config_value(cfg, dotted)        # names an unknown key
+        node = data
+        *parents, last = dotted.split('.')
+        for part in parents:
+            node = node[part]
         node[last] = value
     return from_dict(Config, data)

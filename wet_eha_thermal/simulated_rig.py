@@ -2,10 +2,12 @@
 The simulated rig without ROS: a duty in, the rig's sensor signals and thermocouples out.
 
 The kinetic model turns the duty into the estimator's input signals, in
-blocks of ``BLOCK_S``; a "truth" thermal model
+blocks of ``block_s`` (``BLOCK_S`` by default); a "truth" thermal model
 (:class:`~wet_eha_thermal.model.eha.EHAModel`) is stepped with the same,
 noise-free samples every block, and its temperatures, through a first-order
-sensor lag, are the thermocouples. Seeded Gaussian noise (1 sigma):
+sensor lag, are the thermocouples. The truth model may run with other
+parameters than the estimator's configuration (a rig that differs from
+its handbook values, for calibration tests). Seeded Gaussian noise (1 sigma):
 current 0.05 A (an RMS reading, so its magnitude is kept), speed 2 rad/s,
 pressures 20 kPa, position 10 um, thermocouples 0.2 K, ambient 0.05 K.
 
@@ -42,12 +44,13 @@ class SimulatedRig:
 
     def __init__(self, cfg: Config, duty: Duty, rate_Hz: float = 1000.0, noise: bool = True,
                  seed: int = 1, ambient_C: float = 20.0,
-                 thermocouple_lag_s: float = 1.0) -> None:
+                 thermocouple_lag_s: float = 1.0, block_s: float = BLOCK_S) -> None:
         self.cfg = cfg
+        self.block_s = block_s
         self.duty = duty
         self.inputs = sensor_inputs(cfg)      # three pressures or one differential
-        self.n_block = max(1, int(round(rate_Hz * BLOCK_S)))
-        self.period_s = BLOCK_S / self.n_block   # exact: a block is a whole number of samples
+        self.n_block = max(1, int(round(rate_Hz * block_s)))
+        self.period_s = block_s / self.n_block   # exact: a block is a whole number of samples
         self.noise = noise
         self.ambient_C = ambient_C
         self.rng = np.random.default_rng(seed)
@@ -57,7 +60,7 @@ class SimulatedRig:
         first = self.kin.sample(duty, np.array([0.0]), ThermalFeedback.uniform(amb_K))
         self.truth.initialise(amb_K, first)
         self.tc_lag_K = {name: amb_K for name in THERMOCOUPLES}
-        self.tc_alpha = 1.0 - math.exp(-BLOCK_S / thermocouple_lag_s) \
+        self.tc_alpha = 1.0 - math.exp(-block_s / thermocouple_lag_s) \
             if thermocouple_lag_s > 0.0 else 1.0
         self.blocks = 0
 
@@ -120,9 +123,9 @@ def write_rig_bag(path: os.PathLike, rig: SimulatedRig, seconds: float, *,
     msgs = {name: (FluidPressure() if name in topics.PRESSURE_INPUTS else Float64())
             for name in rig.inputs}
     count = 0
-    n_blocks = int(round(seconds / BLOCK_S))
-    tc_every = max(1, int(round(1.0 / (thermocouple_rate_Hz * BLOCK_S))))
-    amb_every = int(round(1.0 / BLOCK_S))
+    n_blocks = int(round(seconds / rig.block_s))
+    tc_every = max(1, int(round(1.0 / (thermocouple_rate_Hz * rig.block_s))))
+    amb_every = max(1, int(round(1.0 / rig.block_s)))
     with BagWriter(path, metadata=metadata) as bag:
         for name in rig.inputs:
             bag.add_topic(topics.INPUT_TOPICS[name], topics.INPUT_TYPES[name], q_in)

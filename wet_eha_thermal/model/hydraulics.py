@@ -142,6 +142,7 @@ class HydraulicCircuit:
         self.is_pump = np.zeros(len(LINKS), dtype=bool)
         self.is_pump[list(PUMP_LINKS)] = True
         self.friction_to_case = pump.friction_to_case_fraction
+        self.extra_loss_W = pump.extra_loss_W
         self.alpha_T_filter_s = 30.0
         # per-step constants: the lines' oil nodes (adjacent), their flow section, and the
         # heat capacities with the solids' filled in (the oil's change every step)
@@ -256,7 +257,7 @@ class HydraulicCircuit:
         per_link = np.where(self.is_pump, -alpha_T * sf.work_W, (1 - alpha_T) * sf.work_W)
         heat = np.bincount(self.d, weights=per_link, minlength=self.n)
         heat[:self.n_oil] += alpha_T * sf.volume_dp_m3Pa / dt_s
-        heat[_CASE] += self.friction_to_case * sf.pump_friction_W
+        heat[_CASE] += self.friction_to_case * sf.pump_friction_W + self.extra_loss_W
         heat[_PUMP_SHELL] += (1 - self.friction_to_case) * sf.pump_friction_W
         return heat
 
