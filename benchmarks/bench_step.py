@@ -3,7 +3,7 @@ Wall time of the estimator's model step, as the offline replay drives it, and a 
 
 Run: OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_step.py
      [--seconds 300] [--stage 6] [--pressure ports|differential] [--no-noise]
-     [--save FILE.npy] [--compare FILE.npy] [--profile [FILE.prof]]
+     [--save FILE.npy] [--compare FILE.npy] [--profile [FILE.prof]] [--correction]
 
 The inputs are the kinetic model's signals of a reference stage
 (:class:`~wet_eha_thermal.model.kinetics.KineticModel`, oil at 40 degC) at
@@ -20,6 +20,13 @@ model step and the estimate), median and mean over the steps. ``--save``
 writes every step's estimate (stamp, temperatures in K, heat flows) to a
 .npy; ``--compare`` runs again and prints the largest difference from a
 saved run (temperatures in K, heat flows relative).
+
+``--correction`` times the live correction (``estimator.correction``) in the
+same process: a run with it off (the figures above, and what ``--save`` and
+``--compare`` use), then one with it on, fed a frame and a pump case
+thermocouple at 10 Hz (the off run's estimates plus 1 K, with 0.2 K of seeded
+noise, so that the filter corrects all along), and prints both medians and
+their ratio.
 """
 
 import argparse
@@ -27,14 +34,16 @@ import cProfile
 import math
 import pstats
 import time
+from typing import Optional
 
 import numpy as np
 
-from wet_eha_thermal.config import load_config
+from wet_eha_thermal.config import load_config, with_values
 from wet_eha_thermal.estimator.core import Estimator, sensor_inputs, sensor_signal
 from wet_eha_thermal.model.kinetics import KineticModel, stage_duty, ThermalFeedback
 from wet_eha_thermal.model.motor import C_TO_K
 from wet_eha_thermal.model.oil import get_oil
+from wet_eha_thermal.ros.topics import THERMOCOUPLES
 from wet_eha_thermal.simulated_rig import NOISE_SIGMA
 
 RATE_HZ = 1000.0
@@ -62,8 +71,13 @@ def make_inputs(cfg, stage: int, seconds: float, noise: bool, seed: int = 1) -> 
     return stamps, values
 
 
-def run(cfg, stamps: np.ndarray, values: dict) -> dict:
-    """Feed the inputs block by block; return the estimates and the timings."""
+def run(cfg, stamps: np.ndarray, values: dict, thermocouples: Optional[dict] = None) -> dict:
+    """
+    Feed the inputs block by block; return the estimates and the timings.
+
+    ``thermocouples`` maps a thermocouple to (stamps s, degC), fed with
+    ``add_measured`` block by block before ``advance``, as the replay does.
+    """
     est = Estimator(cfg)
     step_times = []
     inner = est._step
@@ -84,6 +98,10 @@ def run(cfg, stamps: np.ndarray, values: dict) -> dict:
         t0 = time.perf_counter()
         for name, v in values.items():
             est.add_many(name, stamps[lo:hi], v[lo:hi])
+        for name, (ts, vs) in (thermocouples or {}).items():
+            a, b = np.searchsorted(ts, [stamps[lo], stamps[hi - 1]], side='right')
+            for t_tc, v_tc in zip(ts[a:b].tolist(), vs[a:b].tolist()):
+                est.add_measured(name, t_tc, v_tc)
         estimates = est.advance()
         wall = time.perf_counter() - t0
         blocks_s += wall
@@ -96,7 +114,21 @@ def run(cfg, stamps: np.ndarray, values: dict) -> dict:
                         + [e.heat_W[k] for k in heat_names])
     return {'table': np.array(rows), 'temps': temp_names, 'heats': heat_names,
             'step_times': np.array(step_times), 'block_per_step': np.array(block_per_step),
-            'total': blocks_s, 'energy': est.model.energy()}
+            'total': blocks_s, 'energy': est.model.energy(), 'estimator': est}
+
+
+def thermocouple_readings(result: dict, names=('frame', 'pump_case'), rate_Hz: float = 10.0,
+                          offset_K: float = 1.0, seed: int = 2) -> dict:
+    """Return readings (stamps s, degC) of thermocouples from a run's estimates, offset, noisy."""
+    table = result['table']
+    every = max(1, int(round(1.0 / (rate_Hz * (table[1, 0] - table[0, 0])))))
+    rng = np.random.default_rng(seed)
+    out = {}
+    for name in names:
+        col = 1 + result['temps'].index(THERMOCOUPLES[name])
+        v = table[::every, col] - C_TO_K + offset_K
+        out[name] = (table[::every, 0], v + rng.normal(0.0, 0.2, v.size))
+    return out
 
 
 def compare(result: dict, path: str) -> None:
@@ -133,8 +165,12 @@ def main() -> None:
     p.add_argument('--compare', metavar='FILE', help='compare the estimates with a saved run')
     p.add_argument('--profile', nargs='?', const='', metavar='FILE',
                    help='run under cProfile; print the top functions (and dump to FILE)')
+    p.add_argument('--correction', action='store_true',
+                   help='also time the live correction (frame and pump case thermocouples at '
+                   '10 Hz) against the run without it')
     args = p.parse_args()
-    cfg = load_config(overrides={'estimator.pressure_inputs': args.pressure})
+    cfg = load_config(overrides={'estimator.pressure_inputs': args.pressure,
+                                 'estimator.correction.enabled': False})
     stamps, values = make_inputs(cfg, args.stage, args.seconds, not args.no_noise)
     print(f'stage {args.stage}, {args.seconds:g} s at {RATE_HZ:g} Hz, inputs '
           f'{", ".join(values)}, noise {"off" if args.no_noise else "on"}')
@@ -176,6 +212,19 @@ def main() -> None:
               f'{nt} temperatures K, {len(result["heats"])} heat flows) -> {args.save}')
     if args.compare:
         compare(result, args.compare)
+    if args.correction:
+        readings = thermocouple_readings(result)
+        on = run(with_values(cfg, {'estimator.correction.enabled': True}), stamps, values,
+                 readings)
+        st_on = on['step_times'] * 1e3
+        blocks_on = on['block_per_step'] * 1e3
+        c = on['estimator'].correction
+        ratio_all = np.median(blocks_on) / np.median(blocks)
+        print(f'correction on (frame, pump_case at 10 Hz, {c.updates} scalar updates, '
+              f'{on["estimator"].latest.correction["thermocouples"]}): per step, all '
+              f'included: median {np.median(blocks_on):.4f} ms ({ratio_all:.2f}x off); '
+              f'Estimator._step alone: median {np.median(st_on):.4f} ms '
+              f'({np.median(st_on) / np.median(st):.2f}x off)')
 
 
 if __name__ == '__main__':

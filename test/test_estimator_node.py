@@ -17,6 +17,7 @@ import sys
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
+import numpy as np
 import pytest
 import rclpy
 from rclpy.exceptions import InvalidParameterValueException
@@ -332,3 +333,49 @@ def test_model_failure_keeps_publishing_and_reports_error(rig):
     assert rig.node.set_parameters([Parameter('publish_rate_Hz', value=10.0)])[0].successful
     assert rig.node.publish_timer.timer_period_ns == 100_000_000
     assert not rig.node.set_parameters([Parameter('qos', value='reliable')])[0].successful
+
+
+def test_thermocouple_corrects_the_estimate_and_goes_stale(rig):
+    # the shipped configuration has the live correction on: frame readings 1 K above the
+    # (cold) model pull its frame estimate up and shrink the published variance
+    frame = []
+    rig.probe.create_subscription(Temperature, f'{topics.ESTIMATE_PREFIX}/frame', frame.append,
+                                  100)
+    pub = rig.probe.create_publisher(Temperature, f'{topics.MEASURED_PREFIX}/frame',
+                                     topics.input_qos('sensor_data', 10))
+    rng = np.random.default_rng(1)
+
+    def feed(seconds, until, readings=True):
+        end = time.monotonic() + seconds
+        next_t = next_tc = time.monotonic()
+        while time.monotonic() < end:
+            now = time.monotonic()
+            if now >= next_t:
+                rig.publish_samples()
+                next_t = max(next_t + 0.001, now - 0.005)
+            if readings and now >= next_tc:
+                msg = Temperature(temperature=21.0 + float(rng.normal(0.0, 0.2)))
+                msg.header.stamp = rig.probe.get_clock().now().to_msg()
+                pub.publish(msg)
+                next_tc += 0.1
+            rig.spin(0.0005)
+            if until():
+                return True
+        return False
+
+    def corrected():
+        return (rig.diagnostics and rig.values('thermocouple frame')['status'] == 'ok'
+                and frame and frame[-1].variance < 1.5 ** 2 and frame[-1].temperature > 20.5)
+
+    assert feed(10.0, corrected), (frame[-1:], rig.values('thermocouple frame'))
+    status = rig.status('thermocouple frame')
+    assert status.level[0] == OK and status.message == 'correcting the model'
+    assert int(rig.values('thermocouple frame')['used']) > 0
+    assert rig.values('estimate')['correction'] == 'on, correcting with: frame'
+    assert rig.level('thermocouple winding') == OK          # no reading yet: not an error
+    assert rig.status('thermocouple winding').message == 'no reading yet'
+    # silent for the stale timeout (2 s): STALE, not used, the estimates keep coming
+    n = len(frame)
+    assert feed(6.0, lambda: rig.level('thermocouple frame') == STALE, readings=False)
+    assert rig.values('thermocouple frame')['stale_events'] == '1'
+    assert len(frame) > n + 50

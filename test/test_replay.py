@@ -14,7 +14,7 @@ from wet_eha_thermal import replay as rp
 from wet_eha_thermal.bag.reader import iter_raw, open_bag
 from wet_eha_thermal.bag.writer import BagWriter
 from wet_eha_thermal.cli import main
-from wet_eha_thermal.config import default_config_path, load_config
+from wet_eha_thermal.config import default_config_path, load_config, with_values
 from wet_eha_thermal.estimator.core import Estimator
 from wet_eha_thermal.model.kinetics import stage_duty
 from wet_eha_thermal.simulated_rig import SimulatedRig, write_rig_bag
@@ -80,15 +80,20 @@ def test_estimates_mcap_reads_back_with_an_independent_decoder(result, tmp_path)
 def test_replay_equals_the_live_estimator_fed_sample_by_sample(bag, result):
     # the live node adds each sample as it arrives and advances when one may close a
     # step; the replay adds 10 s blocks: in sample time both must give the same numbers
+    # (the thermocouples too: the live correction uses each reading by its stamp)
     plan = rp.plan_replay(bag)
     est = Estimator(plan.cfg)
     by_topic = {topic: name for name, topic in plan.inputs.items()}
+    by_tc = {topic: tc for tc, topic in plan.thermocouples.items()}
     live = {}
-    for m in iter_raw(bag, list(by_topic) + [plan.ambient]):
-        if m.topic == plan.ambient:
+    for m in iter_raw(bag, list(by_topic) + [plan.ambient] + list(by_tc)):
+        if m.topic == plan.ambient or m.topic in by_tc:
             msg = deserialize_message(m.data, Temperature)
-            est.add_ambient(msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec,
-                            msg.temperature)
+            stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+            if m.topic in by_tc:
+                est.add_measured(by_tc[m.topic], stamp, msg.temperature)
+            else:
+                est.add_ambient(stamp, msg.temperature)
             continue
         name = by_topic[m.topic]
         if m.type_name.endswith('FluidPressure'):
@@ -100,6 +105,8 @@ def test_replay_equals_the_live_estimator_fed_sample_by_sample(bag, result):
             for e in est.advance():
                 live[e.stamp_s] = e.temperatures_C
     assert len(live) == len(result.stamp_s) > 900
+    assert result.correction['active'] and est.correction.updates > 900
+    assert est.correction.updates == result.correction['updates']
     for k, stamp in enumerate(result.stamp_s):
         for name in ('winding_hotspot', 'magnet', 'oil', 'chamber_a'):
             assert live[stamp][name] == result.temperatures_C[name][k], (stamp, name)
@@ -194,3 +201,23 @@ def test_a_given_config_with_the_other_pressure_mode_is_stored_in_the_output(bag
     stored = open_bag(out).metadata[rp.CONFIG_METADATA]
     assert stored[rp.CONFIG_METADATA_KEY] == plan.config_yaml
     assert 'differential' in stored['source']
+
+
+def test_open_loop_replay_leaves_the_thermocouples_out_of_the_model(bag, tmp_path, capsys):
+    # the shipped config corrects the model with the thermocouples; --open-loop must give the
+    # estimates of a configuration with the correction off, so that the errors against the
+    # thermocouples validate the model rather than the filter
+    closed, opened = tmp_path / 'closed', tmp_path / 'open'
+    assert main(['replay', str(bag), '--out', str(closed), '--no-report']) == 0
+    assert main(['replay', str(bag), '--out', str(opened), '--open-loop']) == 0
+    capsys.readouterr()
+    plan = rp.plan_replay(bag)
+    assert plan.cfg.estimator.correction.enabled
+    plan.cfg = with_values(plan.cfg, {'estimator.correction.enabled': False})
+    off = rp.replay(plan, output_rate_Hz=10.0)
+    table = np.genfromtxt(opened / 'estimates.csv', delimiter=',', names=True)
+    # the CSV holds 4 decimals
+    assert np.allclose(table['winding_mean_C'], off.temperatures_C['winding_mean'], atol=1e-4)
+    corrected = np.genfromtxt(closed / 'estimates.csv', delimiter=',', names=True)
+    assert np.max(np.abs(corrected['winding_mean_C'] - table['winding_mean_C'])) > 1e-3
+    assert 'Off (`--open-loop`' in (opened / 'report.md').read_text()

@@ -8,11 +8,12 @@ exits with status 2, without a traceback; nothing runs after a bad config.
 import argparse
 import math
 from pathlib import Path
+import shlex
 import sys
 import time
 from typing import List, Optional
 
-from .config import ConfigError, load_config
+from .config import ConfigError, load_config, with_values
 from .model.kinetics import DutyError
 from .model.validity import ValidityLog
 
@@ -224,6 +225,8 @@ def _replay(args: argparse.Namespace) -> int:
         plan = rp.plan_replay(args.bag, args.config, rp.parse_mapping(args.map))
     except rp.ReplayError as exc:
         raise BadArgument(str(exc)) from None
+    if args.open_loop:
+        plan.cfg = with_values(plan.cfg, {'estimator.correction.enabled': False})
     info = plan.info
     print(f'{info.path}: {info.message_count} messages, '
           f'{(info.end_time_ns - info.start_time_ns) * 1e-9:.1f} s; configuration: '
@@ -261,6 +264,76 @@ def _replay(args: argparse.Namespace) -> int:
     if result.truncated:
         print(f'warning: the bag ended early ({result.problem}): the outputs cover the '
               f'{result.messages} messages recovered', file=sys.stderr)
+    print('wrote ' + ', '.join(str(f) for f in files))
+    return 0
+
+
+def _calibrate(args: argparse.Namespace) -> int:
+    from . import calibration as cb
+    from .bag.reader import BagError, open_bag
+    from .replay import choose_config, parse_mapping, ReplayError
+
+    if args.jobs < 1:
+        raise BadArgument(f'--jobs {args.jobs}: must be at least 1')
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise BadArgument(f'--out {out}: exists and is not a folder')
+    both = sorted({str(p) for p in args.logs} & {str(p) for p in args.validate})
+    if both:
+        raise BadArgument(f'{both[0]}: given both to fit on and to --validate: a held-out log '
+                          'must not be fitted')
+    try:
+        mapping = parse_mapping(args.map)
+        config = choose_config(open_bag(args.logs[0]), args.config)
+        cfg = config[0]
+        keys = cb.fit_keys(cfg, args.fit)
+        paths = list(args.logs) + list(args.validate)
+        plans = [cb.plan_log(path, config, mapping) for path in paths]     # all checked first
+        t0 = time.perf_counter()
+        logs = []
+        for k, (path, plan) in enumerate(zip(paths, plans)):
+            print(f'reading {path} ({k + 1} of {len(paths)})', file=sys.stderr, flush=True)
+            logs.append(cb.read_log(plan, cfg.calibration, path))
+    except (BagError, ReplayError, cb.CalibrationError) as exc:
+        raise BadArgument(str(exc)) from None
+    read_s = time.perf_counter() - t0
+    print(f'configuration: {config[1]}; fitting {", ".join(keys)}')
+    for k, log in enumerate(logs):
+        role = 'fit' if k < len(args.logs) else 'held out'
+        print(f'  {log.path} ({role}): {log.duration_s:.0f} s, thermocouples '
+              f'{", ".join(log.thermocouples)}, start {log.start_C:.2f} degC')
+        for w in log.warnings:
+            print(f'warning: {w}', file=sys.stderr)
+    t_fit = time.perf_counter()
+
+    def say(text: str) -> None:
+        print(f'[{time.perf_counter() - t_fit:6.1f} s] {text}', file=sys.stderr, flush=True)
+
+    try:
+        run = cb.calibrate(logs[:len(args.logs)], cfg, keys, validate_logs=logs[len(args.logs):],
+                           config_source=config[1], jobs=args.jobs, on_progress=say)
+    except cb.CalibrationError as exc:
+        raise BadArgument(str(exc)) from None
+    run.read_s = read_s
+    command = 'wet-eha-thermal ' + ' '.join(shlex.quote(a) for a in args.argv)
+    files = cb.write_outputs(run, out, command)
+    print('\nparameters: nominal -> calibrated [95 % interval]')
+    for p in run.parameters:
+        if p.identifiable:
+            print(f'  {p.key:<42} {p.nominal:<10.4g} -> {p.value:<10.4g} '
+                  f'[{p.ci95[0]:.4g}, {p.ci95[1]:.4g}]{"  " + p.note if p.note else ""}')
+        else:
+            print(f'  {p.key:<42} {p.nominal:<10.4g} held: not identifiable ({p.note})')
+    for lf in run.logs:
+        role = 'fit' if lf.role == 'fit' else 'held out'
+        print(f'{lf.log.name} ({role}): model - thermocouple, max abs over '
+              f'{cfg.calibration.residual_interval_s:g} s means, nominal -> calibrated (K)')
+        print('  ' + ', '.join(f'{c} {lf.before[c]["max_abs_K"]:.2f} -> '
+                               f'{lf.after[c]["max_abs_K"]:.2f}' for c in lf.windows.channels))
+    for m in run.messages:
+        print(f'warning: {m}', file=sys.stderr)
+    print(f'wall time: reading {run.read_s:.1f} s, fit {run.fit_s:.1f} s ({run.evaluations} '
+          f'model runs of whole logs, {run.iterations} iterations, {args.jobs} jobs)')
     print('wrote ' + ', '.join(str(f) for f in files))
     return 0
 
@@ -362,7 +435,36 @@ def build_parser() -> argparse.ArgumentParser:
                    help='rate of the estimates written (default: %(default)g; the model steps '
                         'at 50 Hz)')
     p.add_argument('--no-report', action='store_true', help='skip the plots and report.md')
+    p.add_argument('--open-loop', action='store_true',
+                   help='do not let the thermocouples correct the model (estimator.correction '
+                        'off): the errors against them then validate the model itself')
     p.set_defaults(func=_replay)
+
+    p = sub.add_parser('calibrate', help='fit model parameters to the thermocouples of bench logs',
+                       description='Fit parameters of the thermal model (contact gaps, '
+                                   'convection, loss and leakage coefficients, heat capacities: '
+                                   'the keys with bounds in calibration.bounds) to the '
+                                   'thermocouples of one or more MCAP logs, check the result on '
+                                   'held-out logs, and write calibrated.yaml (loads as any '
+                                   'configuration; records each value, its 95 % interval and '
+                                   'the logs) and report.md with plots. Parameters the logs '
+                                   'cannot identify are held at their nominal values.')
+    p.add_argument('logs', type=Path, nargs='+', metavar='LOG', help='MCAP logs to fit on')
+    p.add_argument('--validate', type=Path, nargs='+', default=[], metavar='LOG',
+                   help='held-out MCAP logs: errors before and after, not fitted')
+    p.add_argument('--fit', nargs='+', default=None, metavar='KEY',
+                   help='dotted keys to fit, each with bounds in calibration.bounds (default: '
+                        'calibration.fit)')
+    p.add_argument('--config', type=Path, default=None,
+                   help='YAML configuration (default: stored in the first log, else the '
+                        'reference rig)')
+    p.add_argument('--map', action='append', default=[], metavar='NAME=/TOPIC',
+                   help='topic of an input, a thermocouple (measured/frame, ...) or ambient, as '
+                        'for replay; repeatable')
+    p.add_argument('--out', default='out/calibrate', help='output folder (default: %(default)s)')
+    p.add_argument('--jobs', type=int, default=2,
+                   help='worker processes evaluating the model (default: %(default)s)')
+    p.set_defaults(func=_calibrate)
 
     # parsed by the player itself (main() hands it everything after 'play')
     sub.add_parser('play', add_help=False,
@@ -378,6 +480,7 @@ def main(argv: Optional[List[str]] = None) -> int:
         from .ros import player
         return player.main(argv[1:])
     args = build_parser().parse_args(argv)
+    args.argv = argv
     try:
         return args.func(args)
     except (BadArgument, ConfigError, DutyError) as exc:

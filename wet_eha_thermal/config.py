@@ -28,11 +28,16 @@ class ConfigError(ValueError):
 
 def spec(low: Optional[float] = None, high: Optional[float] = None, *,
          low_open: bool = False, high_open: bool = False, default: Any = dataclasses.MISSING,
-         choices: Optional[Tuple[str, ...]] = None, doc: str = ''):
-    """Declare a config field with its allowed range (or choices) and a short description."""
+         choices: Optional[Tuple[str, ...]] = None, doc: str = '',
+         default_factory: Any = dataclasses.MISSING, min_items: int = 1):
+    """
+    Declare a config field with its allowed range (or choices) and a short description.
+
+    ``min_items``: the fewest entries a list field may hold.
+    """
     meta = {'low': low, 'high': high, 'low_open': low_open, 'high_open': high_open,
-            'choices': choices, 'doc': doc}
-    return field(default=default, metadata=meta)
+            'choices': choices, 'doc': doc, 'min_items': min_items}
+    return field(default=default, default_factory=default_factory, metadata=meta)
 
 
 def positive(doc: str = '', **kw):
@@ -59,6 +64,9 @@ def _check_value(key: str, value: Any, tp: Any, meta: dict) -> Any:
         if value is None:
             return None
         tp = [t for t in typing.get_args(tp) if t is not type(None)][0]
+        origin = typing.get_origin(tp)
+    if dataclasses.is_dataclass(tp):
+        return from_dict(tp, value, key)
     if tp is bool:
         if not isinstance(value, bool):
             raise ConfigError(f'{key} = {value!r}: expected true or false')
@@ -88,9 +96,19 @@ def _check_value(key: str, value: Any, tp: Any, meta: dict) -> Any:
                               f'{", ".join(meta["choices"])}')
         return value
     elif origin is tuple:
-        if not isinstance(value, (list, tuple)) or not value:
-            raise ConfigError(f'{key} = {value!r}: expected a non-empty list of numbers')
-        return tuple(_check_value(f'{key}[{i}]', v, float, meta) for i, v in enumerate(value))
+        item = typing.get_args(tp)[0]
+        if not isinstance(value, (list, tuple)) or len(value) < meta.get('min_items', 1):
+            what = 'numbers' if item is float else 'entries'
+            raise ConfigError(f'{key} = {value!r}: expected a non-empty list of {what}')
+        return tuple(_check_value(f'{key}[{i}]', v, item, meta) for i, v in enumerate(value))
+    elif origin is dict:
+        if not isinstance(value, dict):
+            raise ConfigError(f'{key} = {value!r}: expected a mapping')
+        item = typing.get_args(tp)[1]
+        for k in value:
+            if not isinstance(k, str):
+                raise ConfigError(f'{key}: key {k!r} is not text')
+        return {k: _check_value(f'{key}.{k}', v, item, meta) for k, v in value.items()}
     lo, hi = meta.get('low'), meta.get('high')
     bad_lo = lo is not None and (value <= lo if meta['low_open'] else value < lo)
     bad_hi = hi is not None and (value >= hi if meta['high_open'] else value > hi)
@@ -463,6 +481,76 @@ class Alerts:
 
 
 @dataclass(frozen=True, kw_only=True)
+class Thermocouple:
+    """One rig thermocouple as the live correction sees it."""
+
+    use: bool = spec(default=True, doc='correct the model with it; false: displayed only')
+    sigma_K: float = spec(0.0, 50.0, low_open=True, default=0.5,
+                          doc='1-sigma noise of one reading (K)')
+
+
+@dataclass(frozen=True, kw_only=True)
+class Thermocouples:
+    """The rig's thermocouples (``ros.topics.THERMOCOUPLES``) and the trust in each."""
+
+    winding: Thermocouple = field(default_factory=Thermocouple)
+    frame: Thermocouple = field(default_factory=Thermocouple)
+    pump_inlet: Thermocouple = field(default_factory=Thermocouple)
+    pump_case: Thermocouple = field(default_factory=Thermocouple)
+    chamber_a: Thermocouple = field(default_factory=Thermocouple)
+    chamber_b: Thermocouple = field(default_factory=Thermocouple)
+    motor_oil_outlet: Thermocouple = field(default_factory=Thermocouple)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Correction:
+    """
+    Live correction of the model with measured temperatures (``estimator/correction.py``).
+
+    Every key has a default: a configuration without this section runs
+    open-loop, as before the correction existed.
+    """
+
+    enabled: bool = spec(default=False, doc='false: thermocouples are displayed, never used')
+    thermocouples: Thermocouples = field(default_factory=Thermocouples)
+    heat_noise_W: float = spec(0.0, 1000.0, default=0.5, doc=(
+        'process noise: white heat-rate error into every node with heat capacity, 1 sigma '
+        'of its mean over 1 s (W)'))
+    case_heat_sigma_W: float = spec(0.0, 1000.0, default=20.0, doc=(
+        'prior 1 sigma of an unknown heat into the pump case oil that the filter learns '
+        '(W); 0: no such state'))
+    case_heat_rate_W_per_sqrt_s: float = spec(0.0, 100.0, default=0.3, doc=(
+        'random-walk rate of that heat (W/s^0.5)'))
+    winding_heat_sigma_W: float = spec(0.0, 1000.0, default=0.0, doc=(
+        'prior 1 sigma of an unknown heat into the winding (W); 0: no such state'))
+    winding_heat_rate_W_per_sqrt_s: float = spec(0.0, 100.0, default=0.1, doc=(
+        'random-walk rate of that heat (W/s^0.5)'))
+    initial_correlation: float = spec(0.0, 0.999, default=0.9, doc=(
+        'correlation of the temperature errors when the correction starts (their 1 sigma '
+        'is estimator.model_uncertainty_K)'))
+    unmodelled_sigma_K: float = spec(0.0, 50.0, default=0.5, doc=(
+        'added (in quadrature) to every filtered uncertainty: what the filter does not model'))
+    stale_timeout_s: float = spec(0.0, 3600.0, low_open=True, default=2.0, doc=(
+        'a thermocouple silent this long is stale; an older reading is never used'))
+    gate_sigma: float = spec(1.0, 100.0, default=5.0, doc=(
+        'a reading whose innovation exceeds this many sigma is not used'))
+    gate_count: int = spec(1, 100000, default=5, doc=(
+        'that many gated readings in a row drop the thermocouple'))
+    recover_count: int = spec(1, 100000, default=10, doc=(
+        'that many readings inside the gate in a row take a dropped thermocouple back'))
+    noise_window: int = spec(4, 100000, default=20, doc=(
+        'readings over which the observed noise is measured'))
+    noisy_ratio: float = spec(1.0, 1000.0, low_open=True, default=4.0, doc=(
+        'observed noise above this multiple of sigma_K drops the thermocouple'))
+    stuck_window_s: float = spec(0.0, 3600.0, low_open=True, default=3.0, doc=(
+        'readings that stay within stuck_tolerance_K this long are frozen: not used'))
+    stuck_tolerance_K: float = spec(0.0, 10.0, default=0.01, doc=(
+        'spread of frozen readings (K); keep it below the sensor resolution'))
+    stuck_motion_K: float = spec(0.0, 100.0, low_open=True, default=1.0, doc=(
+        'a frozen thermocouple whose estimate moved this much since it froze is stuck'))
+
+
+@dataclass(frozen=True, kw_only=True)
 class EstimatorSettings:
     """The live estimator: model step, averaging, fallbacks, forecast, uncertainty, alerts."""
 
@@ -482,6 +570,159 @@ class EstimatorSettings:
         'one p_A - p_B sensor, the low side at the accumulator precharge pressure'))
     channels: Channels
     alerts: Alerts
+    correction: Correction = field(default_factory=Correction)
+
+
+@dataclass(frozen=True, kw_only=True)
+class CalibratedParameter:
+    """One parameter of a calibration: the value fitted and its 95 % interval, or why not."""
+
+    key: str = spec(doc='dotted key of the thermal-model parameter')
+    nominal: float = spec(doc="value before the calibration (the key's unit)")
+    value: float = spec(doc='value after it: the nominal when the data could not identify it')
+    ci95_low: Optional[float] = spec(default=None, doc='95 % interval; null when not fitted')
+    ci95_high: Optional[float] = spec(default=None)
+    identifiable: bool = spec(doc='false: the logs do not determine it; held at the nominal')
+    step_shift: float = spec(default=0.0, doc=(
+        'the change a finer model step implies (linearised); inside the interval'))
+    note: str = spec(default='', doc='why it was held, or that it ended on a bound')
+
+    def check(self, key: str) -> None:
+        """Check the interval holds the value and exists only for a fitted parameter."""
+        model_parameter(self.key, f'{key}.key = {self.key!r}')
+        if (self.ci95_low is None) != (self.ci95_high is None):
+            raise ConfigError(f'{key}: give both ci95_low and ci95_high, or neither')
+        if self.ci95_low is not None and not self.ci95_low <= self.value <= self.ci95_high:
+            raise ConfigError(f'{key}.value = {self.value!r}: outside its interval '
+                              f'[{self.ci95_low!r}, {self.ci95_high!r}]')
+        if not self.identifiable and self.ci95_low is not None:
+            raise ConfigError(f'{key}: a parameter that was not identifiable has no interval')
+
+
+@dataclass(frozen=True, kw_only=True)
+class CalibrationLog:
+    """A log a calibration used: where it was and what it was (to tell if it changed)."""
+
+    path: str = spec(doc='as given on the command line')
+    role: str = spec(choices=('fit', 'validate'))
+    size_bytes: int = spec(0, None)
+    sha256: str = spec(doc='hex digest of the file; empty for data made in memory')
+    duration_s: float = spec(0.0, None, doc='span of the inputs used')
+
+    def check(self, key: str) -> None:
+        """Check the digest is 64 hex digits (or empty)."""
+        if self.sha256 and (len(self.sha256) != 64
+                            or any(c not in '0123456789abcdef' for c in self.sha256)):
+            raise ConfigError(f'{key}.sha256 = {self.sha256!r}: expected 64 hex digits')
+
+
+@dataclass(frozen=True, kw_only=True)
+class CalibrationResult:
+    """What ``wet-eha-thermal calibrate`` did: written into the calibrated configuration."""
+
+    created_utc: str = spec(doc='ISO 8601')
+    base_config: str = spec(doc='the configuration the fit started from')
+    step_s: float = spec(0.001, 1.0, doc='model step of the fit')
+    parameters: Tuple[CalibratedParameter, ...] = spec()
+    logs: Tuple[CalibrationLog, ...] = spec()
+    fit_rms_before_K: float = spec(0.0, None, doc='RMS error over the fit logs, nominal')
+    fit_rms_after_K: float = spec(0.0, None, doc='the same, calibrated')
+
+
+@dataclass(frozen=True, kw_only=True)
+class Calibration:
+    """
+    Calibration of the thermal model on bench logs (``wet-eha-thermal calibrate``).
+
+    Every key has a default, so a configuration without this section loads;
+    ``bounds`` then holds nothing and a calibration needs them added.
+    """
+
+    step_s: float = spec(0.001, 1.0, default=1.0, doc=(
+        'model step of the fit; each evaluation reruns every log at this step'))
+    average_rate_Hz: float = spec(1.0, 5000.0, default=50.0, doc=(
+        'the inputs are averaged once onto this grid (current as RMS, the others as means, '
+        'the position sampled); a whole number of grid intervals per step'))
+    residual_interval_s: float = spec(0.0, 3600.0, low_open=True, default=10.0, doc=(
+        'the readings and the model are compared as means over intervals this long'))
+    thermocouple_sigma_K: float = spec(0.0, 50.0, low_open=True, default=0.2, doc=(
+        '1-sigma noise of one reading when its message gives variance 0'))
+    thermocouple_lag_s: float = spec(0.0, 600.0, default=1.0, doc=(
+        'first-order lag of the thermocouples, applied to the model before comparing'))
+    min_effect_K: float = spec(0.0, 100.0, default=0.5, doc=(
+        'a parameter moved across its bounds must change some reading by this much (RMS '
+        'over the log) to be fitted'))
+    max_collinearity: float = spec(1.0, None, default=20.0, doc=(
+        'a parameter whose effect is this close to a combination of the others is held'))
+    max_ci_fraction: float = spec(0.0, 1.0, low_open=True, default=0.25, doc=(
+        'a fitted parameter whose 95 % interval is wider than this share of its bounds is '
+        'not identified: held at its nominal value'))
+    max_iterations: int = spec(1, 1000, default=30, doc='model evaluations of the fit, at most')
+    check_step_s: float = spec(0.0, 1.0, default=0.1, doc=(
+        'the fitted model is run once more at this finer step: the shift of each parameter '
+        'it implies is reported and widens its interval; 0: no check'))
+    fit: Tuple[str, ...] = spec(default=(), min_items=0, doc=(
+        'the parameters fitted when the command names none (dotted keys with bounds)'))
+    bounds: Dict[str, Tuple[float, ...]] = spec(default_factory=dict, doc=(
+        "key: [low, high] in the key's own unit; the parameters a calibration may fit"))
+    result: Optional[CalibrationResult] = spec(default=None, doc=(
+        'written by the calibration: fitted values, intervals, logs'))
+
+    def check(self, key: str) -> None:
+        """Check the steps fit together, every bound is [low, high] and every fit key has one."""
+        for name, step in (('step_s', self.step_s), ('check_step_s', self.check_step_s)):
+            per_step = step * self.average_rate_Hz
+            if step and abs(per_step - round(per_step)) > 1e-6 * max(per_step, 1.0):
+                raise ConfigError(f'{key}.average_rate_Hz = {self.average_rate_Hz!r}: must '
+                                  f'give a whole number of intervals per {key}.{name} = '
+                                  f'{step!r}')
+        if self.check_step_s >= self.step_s:
+            raise ConfigError(f'{key}.check_step_s = {self.check_step_s!r}: must be below '
+                              f'{key}.step_s = {self.step_s!r} (or 0: no check)')
+        if self.residual_interval_s < self.step_s:
+            raise ConfigError(f'{key}.residual_interval_s = {self.residual_interval_s!r}: must '
+                              f'be at least {key}.step_s = {self.step_s!r}')
+        for name, pair in self.bounds.items():
+            if len(pair) != 2 or not pair[0] < pair[1]:
+                raise ConfigError(f'{key}.bounds.{name} = {list(pair)!r}: expected [low, high] '
+                                  'with low < high')
+        for i, name in enumerate(self.fit):
+            if name not in self.bounds:
+                raise ConfigError(f'{key}.fit[{i}] = {name!r}: has no bounds; add '
+                                  f'"{name}: [low, high]" to {key}.bounds')
+            if name in self.fit[:i]:
+                raise ConfigError(f'{key}.fit[{i}] = {name!r}: listed twice')
+
+
+#: Sections of the configuration whose numbers are parameters of the thermal model.
+MODEL_SECTIONS = ('motor', 'hydraulics')
+
+
+def model_parameter(key: str, where: Optional[str] = None) -> dict:
+    """
+    Return the range metadata of a numeric thermal-model key (``hydraulics.pump.extra_loss_W``).
+
+    Raise :class:`ConfigError`, whose message starts with ``where`` (default:
+    the key), when ``key`` names no field, or one that is not a plain number
+    of ``motor`` or ``hydraulics``.
+    """
+    prefix = where or key
+    if key.split('.')[0] not in MODEL_SECTIONS:
+        raise ConfigError(f'{prefix}: not a parameter of the thermal model (a number under '
+                          f'{" or ".join(s + "." for s in MODEL_SECTIONS)})')
+    cls: Any = Config
+    tp: Any = None
+    meta: dict = {}
+    for part in key.split('.'):
+        fields = {f.name: f for f in dataclasses.fields(cls)} \
+            if dataclasses.is_dataclass(cls) else {}
+        if part not in fields:
+            raise ConfigError(f'{prefix}: no such key in the configuration')
+        tp, meta = typing.get_type_hints(cls)[part], dict(fields[part].metadata)
+        cls = tp
+    if tp is not float:
+        raise ConfigError(f'{prefix}: not a number that can be fitted')
+    return meta
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -493,6 +734,19 @@ class Config:
     fluid: Fluid
     maps: MapsJob
     estimator: EstimatorSettings
+    calibration: Calibration = field(default_factory=Calibration)
+
+    def check(self, key: str) -> None:
+        """Check each calibration bound names a model parameter and holds its present value."""
+        for name, (low, high) in self.calibration.bounds.items():
+            where = f'calibration.bounds.{name}'
+            meta = model_parameter(name, where)
+            for value in (low, high):
+                _check_value(where, value, float, meta)    # a bound the key itself allows
+            nominal = config_value(self, name)
+            if not low <= nominal <= high:
+                raise ConfigError(f'{where} = [{low!r}, {high!r}]: does not hold the configured '
+                                  f'value {name} = {nominal!r}')
 
 
 def config_dir() -> Path:

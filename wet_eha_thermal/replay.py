@@ -71,8 +71,8 @@ class ReplayPlan:
         return specs
 
 
-def _config(info: BagInfo, config_path: Optional[os.PathLike]) -> tuple:
-    """Return (configuration, where it came from, its YAML text)."""
+def choose_config(info: BagInfo, config_path: Optional[os.PathLike]) -> tuple:
+    """Return (configuration, where it came from, its YAML text): given, stored, or shipped."""
     if config_path is not None:
         cfg = load_config(config_path)        # a ConfigError names an unreadable file
         return cfg, str(config_path), Path(config_path).read_text()
@@ -101,18 +101,21 @@ def _match_pressure_inputs(cfg: Config, wanted, source: str, info: BagInfo,
 
 
 def plan_replay(path: os.PathLike, config_path: Optional[os.PathLike] = None,
-                mapping: Optional[Mapping[str, str]] = None) -> ReplayPlan:
+                mapping: Optional[Mapping[str, str]] = None,
+                config: Optional[tuple] = None) -> ReplayPlan:
     """
     Open a bag and decide which topics feed the estimator; raise ReplayError when none does.
 
     ``mapping`` maps input or thermocouple names (``current_A``, ...,
     ``measured/frame``, ``ambient``) to topics, replacing the defaults.
+    ``config`` (a :func:`choose_config` tuple) is used instead of choosing one
+    for this bag, e.g. one configuration for several bags.
     """
     try:
         info = open_bag(path)
     except BagError as exc:
         raise ReplayError(str(exc)) from exc
-    cfg, source, text = _config(info, config_path)
+    cfg, source, text = config if config is not None else choose_config(info, config_path)
     mapping = dict(mapping or {})
     known = set(INPUTS) | {'dp_Pa', 'ambient'} | {f'measured/{tc}' for tc in
                                                   topics.THERMOCOUPLES}
@@ -172,6 +175,9 @@ class ReplayResult:
     problem: Optional[str]
     health: Dict[str, dict] = field(default_factory=dict)
     implausible: Dict[str, int] = field(default_factory=dict)   # steps, per combination
+    # live correction (estimator.correction): None when off; else learned heats (W) and
+    # every thermocouple's status and counters
+    correction: Optional[dict] = None
 
     @property
     def speed_x(self) -> float:
@@ -256,6 +262,11 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
                     if tc_topic == topic:
                         measured[tc][0].append(t)
                         measured[tc][1].append(columns.values['temperature'])
+                        # for the live correction (and the display): each reading is used
+                        # by stamp, so the whole block may go in before the steps
+                        for stamp, value in zip(t.tolist(),
+                                                columns.values['temperature'].tolist()):
+                            est.add_measured(tc, stamp, value)
         # an ambient reading applies from its stamp on, as it does live: feed the inputs
         # up to each reading, step, then take it
         cuts = {name: np.searchsorted(t, ambient[0], side='right')
@@ -292,7 +303,13 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
         sample_time_s=est.steps * step_s, wall_s=wall, truncated=blocks.truncated,
         problem=blocks.problem,
         health={name: dict(vars(h)) for name, h in est.health.items()},
-        implausible=dict(est.implausible_counts))
+        implausible=dict(est.implausible_counts),
+        correction=None if est.correction is None else {
+            'active': est.correction.active, 'updates': est.correction.updates,
+            'disturbance_W': dict(zip(est.correction.disturbance_names,
+                                      est.correction.d.tolist())),
+            'thermocouples': {tc: dict(vars(h)) for tc, h in est.correction.tcs.items()
+                              if h.received}})
 
 
 # ------------------------------------------------------------------ outputs
@@ -361,11 +378,17 @@ def thermocouple_errors(result: ReplayResult) -> Dict[str, dict]:
         if not np.any(inside):
             continue
         err = np.interp(t[inside], result.stamp_s, est) - v[inside]
-        out[tc] = {'estimate': topics.THERMOCOUPLES[tc], 'n': int(err.size),
-                   'max_abs_K': float(np.max(np.abs(err))),
-                   'rms_K': float(np.sqrt(np.mean(err ** 2))), 'bias_K': float(np.mean(err)),
+        out[tc] = {'estimate': topics.THERMOCOUPLES[tc], **error_stats(err),
                    't_s': t[inside], 'error_K': err}
     return out
+
+
+def error_stats(err: np.ndarray) -> Dict[str, float]:
+    """Return the count, max abs, RMS and bias (mean) of errors (K); NaN for none."""
+    if not err.size:
+        return {'n': 0, 'max_abs_K': math.nan, 'rms_K': math.nan, 'bias_K': math.nan}
+    return {'n': int(err.size), 'max_abs_K': float(np.max(np.abs(err))),
+            'rms_K': float(np.sqrt(np.mean(err ** 2))), 'bias_K': float(np.mean(err))}
 
 
 def write_report(result: ReplayResult, out_dir: Path) -> Path:
@@ -459,6 +482,23 @@ def write_report(result: ReplayResult, out_dir: Path) -> Path:
         lines.append(f'| {name} | {h["received"]} | {h["accepted"]} | {rejected} |')
     implausible = ', '.join(f'{k} {v}' for k, v in result.implausible.items())
     lines += ['', f'Implausible steps: {implausible}']
+    lines += ['', '## Live correction', '']
+    c = result.correction
+    if c is None:
+        lines.append('Off (`--open-loop`, or estimator.correction.enabled: false): the '
+                     'estimates are open loop.')
+    elif not c['active']:
+        lines.append('On, but no thermocouple reading was usable: the estimates are open loop.')
+    else:
+        heats = ', '.join(f'{k} {v:.2f} W' for k, v in c['disturbance_W'].items()) or 'none'
+        lines += [f'On: {c["updates"]} updates; learned heats at the end: {heats}. The errors '
+                  'above compare the corrected estimates with the thermocouples that '
+                  'corrected them.', '',
+                  '| thermocouple | status | received | used | gated | stale | dropped |',
+                  '| --- | --- | --- | --- | --- | --- | --- |']
+        lines += [f'| {tc} | {h["status"]} | {h["received"]} | {h["used"]} | {h["gated"]} | '
+                  f'{h["stale_events"]} | {h["dropped_events"]} |'
+                  for tc, h in c['thermocouples'].items()]
     lines += [''] + [f'![{p.stem}]({p.name})' for p in images]
     report = out_dir / 'report.md'
     tmp = _partial(report)

@@ -23,6 +23,12 @@ Implausible combinations (speed with no current; actuator flow with no
 speed; the position moving faster than the pump can drive it, which is then
 rate-limited) are counted per step.
 
+Thermocouple readings (``add_measured``) are shown beside the estimates they
+measure and, with ``estimator.correction.enabled``, correct the model through
+a Kalman filter (:mod:`.correction`) in sample time; with no readings the
+model runs open loop, bit for bit as without the filter. The uncertainty of
+each estimate then comes from the filter's covariance.
+
 ``background(budget_s)`` does the slow work in slices that fit a budget: a
 forecast that repeats the last ``forecast_window_s`` of duty to find when the
 winding, the magnets and the oil reach their limits, and the thermal margin
@@ -35,11 +41,12 @@ import copy
 from dataclasses import dataclass, field
 import math
 import time
-from typing import Deque, Dict, List, Optional, Tuple
+from typing import Any, Deque, Dict, List, Optional, Tuple
 
 import numpy as np
 
 from .alerts import AlertEvent, AlertManager, rules_from_config
+from .correction import ThermalCorrection
 from ..config import Config
 from ..model.eha import EHAModel, SampleBlock
 from ..model.motor import C_TO_K, MotorInputs, WetMotor
@@ -100,6 +107,8 @@ class Estimate:
     stale: List[str]
     implausible: List[str]
     step: int
+    # live correction (None when it is off): active, learned heats (W), thermocouple statuses
+    correction: Optional[Dict[str, Any]] = None
 
 
 @dataclass
@@ -138,6 +147,9 @@ class Estimator:
                      'p_acc_Pa': p_acc, 'dp_Pa': 0.0, 'position_m': 0.0}
         self.ambient_K = s.ambient_C + C_TO_K
         self.measured_C: Dict[str, tuple] = {}
+        # live correction with the thermocouples (estimator.correction): a Kalman filter
+        # that starts at the first usable reading; until then the model runs open loop
+        self.correction = ThermalCorrection(cfg, self.model) if s.correction.enabled else None
         self.alerts = AlertManager(rules_from_config({
             q: vars(getattr(s.alerts, q)) for q in ('winding_hotspot', 'magnet', 'oil')}))
         self.limits_C = {'winding_hotspot': cfg.motor.winding.insulation_limit_C,
@@ -240,10 +252,20 @@ class Estimator:
         return True
 
     def add_measured(self, name: str, stamp_s: float, value_C: float) -> bool:
-        """Keep a measured temperature (degC), reported beside the estimate of ``name``."""
+        """
+        Take a thermocouple reading (degC) of ``name`` (a key of ``topics.THERMOCOUPLES``).
+
+        It is reported beside the estimate it measures and, with the live
+        correction on, corrects the model at the end of the first step that
+        starts at or after ``stamp_s``. Returns whether it was accepted.
+        """
         if not math.isfinite(value_C):
+            if self.correction is not None and name in self.correction.tcs:
+                self.correction.add_reading(name, stamp_s, value_C)    # counted there
             return False
         self.measured_C[name] = (stamp_s, value_C)
+        if self.correction is not None and name in self.correction.tcs:
+            return self.correction.add_reading(name, stamp_s, value_C)
         return True
 
     def acknowledge(self, quantity: Optional[str] = None) -> List[AlertEvent]:
@@ -449,24 +471,48 @@ class Estimator:
         since_start = (self.steps + frac) * self.settings.step_s
         block = SampleBlock(since_start, *(values[n] for n in INPUTS))
         self.model.step(block, self.ambient_K)
+        corrected = None
+        if self.correction is not None:
+            corrected = self.correction.step(self.model, t0, t1, self.settings.step_s,
+                                             self._eps)
         self.t_model = t1
         self.steps += 1
         self._window.append(block)
         implausible = self._plausibility(values, t1 - t0)
-        temps = {k: v - C_TO_K for k, v in self.model.outputs().items()}
+        outputs = corrected if corrected is not None else self.model.outputs()
+        temps = {k: v - C_TO_K for k, v in outputs.items()}
         events = self.alerts.update(t1, {q: temps[q] for q in self.limits_C})
         worst_stale = max((t1 - self.health[n].stale_since_s for n in stale
                            if self.health[n].stale_since_s is not None), default=0.0)
-        sigma = self.settings.model_uncertainty_K \
-            + self.settings.stale_uncertainty_K_per_s * max(worst_stale, 0.0)
+        on_fallback = self.settings.stale_uncertainty_K_per_s * max(worst_stale, 0.0)
+        sigma = self.settings.model_uncertainty_K + on_fallback
+        if corrected is not None:
+            uncertainty = self._filtered_uncertainty(outputs, on_fallback, sigma)
+        else:
+            uncertainty = {k: sigma for k in temps}
         est = Estimate(
-            stamp_s=t1, temperatures_C=temps, uncertainty_K={k: sigma for k in temps},
+            stamp_s=t1, temperatures_C=temps, uncertainty_K=uncertainty,
             heat_W=dict(self.model.heat_W), limits_C=dict(self.limits_C),
             time_to_limit_s=dict(self._forecast_result), forecast_stamp_s=self._forecast_stamp,
             margin_current_A=self._margin, alert_level=int(self.alerts.worst()),
-            alert_events=events, stale=list(stale), implausible=implausible, step=self.steps)
+            alert_events=events, stale=list(stale), implausible=implausible, step=self.steps,
+            correction=self.correction.summary() if self.correction is not None else None)
         self.latest = est
         return est
+
+    def _filtered_uncertainty(self, outputs: Dict[str, float], on_fallback: float,
+                              open_loop: float) -> Dict[str, float]:
+        """
+        Return each output's 1 sigma (K) from the filter's covariance.
+
+        The filter's variance plus ``unmodelled_sigma_K`` in quadrature, plus
+        the growth for inputs on their fallback (the filter does not model
+        held inputs), never above the open-loop uncertainty: a filter that has
+        not seen a thermocouple for long knows no more than the model alone.
+        """
+        u2 = self.settings.correction.unmodelled_sigma_K ** 2
+        return {k: min(math.sqrt(v + u2) + on_fallback, open_loop)
+                for k, v in self.correction.variances(self.model, outputs).items()}
 
     def _model_inputs(self, values: Dict[str, np.ndarray]) -> Dict[str, np.ndarray]:
         """

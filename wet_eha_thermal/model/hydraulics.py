@@ -154,6 +154,7 @@ class HydraulicCircuit:
         # ambient, and the net enthalpy the motor adds to the oil passing through it
         self.energy_J = {'sources': 0.0, 'stored': 0.0, 'to_ambient': 0.0, 'motor_loop': 0.0}
         self.T_mean = np.full(n, np.nan)
+        self.last_step: Optional[tuple] = None
 
     def index(self, name: str) -> int:
         """Return the index of a node in the temperature vector."""
@@ -200,7 +201,8 @@ class HydraulicCircuit:
         T0_1 = np.empty(n + 1)         # the start temperatures and the constant input's 1
         T0_1[:n] = T0
         T0_1[n] = 1.0
-        T1 = scipy.linalg.expm(M)[:n] @ T0_1
+        E = scipy.linalg.expm(M)
+        T1 = E[:n] @ T0_1
         dT = T1 - T0
         self.T_mean = Tm = np.linalg.solve(K, s * dt_s - C * dT) / dt_s
         # the ledger in Python floats: a few scalars, where numpy scalars cost more
@@ -214,6 +216,10 @@ class HydraulicCircuit:
         e['to_ambient'] += float(np.dot(self.G_amb, Tm - ambient_K)) * dt_s
         e['motor_loop'] += motor_rate * (sf.motor_outlet_K - tm[_CASE]) * dt_s
         self.last_sources = heat
+        # what a state estimator needs to propagate a covariance through this step: the
+        # augmented transition (its last column holds the constant input), the exponent,
+        # the heat capacities and the motor loop's capacity rate (W/K)
+        self.last_step = (E, M, C, motor_rate)
         return T1
 
     def _line_conductances(self, T, p, rho, cp, flows) -> np.ndarray:

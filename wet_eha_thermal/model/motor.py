@@ -96,6 +96,9 @@ class WetMotor:
         self.x: Optional[np.ndarray] = None
         self.T: Optional[np.ndarray] = None
         self.power_W = np.zeros(self.net.ns)
+        # heat (W) per source added to the losses of every step: a state estimator's learned
+        # correction (None: nothing added, the losses are the model's own)
+        self.extra_power_W: Optional[np.ndarray] = None
         self._refreshed_at: Optional[tuple] = None
         self.refresh_dT_K = refresh_dT_K
         self.max_substep_s = max_substep_s
@@ -529,6 +532,8 @@ class WetMotor:
             if self._refresh_due(T_c, u_c):
                 self.refresh(T_c, u_c)
             self.power_W = self.losses(u)
+            if self.extra_power_W is not None:
+                self.power_W = self.power_W + self.extra_power_W
             x_new, T_new, T_mean = self.net.step_temperatures(self.x, h, Tb, self.power_W)
             self._book(h, x_new - self.x, T_mean, u, Tb)
             # the mean over the sub-steps (summed from zero, as 0 + x is x)

@@ -72,6 +72,7 @@ class ThermalNetwork:
         self.hold_changes = False
         self.changes_pending = False
         self.discretise_count = 0       # exponentials computed: the expensive part of a step
+        self.last_disc: Optional[Discretisation] = None   # used by the last step_temperatures
 
     # ----------------------------------------------------------------- build
     def add_node(self, name: str, capacity_J_K: float = 0.0) -> str:
@@ -452,6 +453,7 @@ class ThermalNetwork:
         and one lookup of the matrices serve all three.
         """
         disc = self.discretise(dt_s)
+        self.last_disc = disc         # the matrices of this step, for a state estimator
         w = self.inputs(boundary_K, power_W)
         x_new = disc.Ad @ x + disc.Bd @ w
         x_mean = disc.Mx @ x + disc.Mw @ w

@@ -11,6 +11,9 @@ fall silent. Each new estimate is published: one sensor_msgs/Temperature per nam
 ``topics.ESTIMATES`` (stamped with the estimate's sample time, strictly
 increasing), the state vector, and the alert summary whenever it changes
 (latched). The rest of each tick's budget goes to the forecast and margin.
+Thermocouples (``/eha/measured/<tc>``) go to the core with their header stamps:
+with the live correction on they correct the model, and /diagnostics carries
+one status per thermocouple (used, held, dropped or stale, with counters).
 A second timer publishes /diagnostics. No callback ever raises: a failure is
 logged, counted and shown in the diagnostics.
 
@@ -415,6 +418,8 @@ class EstimatorNode(Node):
             arr.status = [self._estimate_status()] + [
                 self._input_status(n, now_ns * 1e-9) for n in self.est.inputs] + [
                 self._plausibility_status()]
+            if self.est.correction is not None:
+                arr.status += [self._thermocouple_status(tc) for tc in topics.THERMOCOUPLES]
             self.diag_pub.publish(arr)
         except Exception as exc:  # noqa: B902
             self._failed('diagnostics', exc)
@@ -464,6 +469,7 @@ class EstimatorNode(Node):
                 values.append((f'measured {tc} [degC]',
                                f'{t_meas:.2f} (estimate {name} '
                                f'{est.temperatures_C[name] - t_meas:+.2f} K)'))
+        values += self._correction_values()
         values += [('alerts', self.est.alerts.summary()['message']),
                    ('inputs on fallback', ', '.join(stale) or 'none'),
                    ('estimates published', self.published),
@@ -473,6 +479,58 @@ class EstimatorNode(Node):
                    ('callback errors', sum(self.callback_errors.values())),
                    ('samples before the clock', self.waiting_for_clock)]
         return self._status('estimate', level, message, values)
+
+    def _correction_values(self) -> list:
+        """Return the estimate status's key-values of the live correction."""
+        c = self.est.correction
+        if c is None:
+            return [('correction', 'off (estimator.correction.enabled: false)')]
+        used = [tc for tc, h in c.tcs.items() if h.status == 'ok']
+        dropped = [f'{tc} ({h.status})' for tc, h in c.tcs.items() if h.dropped]
+        if not c.active:
+            text = 'waiting for a usable thermocouple: open loop'
+        else:
+            text = f'on, correcting with: {", ".join(used) or "none now"}'
+        if dropped:
+            text += f'; dropped: {", ".join(dropped)}'
+        values = [('correction', text), ('correction updates', c.updates),
+                  ('correction failures', c.failures if not c.failures
+                   else f'{c.failures} (last: {c.last_failure})')]
+        values += [(f'learned heat {name} [W]', f'{value:.2f}')
+                   for name, value in zip(c.disturbance_names, c.d.tolist())]
+        return values
+
+    def _thermocouple_status(self, tc: str) -> DiagnosticStatus:
+        """Return the status of one thermocouple in the live correction."""
+        h = self.est.correction.tcs[tc]
+        ok = DiagnosticStatus.OK[0]
+        level = {'ok': ok, 'waiting': ok, 'absent': ok, 'unused': ok,
+                 'stale': DiagnosticStatus.STALE[0]}.get(h.status, DiagnosticStatus.WARN[0])
+        message = {
+            'ok': 'correcting the model',
+            'waiting': 'learning its noise before use',
+            'absent': 'no reading yet',
+            'unused': 'displayed only (use: false)',
+            'held': 'not used',
+            'stale': 'stale: not used',
+        }.get(h.status, 'dropped from the correction')
+        if h.reason:
+            message += f': {h.reason}'
+        est = self.est.latest
+        estimate = est.temperatures_C.get(h.quantity) if est is not None else None
+        values = [('topic', self._topic(f'{topics.MEASURED_PREFIX}/{tc}')),
+                  ('measures', h.quantity), ('status', h.status),
+                  ('received', h.received), ('rejected', h.rejected), ('used', h.used),
+                  ('gated', h.gated), ('late', h.late), ('stale_events', h.stale_events),
+                  ('dropped_events', h.dropped_events), ('recovered', h.recovered),
+                  ('last_value [degC]', _fmt(h.last_value_C, '.2f', 'none')),
+                  ('last_stamp [s]', _fmt(h.last_stamp_s, '.3f', 'none')),
+                  (f'estimate {h.quantity} [degC]', _fmt(estimate, '.2f', 'none')),
+                  ('innovation [K]', _fmt(h.innovation_K, '+.3f', 'none')),
+                  ('innovation sigma [K]', _fmt(h.innovation_sigma_K, '.3f', 'none')),
+                  ('observed noise [K]', _fmt(h.noise_K, '.3f', 'none')),
+                  ('sigma_K (config)', f'{h.sigma_K:g}')]
+        return self._status(f'thermocouple {tc}', level, message, values)
 
     def _input_status(self, name: str, now_s: float) -> DiagnosticStatus:
         h = self.est.health[name]

@@ -1,0 +1,597 @@
+"""
+Live correction of the thermal model with the rig's thermocouples: a Kalman filter.
+
+The filter's state is the coupled model's own state, the motor network's
+states (K) and the 13 hydraulic node temperatures (K), augmented with up to
+two random-walk disturbances: an unknown heat into the pump case oil (W) and
+an unknown heat into the winding (W). A persistent model error, such as a
+seal friction loss the friction law lacks, is then learned as a heat and
+carried forward by the model itself (the case heat is added to the circuit's
+``extra_loss_W``, the winding heat to the motor's copper sources), instead of
+being fought anew at every step.
+
+Each model step, once the filter is active:
+
+- predict: the covariance goes through the step's exact transition, built
+  from what the model just used: the motor's zero-order-hold matrices
+  (``Ad``; the ``Bd`` column of the oil inlet, which is the pump case
+  temperature; the copper sources' columns with the linearised R(T) feedback
+  dP/dT), the hydraulic step's matrix exponential, and the motor outlet's
+  step-mean temperature (``Mx``, ``Mw``) that feeds the accumulator. Process
+  noise is a white heat-rate error per node with heat capacity (``heat_noise_W``,
+  K^2 = q^2 dt / C^2 per step), entered at the start of the step so that a
+  fast oil node passes it on to its neighbours within the step, as heat does;
+  the disturbances walk at their rates (their variance is capped at the prior).
+- update: every thermocouple reading that passed its guards (below) is a
+  scalar measurement of a linear output of the state: the winding mean and
+  frame are weighted sums of nodes, the oil volumes single nodes, and the
+  max-type outputs the hottest node. Scalar updates in turn, each in Joseph
+  form (written as rank-one terms, O(n^2)), then the covariance symmetrised.
+  The correction is written back into the model: motor states and node
+  temperatures together (algebraic nodes through the network's output map),
+  the hydraulic temperatures, and the pump case's previous temperature that
+  the motor's inlet extrapolation uses, so the next step does not take the
+  correction for a trend. The model's energy ledger books the learned heats
+  (as sources) but not the state corrections themselves.
+
+Sample time: a reading stamped ``t`` is used at the end of the first step
+that starts at or after ``t``. A reading stamped exactly at a step's end
+usually arrives after the live node made that step (the input sample that
+closed the step triggered it), so this rule gives a replay of a bag and the
+live run the same step, deterministically, for readings that arrive within a
+step of their stamp. The delay (up to one step, 20 ms) is negligible against
+a thermocouple's own lag (about 1 s), which is not modelled either.
+
+Guards: a thermocouple is never trusted blindly. Per thermocouple:
+
+- ``stale``: nothing for ``stale_timeout_s``; an older reading is not used.
+- ``held``: the readings stayed within ``stuck_tolerance_K`` for
+  ``stuck_window_s`` (a live sensor's noise moves it): not used. ``stuck``
+  (dropped): held while the estimate of its point moved by more than
+  ``stuck_motion_K``.
+- ``noisy`` (dropped): the observed noise, from the median of the last
+  ``noise_window`` differences of successive readings with the model's
+  predicted change removed (a median, so that one jump does not count as
+  noise), above ``noisy_ratio`` times ``sigma_K``, until it falls below half
+  that; below it, a reading is weighted with the larger of the stated and the
+  observed noise.
+- ``gated`` readings (innovation beyond ``gate_sigma`` sigma) are not used;
+  ``gate_count`` in a row drop the thermocouple (``implausible``), and
+  ``recover_count`` readings in a row inside the gate take it back (the gate
+  widens by itself while no thermocouple corrects the model, as the
+  covariance grows).
+- ``waiting``: fewer than 5 successive readings (the noise is not known yet);
+  ``absent``: no reading yet; ``unused``: ``use: false`` in the configuration.
+
+The filter starts at the first usable reading: until then, and with no
+thermocouples at all, the estimator runs open loop exactly as before (bit for
+bit, and at no cost). It starts from the open-loop error model: every
+temperature error has the 1 sigma ``estimator.model_uncertainty_K``, with
+correlation ``initial_correlation`` between nodes (an open-loop error is
+mostly a common offset: the oil that cools everything is off), and the
+disturbances their prior sigma.
+"""
+
+from collections import deque
+from dataclasses import dataclass, field
+import math
+import statistics
+from typing import Deque, Dict, List, Optional, Tuple
+
+import numpy as np
+from scipy.linalg.lapack import dgesv as _gesv
+
+from ..config import Config
+from ..model.eha import EHAModel, OIL_OUTPUTS
+from ..model.motor import C_TO_K
+from ..ros.topics import THERMOCOUPLES
+
+#: Readings outside this range (degC) are rejected as implausible values.
+READING_RANGE_C = (-60.0, 400.0)
+#: Successive readings needed before a thermocouple's noise is known and it may be used.
+MIN_READINGS = 5
+#: Statuses in which a thermocouple is dropped from the correction (reported as such).
+DROPPED = ('stuck', 'noisy', 'implausible')
+#: sigma of a reading from the median |difference| of two: 1 / (0.6745 sqrt(2))
+_MEDIAN_TO_SIGMA = 1.0 / (0.6744897501960817 * math.sqrt(2.0))
+
+
+@dataclass
+class ThermocoupleHealth:
+    """Status and counters of one thermocouple in the correction (reported in diagnostics)."""
+
+    quantity: str                   # the estimate it measures
+    sigma_K: float                  # stated 1-sigma noise
+    use: bool                       # configured for the correction
+    status: str = 'absent'   # absent, waiting, ok, held, stuck, noisy, implausible, stale, unused
+    received: int = 0
+    rejected: int = 0               # non-finite, out of range or stamp not increasing
+    used: int = 0                   # readings that corrected the model
+    gated: int = 0                  # readings beyond the innovation gate
+    late: int = 0                   # processed a step or more after their stamp
+    stale_events: int = 0
+    dropped_events: int = 0
+    recovered: int = 0              # returns from a drop
+    last_stamp_s: Optional[float] = None
+    last_value_C: Optional[float] = None
+    innovation_K: Optional[float] = None       # last reading minus the prior estimate
+    innovation_sigma_K: Optional[float] = None  # its predicted 1 sigma
+    noise_K: Optional[float] = None            # observed noise (1 sigma)
+    reason: str = ''
+
+    @property
+    def dropped(self) -> bool:
+        """Tell whether the thermocouple is dropped from the correction now."""
+        return self.status in DROPPED
+
+
+@dataclass
+class _Guard:
+    """Per-thermocouple memory of the guards."""
+
+    pending: Deque[Tuple[float, float]] = field(default_factory=deque)
+    recent: Deque[Tuple[float, float]] = field(default_factory=deque)   # for the stuck test
+    diffs: Deque[float] = field(default_factory=deque)                  # |differences| (K)
+    prev_value: Optional[float] = None     # last reading (K)
+    prev_post: Optional[float] = None      # estimate after the step of that reading (K)
+    frozen_since: Optional[float] = None
+    frozen_from_K: Optional[float] = None  # the estimate when the readings froze
+    gated_run: int = 0
+    ok_run: int = 0
+    status_before_stale: str = 'waiting'
+
+
+def _solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Return a^-1 b by LAPACK's gesv, without numpy's per-call overhead (a small system)."""
+    _, _, x, info = _gesv(a, b)
+    if info != 0:
+        raise np.linalg.LinAlgError(f'singular hydraulic step matrix (gesv info {info})')
+    return x
+
+
+class ThermalCorrection:
+    """Kalman filter on the coupled model, fed by timestamped thermocouple readings."""
+
+    def __init__(self, cfg: Config, model: EHAModel) -> None:
+        c = cfg.estimator.correction
+        self.settings = c
+        self.sigma0_K = cfg.estimator.model_uncertainty_K
+        mo = model.motor
+        net = mo.net
+        self.dynamic = net.dynamic
+        self.m = int(self.dynamic.size)
+        self.nh = model.circuit.n
+        # disturbance states: (name, prior sigma W, rate W/s^0.5)
+        dist = []
+        if c.case_heat_sigma_W > 0.0:
+            dist.append(('case_oil', c.case_heat_sigma_W, c.case_heat_rate_W_per_sqrt_s))
+        if c.winding_heat_sigma_W > 0.0:
+            dist.append(('winding', c.winding_heat_sigma_W, c.winding_heat_rate_W_per_sqrt_s))
+        self.disturbance_names = [d[0] for d in dist]
+        self._d_prior = np.array([d[1] for d in dist]) ** 2
+        self._d_rate2 = np.array([d[2] for d in dist]) ** 2
+        self.nd = len(dist)
+        self.n = self.m + self.nh + self.nd
+        self.d = np.zeros(self.nd)            # learned disturbances (W)
+        self._i_case_d = self.m + self.nh + self.disturbance_names.index('case_oil') \
+            if 'case_oil' in self.disturbance_names else None
+        self._i_wind_d = self.m + self.nh + self.disturbance_names.index('winding') \
+            if 'winding' in self.disturbance_names else None
+        self.base_extra_loss_W = model.circuit.extra_loss_W
+        # state positions of the motor nodes the outputs and the feedback use (all of them
+        # have heat capacity in this network; an algebraic one would need the output map)
+        self._state_of = {int(i): k for k, i in enumerate(self.dynamic.tolist())}
+        for idx in (mo.idx_copper, mo.idx_frame, mo.idx_magnet, mo.idx_gap, mo.idx_oil):
+            missing = [net.node_names[i] for i in idx if int(i) not in self._state_of]
+            if missing:
+                raise ValueError(f'correction: output nodes without heat capacity: {missing}')
+        self._s_copper = np.array([self._state_of[int(i)] for i in mo.idx_copper])
+        self._s_frame = np.array([self._state_of[int(i)] for i in mo.idx_frame])
+        self._s_magnet = np.array([self._state_of[int(i)] for i in mo.idx_magnet])
+        self._s_gap_out = self._state_of[int(mo.idx_gap[-1])]
+        self._s_outlet = self._state_of[int(mo.idx_oil[-1])]
+        self._w_copper = mo.copper_share / mo.copper_share.sum()
+        self._w_frame = mo.frame_volumes / mo.frame_volumes.sum()
+        nb = net.nb
+        self._col_inlet = net.boundary_index('oil_inlet')
+        self._src_copper = np.array(mo.src_copper)
+        self._col_copper = nb + self._src_copper
+        ci = model.circuit
+        self._h = {name: self.m + ci.index(node) for name, node in (
+            ('pump_case', 'case'), ('pump_port_a', 'port_a'), ('pump_port_b', 'port_b'),
+            ('chamber_a', 'chamber_a'), ('chamber_b', 'chamber_b'),
+            ('accumulator', 'accumulator'), ('line_a', 'line_a'), ('line_b', 'line_b'),
+            ('pump_shell', 'pump_shell'), ('actuator_shell', 'actuator_shell'))}
+        self._i_case = ci.index('case')
+        self._i_acc = ci.index('accumulator')
+        # the outputs that are weighted means of nodes: their (fixed) rows
+        self._weighted = {'winding_mean': 0, 'frame': 1}
+        self._H_weighted = np.zeros((2, self.n))
+        self._H_weighted[0, self._s_copper] = self._w_copper
+        self._H_weighted[1, self._s_frame] = self._w_frame
+        # the outputs that are one fixed node: their state index
+        self._fixed_index = dict(self._h, airgap_oil_outlet=self._s_gap_out,
+                                 motor_oil_outlet=self._s_outlet)
+        wd = cfg.motor.winding
+        self._alpha_cu = wd.copper_tempco_1_K
+        self.P: Optional[np.ndarray] = None
+        self.tcs: Dict[str, ThermocoupleHealth] = {}
+        for name, quantity in THERMOCOUPLES.items():
+            tc = getattr(c.thermocouples, name)
+            self.tcs[name] = ThermocoupleHealth(quantity=quantity, sigma_K=tc.sigma_K,
+                                                use=tc.use,
+                                                status='absent' if tc.use else 'unused')
+        self._guards = {name: _Guard() for name in self.tcs}
+        self._last_t0: Optional[float] = None
+        self._received = False          # any reading buffered for the correction, ever
+        self.updates = 0
+        self.failures = 0               # numerical failures: the filter restarted
+        self.last_failure = ''
+
+    # ------------------------------------------------------------- readings
+    @property
+    def active(self) -> bool:
+        """Tell whether the filter runs (it starts at the first usable reading)."""
+        return self.P is not None
+
+    def add_reading(self, name: str, stamp_s: float, value_C: float) -> bool:
+        """Buffer one reading (degC) of thermocouple ``name``; return whether it was accepted."""
+        h = self.tcs[name]                  # KeyError names an unknown thermocouple
+        h.received += 1
+        lo, hi = READING_RANGE_C
+        if not (math.isfinite(stamp_s) and math.isfinite(value_C) and lo <= value_C <= hi) \
+                or (h.last_stamp_s is not None and stamp_s <= h.last_stamp_s):
+            h.rejected += 1
+            return False
+        h.last_stamp_s, h.last_value_C = stamp_s, value_C
+        if h.use:
+            self._guards[name].pending.append((stamp_s, value_C + C_TO_K))
+            self._received = True
+        return True
+
+    # ------------------------------------------------------------------ step
+    def step(self, model: EHAModel, t0: float, t1: float, dt: float,
+             eps: float) -> Optional[Dict[str, float]]:
+        """
+        Correct the model after its step over (t0, t1] of ``dt`` s (time since the start).
+
+        Readings stamped at or before ``t0`` (within ``eps``) are used. Returns
+        the model's outputs (K) after the correction while the filter is
+        active, None while it is not (the model was not touched). A numerical
+        failure (a singular or non-finite covariance) is counted and restarts
+        the filter at the next usable reading; it never stops the estimator.
+        """
+        if self.P is None and not self._received:
+            return None
+        try:
+            return self._step(model, t0, t1, dt, eps)
+        except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
+            self.failures += 1
+            self.last_failure = f'{type(exc).__name__}: {exc}'
+            self.P = None
+            self._last_t0 = t0
+            return None
+
+    def _step(self, model: EHAModel, t0: float, t1: float, dt: float,
+              eps: float) -> Optional[Dict[str, float]]:
+        batch: Dict[str, List[Tuple[float, float]]] = {}
+        for name, g in self._guards.items():
+            if g.pending and g.pending[0][0] <= t0 + eps:
+                items = []
+                while g.pending and g.pending[0][0] <= t0 + eps:
+                    items.append(g.pending.popleft())
+                batch[name] = items
+        self._update_staleness(t1, batch)
+        if self.P is None and not batch:
+            self._last_t0 = t0
+            return None
+        if self.P is not None:
+            self._predict(model, dt)
+            if not np.isfinite(self.P).all():
+                raise FloatingPointError('the covariance is no longer finite')
+        prior = model.outputs()
+        candidates = []
+        for name, items in batch.items():
+            y = self._screen(name, items, prior[self.tcs[name].quantity], t0, t1, eps)
+            if y is not None:
+                candidates.append((name, y))
+        if candidates and self.P is None:
+            self._start()
+        delta = np.zeros(self.n) if self.P is not None else None
+        for name, y in candidates:
+            h = self.tcs[name]
+            row = self._row(model, h.quantity, prior)
+            pred = prior[h.quantity] + float(row @ delta)
+            r = max(h.sigma_K, h.noise_K or 0.0) ** 2
+            self._gate_and_update(name, row, y - pred, r, delta)
+        if delta is not None and delta.any():
+            self._write_back(model, delta)
+        post = model.outputs() if delta is not None and delta.any() else prior
+        for name in batch:
+            self._guards[name].prev_post = post[self.tcs[name].quantity]
+        self._last_t0 = t0
+        return post if self.P is not None else None
+
+    def _update_staleness(self, t1: float, batch) -> None:
+        timeout = self.settings.stale_timeout_s
+        for name, h in self.tcs.items():
+            if not h.use or h.last_stamp_s is None:
+                continue
+            g = self._guards[name]
+            fresh = name in batch or bool(g.pending)
+            if h.status == 'stale':
+                if fresh and t1 - h.last_stamp_s <= timeout:
+                    h.status = g.status_before_stale
+                    h.reason = ''
+                continue
+            if t1 - h.last_stamp_s > timeout:
+                g.status_before_stale = h.status
+                h.status = 'stale'
+                h.stale_events += 1
+                h.reason = f'no reading for {t1 - h.last_stamp_s:.1f} s'
+                g.prev_value = None          # no difference across the gap
+                g.recent.clear()
+                g.frozen_since = None
+
+    def _screen(self, name: str, items, prior_K: float, t0: float, t1: float,
+                eps: float) -> Optional[float]:
+        """Run the guards over a thermocouple's new readings; return the one to use (K)."""
+        s = self.settings
+        h, g = self.tcs[name], self._guards[name]
+        use = None
+        for stamp, y in items:
+            if self._last_t0 is not None and stamp <= self._last_t0 + eps:
+                h.late += 1
+            if t1 - stamp > s.stale_timeout_s:
+                continue                      # too old to use
+            # observed noise: successive differences with the predicted change removed,
+            # by their median (a single jump is not noise: the gate sees to it)
+            if g.prev_value is not None and g.prev_post is not None:
+                g.diffs.append(abs((y - g.prev_value) - (prior_K - g.prev_post)))
+                if len(g.diffs) > s.noise_window:
+                    g.diffs.popleft()
+                h.noise_K = _MEDIAN_TO_SIGMA * statistics.median(g.diffs)
+            g.prev_value = y
+            g.prev_post = prior_K              # until this step's update, the prior
+            # frozen readings
+            g.recent.append((stamp, y))
+            while g.recent and g.recent[0][0] < stamp - s.stuck_window_s:
+                g.recent.popleft()
+            values = [v for _, v in g.recent]
+            span = g.recent[-1][0] - g.recent[0][0]
+            frozen = (len(values) >= 3 and span >= 0.5 * s.stuck_window_s
+                      and max(values) - min(values) <= s.stuck_tolerance_K)
+            if frozen:
+                if g.frozen_since is None:
+                    g.frozen_since, g.frozen_from_K = stamp, prior_K
+                moved = abs(prior_K - g.frozen_from_K)
+                self._set(h, 'stuck' if moved > s.stuck_motion_K or h.status == 'stuck'
+                          else 'held',
+                          f'reading frozen at {y - C_TO_K:.2f} degC for '
+                          f'{stamp - g.frozen_since + span:.1f} s while the estimate moved '
+                          f'{moved:.2f} K')
+                continue
+            g.frozen_since = None
+            noisy_limit = s.noisy_ratio * h.sigma_K
+            if h.noise_K is not None and (h.noise_K > noisy_limit or (
+                    h.status == 'noisy' and h.noise_K > 0.5 * noisy_limit)):
+                self._set(h, 'noisy', f'observed noise {h.noise_K:.2f} K against '
+                          f'sigma_K {h.sigma_K:g} K')
+                continue
+            if len(g.diffs) < MIN_READINGS - 1:
+                self._set(h, 'waiting', 'learning its noise')
+                continue
+            if h.status in ('absent', 'waiting', 'held', 'stuck', 'noisy'):
+                self._set(h, 'ok', '')
+            use = y
+        return use
+
+    def _set(self, h: ThermocoupleHealth, status: str, reason: str) -> None:
+        """Change a thermocouple's status, counting drops and recoveries."""
+        if status in DROPPED and not h.dropped:
+            h.dropped_events += 1
+        elif h.dropped and status not in DROPPED:
+            h.recovered += 1
+        h.status, h.reason = status, reason
+
+    def _gate_and_update(self, name: str, row: np.ndarray, innovation: float, r: float,
+                         delta: np.ndarray) -> None:
+        """Gate one reading and, if it passes, do the scalar update (Joseph form)."""
+        s = self.settings
+        h, g = self.tcs[name], self._guards[name]
+        P = self.P
+        Ph = P @ row
+        var = float(row @ Ph) + r
+        if not (math.isfinite(innovation) and math.isfinite(var) and var > 0.0):
+            raise FloatingPointError(f'{name}: innovation {innovation} K, variance {var} K^2')
+        h.innovation_K = innovation
+        h.innovation_sigma_K = math.sqrt(var)
+        if innovation * innovation > s.gate_sigma ** 2 * var:
+            h.gated += 1
+            g.gated_run += 1
+            g.ok_run = 0
+            if g.gated_run >= s.gate_count and h.status != 'implausible':
+                self._set(h, 'implausible', f'{g.gated_run} readings in a row beyond '
+                          f'{s.gate_sigma:g} sigma (last {innovation:+.2f} K, sigma '
+                          f'{math.sqrt(var):.2f} K)')
+            return
+        g.gated_run = 0
+        if h.status == 'implausible':
+            g.ok_run += 1
+            if g.ok_run < s.recover_count:
+                return
+            self._set(h, 'ok', '')
+        g.ok_run = 0
+        k = Ph / var
+        delta += k * innovation
+        # Joseph form (I - k h) P (I - k h)^T + k r k^T, as rank-one terms
+        P -= np.outer(k, Ph)
+        P -= np.outer(Ph, k)
+        P += var * np.outer(k, k)
+        h.used += 1
+        self.updates += 1
+
+    # ------------------------------------------------------------ the filter
+    def _start(self) -> None:
+        """Start the covariance from the open-loop error model."""
+        c = self.settings.initial_correlation
+        nt = self.m + self.nh
+        P = np.zeros((self.n, self.n))
+        P[:nt, :nt] = self.sigma0_K ** 2 * c
+        P[np.arange(nt), np.arange(nt)] = self.sigma0_K ** 2
+        if self.nd:
+            P[nt:, nt:] = np.diag(self._d_prior)
+        self.P = P
+
+    def _transition(self, model: EHAModel, dt: float) -> Tuple[np.ndarray, np.ndarray]:
+        """Return the step's state transition and the heat capacities of the states."""
+        mo, ci = model.motor, model.circuit
+        m, nh, n = self.m, self.nh, self.n
+        disc = mo.net.last_disc
+        substeps = mo._substeps(dt)[0]
+        Ad, Bd = disc.Ad, disc.Bd
+        Phi = np.zeros((n, n))
+        # motor: x+ = Ad x + Bd w, copper losses linear in their temperatures (R(T))
+        T_cu = mo.T[mo.idx_copper]
+        p_cu = mo.power_W[self._src_copper]
+        if mo.extra_power_W is not None:          # the learned heat does not follow R(T)
+            p_cu = p_cu - mo.extra_power_W[self._src_copper]
+        gain = p_cu * self._alpha_cu / (1.0 + self._alpha_cu * (T_cu - (C_TO_K + 20.0)))
+        B_cu = Bd[:, self._col_copper]
+        A = Phi[:m, :m]
+        A[...] = Ad
+        A[:, self._s_copper] += B_cu * gain
+        b_in = Bd[:, self._col_inlet]
+        b_wind = B_cu @ self._w_copper
+        if substeps > 1:                      # not with the estimator's steps (<= 1 s)
+            acc = sum(np.linalg.matrix_power(A, j) for j in range(substeps))
+            A[...] = np.linalg.matrix_power(A, substeps)
+            b_in, b_wind = acc @ b_in, acc @ b_wind
+        Phi[:m, m + self._i_case] = b_in
+        if self._i_wind_d is not None:
+            Phi[:m, self._i_wind_d] = b_wind
+        # hydraulics: T+ = E T + Gamma (s dt / C), Gamma = A'^-1 (E - I); the motor
+        # outlet's step mean enters the accumulator through s
+        E, M, C, motor_rate = ci.last_step
+        Eh = E[:nh, :nh]
+        cols = [self._i_acc, self._i_case]
+        rhs = Eh[:, cols].copy()
+        rhs[cols, [0, 1]] -= 1.0
+        gam = _solve(M[:nh, :nh], rhs)
+        g_acc = gam[:, 0] * (motor_rate * dt / C[self._i_acc])   # per K of outlet mean
+        Mx, Mw = disc.Mx, disc.Mw
+        o = self._s_outlet
+        out_x = Mx[o].copy()
+        out_x[self._s_copper] += Mw[o, self._col_copper] * gain
+        Phi[m:m + nh, :m] = np.outer(g_acc, out_x)
+        Phi[m:m + nh, m:m + nh] = Eh
+        Phi[m:m + nh, m + self._i_case] += g_acc * Mw[o, self._col_inlet]
+        if self._i_case_d is not None:
+            Phi[m:m + nh, self._i_case_d] = gam[:, 1] * (dt / C[self._i_case])
+        if self._i_wind_d is not None:
+            Phi[m:m + nh, self._i_wind_d] = g_acc * float(Mw[o, self._col_copper]
+                                                          @ self._w_copper)
+        for i in range(m + nh, n):
+            Phi[i, i] = 1.0
+        cap = np.concatenate([mo.net.coefficients_in_use()[2][self.dynamic], C])
+        return Phi, cap
+
+    def _predict(self, model: EHAModel, dt: float) -> None:
+        """Propagate the covariance through the step just made."""
+        Phi, cap = self._transition(model, dt)
+        s = self.settings
+        P = self.P
+        nt = self.m + self.nh
+        # process noise at the start of the step: white heat-rate error per node
+        idx = np.arange(nt)
+        P[idx, idx] += s.heat_noise_W ** 2 * dt / cap ** 2
+        if self.nd:
+            di = np.arange(nt, self.n)
+            P[di, di] += self._d_rate2 * dt
+        P = Phi @ P @ Phi.T
+        P += P.T
+        P *= 0.5
+        for j, i in enumerate(range(nt, self.n)):    # a disturbance never exceeds its prior
+            if P[i, i] > self._d_prior[j]:
+                f = math.sqrt(self._d_prior[j] / P[i, i])
+                P[i, :] *= f
+                P[:, i] *= f
+        self.P = P
+
+    def _write_back(self, model: EHAModel, delta: np.ndarray) -> None:
+        """Put the corrected state into the model, every dependent value consistent."""
+        mo, m, nh = model.motor, self.m, self.nh
+        dx = delta[:m]
+        mo.x = mo.x + dx
+        T = mo.T.copy()
+        T[self.dynamic] += dx
+        _, _, _, a, out_x, _ = mo.net._reduce()
+        if a.size:
+            T[a] += out_x @ dx
+        mo.T = T
+        dh = delta[m:m + nh]
+        model.T_hyd = model.T_hyd + dh
+        model._case_prev_K += float(dh[self._i_case])   # the inlet extrapolation's memory
+        if self.nd:
+            self.d = self.d + delta[m + nh:]
+            if self._i_case_d is not None:
+                model.circuit.extra_loss_W = self.base_extra_loss_W + float(
+                    self.d[self._i_case_d - m - nh])
+            if self._i_wind_d is not None:
+                mo.extra_power_W = np.zeros(mo.net.ns)
+                mo.extra_power_W[self._src_copper] = \
+                    self.d[self._i_wind_d - m - nh] * self._w_copper
+        self.P = 0.5 * (self.P + self.P.T)
+
+    # ------------------------------------------------------------ outputs
+    def _index(self, model: EHAModel, quantity: str, outputs: Dict[str, float]) -> int:
+        """Return the state index of a single-node output (the hottest node for a max)."""
+        mo = model.motor
+        if quantity == 'winding_hotspot':
+            return int(self._s_copper[int(np.argmax(mo.T[mo.idx_copper]))])
+        if quantity == 'magnet':
+            return int(self._s_magnet[int(np.argmax(mo.T[mo.idx_magnet]))])
+        if quantity == 'airgap_oil_outlet':
+            return self._s_gap_out
+        if quantity == 'motor_oil_outlet':
+            return self._s_outlet
+        if quantity == 'pump_outlet':
+            p = model._last[3]
+            return self._h['pump_port_a' if p[0] >= p[1] else 'pump_port_b']
+        if quantity == 'oil':
+            return self._index(model, max(OIL_OUTPUTS, key=outputs.__getitem__), outputs)
+        return self._h[quantity]
+
+    def _row(self, model: EHAModel, quantity: str, outputs: Dict[str, float]) -> np.ndarray:
+        """Return the output's sensitivity to the filter state."""
+        if quantity in self._weighted:
+            return self._H_weighted[self._weighted[quantity]]
+        row = np.zeros(self.n)
+        row[self._index(model, quantity, outputs)] = 1.0
+        return row
+
+    def variances(self, model: EHAModel, outputs: Dict[str, float]) -> Dict[str, float]:
+        """Return the filter's variance (K^2) of every named output."""
+        P = self.P
+        Hw = self._H_weighted
+        weighted = np.einsum('ij,ij->i', Hw @ P, Hw).tolist()
+        diag = P.diagonal().tolist()
+        out = {}
+        fixed, w = self._fixed_index, self._weighted
+        for q in outputs:
+            i = fixed.get(q)
+            if i is not None:
+                v = diag[i]
+            elif q in w:
+                v = weighted[w[q]]
+            else:
+                v = diag[self._index(model, q, outputs)]
+            out[q] = v if v > 0.0 else 0.0
+        return out
+
+    def summary(self) -> Dict[str, object]:
+        """Return what an estimate reports: active, learned heats (W), thermocouple statuses."""
+        return {'active': self.active,
+                'disturbance_W': dict(zip(self.disturbance_names, self.d.tolist())),
+                'thermocouples': {name: h.status for name, h in self.tcs.items()
+                                  if h.received}}
