@@ -153,6 +153,13 @@ def test_stuck_thermocouple_is_dropped_and_no_worse_than_open_loop(cfg, rig_data
     assert frame.status == 'stuck' and frame.dropped_events == 1, frame
     assert est.latest.correction['thermocouples']['frame'] == 'stuck'
     assert frame.used < 300 / STEP_S + 20           # nothing used once it froze
+    # frozen from its first reading (a broken junction reading a constant): never used, so
+    # the estimates are the open loop's, bit for bit
+    n = int(10 * 60 / STEP_S)
+    est, first = run(cfg, rig_data[:n], ('frame',), lambda name, t, value: 21.5)
+    assert est.correction.tcs['frame'].status in ('held', 'stuck')
+    assert est.correction.tcs['frame'].used == 0 and not est.correction.active
+    assert first['temps'] == open_loop['temps'][:len(first['temps'])]
     for q in ('winding_hotspot', 'winding_mean'):
         (mx0, rms0), (mx, rms) = figures(open_loop, q), figures(out, q)
         print(f'stuck frame, {q}: max {mx:.2f} K RMS {rms:.2f} K (open loop {mx0:.2f}, '

@@ -60,7 +60,8 @@ Guards: a thermocouple is never trusted blindly. Per thermocouple:
   ``recover_count`` readings in a row inside the gate take it back (the gate
   widens by itself while no thermocouple corrects the model, as the
   covariance grows).
-- ``waiting``: fewer than 5 successive readings (the noise is not known yet);
+- ``waiting``: fewer than 5 successive readings, or readings over less than
+  half ``stuck_window_s`` (the noise is not known yet, nor whether it is frozen);
   ``absent``: no reading yet; ``unused``: ``use: false`` in the configuration.
 
 The filter starts at the first usable reading: until then, and with no
@@ -378,7 +379,10 @@ class ThermalCorrection:
                 self._set(h, 'noisy', f'observed noise {h.noise_K:.2f} K against '
                           f'sigma_K {h.sigma_K:g} K')
                 continue
-            if len(g.diffs) < MIN_READINGS - 1:
+            # a new thermocouple waits until it could have shown itself frozen: a broken
+            # junction reading a constant from the start is then never used
+            if len(g.diffs) < MIN_READINGS - 1 or (
+                    h.status in ('absent', 'waiting') and span < 0.5 * s.stuck_window_s):
                 self._set(h, 'waiting', 'learning its noise')
                 continue
             if h.status in ('absent', 'waiting', 'held', 'stuck', 'noisy'):
