@@ -283,7 +283,7 @@ def airgap_friction(rho, mu, omega, r_rotor, r_bore, L, log: Optional[ValidityLo
     if log is not None:
         # only where Bilgen-Boulos set the torque
         bb = ~couette
-        if np.any(bb):
+        if bb.any():
             check(log, 'Bilgen-Boulos airgap friction', 'Re_d', np.asarray(re)[bb],
                   0.0, BILGEN_BOULOS_RE_MAX,
                   'Couette Reynolds number above the data of Bilgen and Boulos (1973)')

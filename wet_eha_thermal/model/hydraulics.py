@@ -25,6 +25,7 @@ from typing import Dict, Optional, Tuple
 
 import numpy as np
 import scipy.linalg
+from scipy.linalg.lapack import dgesv
 
 from . import correlations as corr
 from .oil import Oil
@@ -204,7 +205,11 @@ class HydraulicCircuit:
         E = scipy.linalg.expm(M)
         T1 = E[:n] @ T0_1
         dT = T1 - T0
-        self.T_mean = Tm = np.linalg.solve(K, s * dt_s - C * dT) / dt_s
+        # LAPACK's gesv directly: np.linalg.solve's wrapper costs more than this 13 x 13 solve
+        _, _, Tm_dt, info = dgesv(K, s * dt_s - C * dT)
+        if info:
+            raise np.linalg.LinAlgError(f'singular circuit matrix (gesv info {info})')
+        self.T_mean = Tm = Tm_dt / dt_s
         # the ledger in Python floats: a few scalars, where numpy scalars cost more
         e = self.energy_J
         tm = Tm.tolist()

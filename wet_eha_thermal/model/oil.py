@@ -220,8 +220,9 @@ class Oil:
         if log is not None:
             self._check_T(log, 'density', T_K)
             self._check_p(log, 'density', p_Pa)
-        return (self._rho15 * (1.0 - self._alpha * (np.subtract(T_K, T15_K)))
-                * (1.0 + np.multiply(p_Pa, self._inv_k)))
+        # operators, not ufunc calls: the same arithmetic, and far cheaper on a float
+        return (self._rho15 * (1.0 - self._alpha * (T_K - T15_K))
+                * (1.0 + p_Pa * self._inv_k))
 
     def kinematic_viscosity(self, T_K, p_Pa=0.0, log: Optional[ValidityLog] = None):
         """
@@ -271,7 +272,7 @@ class Oil:
         """
         if log is not None:
             self._check_T(log, 'specific heat', T_K)
-        return self._c0 + self._c1 * np.subtract(T_K, T0_K)
+        return self._c0 + self._c1 * (T_K - T0_K)
 
     def conductivity(self, T_K, log: Optional[ValidityLog] = None):
         """
@@ -282,7 +283,7 @@ class Oil:
         """
         if log is not None:
             self._check_T(log, 'conductivity', T_K)
-        return self._k0 + self._k1 * np.subtract(T_K, T0_K)
+        return self._k0 + self._k1 * (T_K - T0_K)
 
     def prandtl(self, T_K, p_Pa=0.0, log: Optional[ValidityLog] = None):
         """Return the Prandtl number Pr = mu c_p / k (dimensionless)."""
