@@ -34,19 +34,15 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 import numpy as np
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 ParameterType, SetParametersResult)
-import rclpy
 from rclpy.exceptions import NameValidationException, ParameterException
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
-from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension, String
 from wet_eha_thermal.config import ConfigError, load_config
 from wet_eha_thermal.estimator.core import Estimate, Estimator
 from wet_eha_thermal.ros import topics
-from wet_eha_thermal.ros.runtime import (accept_whole_numbers, EXECUTORS, make_executor,
-                                         parse_node_options, spin)
+from wet_eha_thermal.ros.runtime import accept_whole_numbers, EXECUTORS, run_node
 
 NODE_NAME = 'eha_thermal_estimator'
 LIMITED = ('winding_hotspot', 'magnet', 'oil')   # quantities with limits and a forecast
@@ -583,35 +579,9 @@ _DESCRIPTION = ('Live thermal estimator of the wet EHA (ROS 2 node). ROS argumen
 
 def main(args: Optional[List[str]] = None) -> int:
     """Run the estimator node until Ctrl-C or shutdown; return the exit status."""
-    argv = list(sys.argv if args is None else args)
-    opts = parse_node_options(argv, 'wet-eha-thermal-estimator', _DESCRIPTION)
-    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-    node = None
-    status = 0
-    try:
-        try:
-            node = EstimatorNode()
-        except (ConfigError, NameValidationException, ParameterException,
-                ValueError) as exc:                # bad parameter or config: say so, no trace
-            print(f'wet-eha-thermal-estimator: {exc}', file=sys.stderr)
-            return 2
-        kind = opts.executor or node.get_parameter('executor').value
-        executor = make_executor(kind)
-        node.get_logger().info(f'spinning with the {kind} executor')
-        executor.add_node(node)
-        try:
-            spin(executor)
-        except (KeyboardInterrupt, ExternalShutdownException):
-            pass
-        finally:
-            executor.shutdown()
-    except KeyboardInterrupt:
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return status
+    return run_node(args, 'wet-eha-thermal-estimator', _DESCRIPTION, EstimatorNode,
+                    (ConfigError, NameValidationException, ParameterException, ValueError),
+                    log_executor=True)
 
 
 if __name__ == '__main__':

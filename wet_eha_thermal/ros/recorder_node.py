@@ -59,19 +59,15 @@ from typing import Dict, List, Optional, Tuple
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType
-import rclpy
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import NameValidationException, ParameterException
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.signals import SignalHandlerOptions
 from wet_eha_thermal.bag.writer import BagWriter, COMPRESSIONS
 from wet_eha_thermal.config import ConfigError, default_config_path, load_config
 from wet_eha_thermal.ros import topics
-from wet_eha_thermal.ros.runtime import (accept_whole_numbers, descriptor, EXECUTORS,
-                                         make_executor, parse_node_options, spin)
+from wet_eha_thermal.ros.runtime import accept_whole_numbers, descriptor, EXECUTORS, run_node
 import yaml
 
 NODE_NAME = 'eha_recorder'
@@ -362,40 +358,25 @@ _DESCRIPTION = ('Record the topics of the wet-EHA twin to a rosbag2-compatible M
 
 def main(args: Optional[List[str]] = None) -> int:
     """Record until Ctrl-C or SIGTERM; return the exit status (2: bad parameter or file)."""
-    argv = list(sys.argv if args is None else args)
-    opts = parse_node_options(argv, 'wet-eha-thermal-record', _DESCRIPTION)
-    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-    node = None
-    ok = True
-    old = {}
-    try:
+    ignored = {}
+
+    def drain(node: RecorderNode, executor) -> None:
+        # a second signal must not cut the last chunk or the summary being written
+        ignored.update({s: signal.signal(s, signal.SIG_IGN)
+                        for s in (signal.SIGINT, signal.SIGTERM)})
+        node.drain(executor)
+
+    def close(node: RecorderNode) -> int:
         try:
-            node = RecorderNode()
-        except (ConfigError, FileExistsError, NameValidationException, ParameterException,
-                ValueError) as exc:                # bad parameter, config or output: one line
-            print(f'wet-eha-thermal-record: {exc}', file=sys.stderr)
-            return 2
-        kind = opts.executor or node.get_parameter('executor').value
-        executor = make_executor(kind)
-        executor.add_node(node)
-        try:
-            spin(executor)
-            # a second signal must not cut the last chunk or the summary being written
-            old = {s: signal.signal(s, signal.SIG_IGN) for s in (signal.SIGINT, signal.SIGTERM)}
-            node.drain(executor)
-        except (KeyboardInterrupt, ExternalShutdownException):
-            pass
-        finally:
-            executor.shutdown()
-    finally:
-        if node is not None:
             print(node.close(), file=sys.stderr, flush=True)
-            ok = not node.write_failed
-            node.destroy_node()
-        rclpy.try_shutdown()
-        for s, handler in old.items():
-            signal.signal(s, handler)
-    return 0 if ok else 1
+        finally:
+            for s, handler in ignored.items():
+                signal.signal(s, handler)
+        return 1 if node.write_failed else 0
+
+    return run_node(args, 'wet-eha-thermal-record', _DESCRIPTION, RecorderNode,
+                    (ConfigError, FileExistsError, NameValidationException, ParameterException,
+                     ValueError), after_spin=drain, close=close)
 
 
 if __name__ == '__main__':

@@ -9,13 +9,15 @@ subscription and is not offered.
 
 import argparse
 import signal
-from typing import List, Mapping
+import sys
+from typing import Callable, List, Mapping, Optional, Tuple, Type
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 
 EXECUTORS = ('events', 'single')
@@ -96,3 +98,56 @@ def parse_node_options(argv: List[str], prog: str, description: str) -> argparse
                              '(SingleThreadedExecutor); default: the executor parameter, '
                              'which defaults to events')
     return parser.parse_args(remove_ros_args(argv)[1:])
+
+
+def run_node(args: Optional[List[str]], prog: str, description: str,
+             make_node: Callable[[], Node], bad_input: Tuple[Type[BaseException], ...], *,
+             error_prefix: Optional[str] = None, log_executor: bool = False,
+             after_spin: Optional[Callable[[Node, object], None]] = None,
+             close: Optional[Callable[[Node], int]] = None) -> int:
+    """
+    Run one node of this package as a program until Ctrl-C, SIGTERM or shutdown.
+
+    ``args`` is the command line with the program name (None: ``sys.argv``).
+    An exception of ``bad_input`` while making the node (a bad parameter,
+    configuration or file) is one line on stderr, ``<error_prefix>: <reason>``
+    (default prefix: ``prog``), and exit status 2. The executor is
+    ``--executor``, else the node's ``executor`` parameter, else events.
+    ``after_spin(node, executor)`` runs once spinning stopped (a recorder
+    drains); ``close(node)`` runs before the node is destroyed and returns
+    the exit status (default 0).
+    """
+    argv = list(sys.argv if args is None else args)
+    opts = parse_node_options(argv, prog, description)
+    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    node = None
+    status = 0
+    try:
+        try:
+            node = make_node()
+        except bad_input as exc:
+            print(f'{error_prefix or prog}: {exc}', file=sys.stderr)
+            return 2
+        kind = opts.executor or (node.get_parameter('executor').value
+                                 if node.has_parameter('executor') else 'events')
+        executor = make_executor(kind)
+        if log_executor:
+            node.get_logger().info(f'spinning with the {kind} executor')
+        executor.add_node(node)
+        try:
+            spin(executor)
+            if after_spin is not None:
+                after_spin(node, executor)
+        except (KeyboardInterrupt, ExternalShutdownException):
+            pass
+        finally:
+            executor.shutdown()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        if node is not None:
+            if close is not None:
+                status = close(node)
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return status

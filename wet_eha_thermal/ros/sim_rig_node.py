@@ -50,14 +50,12 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 import numpy as np
 import rclpy
 from rclpy.node import Node
-from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64
 from wet_eha_thermal.config import ConfigError, load_config
 from wet_eha_thermal.model.kinetics import DutyError, load_duty_csv, stage_duty, STAGES
 from wet_eha_thermal.model.motor import C_TO_K
-from wet_eha_thermal.ros.runtime import (accept_whole_numbers, descriptor, make_executor,
-                                         parse_node_options, spin)
+from wet_eha_thermal.ros.runtime import accept_whole_numbers, descriptor, run_node
 from wet_eha_thermal.ros.topics import (AMBIENT_TOPIC, DIAGNOSTICS_TOPIC, input_qos,
                                         INPUT_TOPICS, MEASURED_PREFIX, PREFIX, prefixed,
                                         PRESSURE_INPUTS, publish_inputs, THERMOCOUPLES)
@@ -352,29 +350,16 @@ class SimRigNode(Node):
 
 def main(args: Optional[List[str]] = None) -> int:
     """Run the simulated rig until Ctrl-C (or SIGTERM); return the exit status."""
-    argv = list(sys.argv if args is None else args)
-    opts = parse_node_options(argv, 'wet-eha-thermal-rig', 'Simulated wet-EHA rig (ROS 2 node '
-                              'eha_sim_rig); parameters go after --ros-args, e.g. --ros-args '
-                              '-p stage:=3')
-    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-    node = None
-    try:
-        try:
-            node = SimRigNode()
-        except (ConfigError, DutyError, ValueError,
-                rclpy.exceptions.InvalidParameterValueException,
-                rclpy.exceptions.InvalidParameterTypeException) as exc:
-            print(f'error: {exc}', file=sys.stderr)
-            return 2
-        executor = make_executor(opts.executor or 'events')
-        executor.add_node(node)
-        spin(executor)
+    def close(node: SimRigNode) -> int:
+        print(node.summary(), file=sys.stderr, flush=True)
         return 0
-    finally:
-        if node is not None:
-            print(node.summary(), file=sys.stderr, flush=True)
-            node.destroy_node()
-        rclpy.try_shutdown()
+
+    return run_node(args, 'wet-eha-thermal-rig', 'Simulated wet-EHA rig (ROS 2 node '
+                    'eha_sim_rig); parameters go after --ros-args, e.g. --ros-args -p stage:=3',
+                    SimRigNode, (ConfigError, DutyError, ValueError,
+                                 rclpy.exceptions.InvalidParameterValueException,
+                                 rclpy.exceptions.InvalidParameterTypeException),
+                    error_prefix='error', close=close)
 
 
 if __name__ == '__main__':
