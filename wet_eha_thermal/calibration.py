@@ -1308,25 +1308,21 @@ def log_from_rig(rig, seconds: float, calib: Calibration, name: str = 'rig',
     from .simulated_rig import THERMOCOUPLE_SIGMA_K
 
     builder = LogBuilder(name, rig.inputs, calib, channel_ranges(rig.cfg))
-    n_blocks = int(round(seconds / rig.block_s))
-    tc_every = max(1, int(round(1.0 / (thermocouple_rate_Hz * rig.block_s))))
-    amb_every = max(1, int(round(1.0 / rig.block_s)))
     h = 1.0 / calib.average_rate_Hz
     tcs: Dict[str, Tuple[list, list]] = {c: ([], []) for c in CHANNELS}
     amb: Tuple[list, list] = ([], [])
     chunk: Dict[str, list] = {n: [] for n in ['t_s'] + list(rig.inputs)}
-    for k in range(n_blocks):
-        block = rig.next_block()
+    for k, n_blocks, block, readings, ambient in rig.run(seconds, thermocouple_rate_Hz):
         for n in chunk:
             chunk[n].append(block[n])
         t_end = float(block['t_s'][-1]) + h
-        if k % tc_every == 0:
-            for c, v in rig.thermocouples_C().items():
+        if readings is not None:
+            for c, v in readings.items():
                 tcs[c][0].append(t_end)
                 tcs[c][1].append(v)
-        if k % amb_every == 0:
+        if ambient is not None:
             amb[0].append(t_end)
-            amb[1].append(rig.ambient_reading_C())
+            amb[1].append(ambient)
         if len(chunk['t_s']) >= 500 or k == n_blocks - 1:
             t = np.concatenate(chunk['t_s']) + h     # the origin one interval before
             for n in rig.inputs:

@@ -18,7 +18,7 @@ as the recorder would have recorded the rig, for replays and tests.
 
 import math
 import os
-from typing import Callable, Dict, Optional
+from typing import Callable, Dict, Iterator, Optional, Tuple
 
 import numpy as np
 
@@ -101,6 +101,25 @@ class SimulatedRig:
         sigma = AMBIENT_SIGMA_K if self.noise else 0.0
         return self.ambient_C + (float(self.rng.normal(0.0, sigma)) if sigma else 0.0)
 
+    def run(self, seconds: float, thermocouple_rate_Hz: float = 10.0) -> Iterator[
+            Tuple[int, int, Dict[str, np.ndarray], Optional[Dict[str, float]],
+                  Optional[float]]]:
+        """
+        Play ``seconds`` of the duty: yield (k, blocks, block, thermocouples, ambient) per block.
+
+        Thermocouple readings (degC) come with every block that starts a
+        ``1 / thermocouple_rate_Hz`` period, an ambient reading once a
+        second, else None; ``blocks`` is the total count.
+        """
+        n_blocks = int(round(seconds / self.block_s))
+        tc_every = max(1, int(round(1.0 / (thermocouple_rate_Hz * self.block_s))))
+        amb_every = max(1, int(round(1.0 / self.block_s)))
+        for k in range(n_blocks):
+            block = self.next_block()
+            tcs = self.thermocouples_C() if k % tc_every == 0 else None
+            amb = self.ambient_reading_C() if k % amb_every == 0 else None
+            yield k, n_blocks, block, tcs, amb
+
 
 def write_rig_bag(path: os.PathLike, rig: SimulatedRig, seconds: float, *,
                   start_ns: int = 1_700_000_000 * 10**9, thermocouple_rate_Hz: float = 10.0,
@@ -123,9 +142,6 @@ def write_rig_bag(path: os.PathLike, rig: SimulatedRig, seconds: float, *,
     msgs = {name: (FluidPressure() if name in topics.PRESSURE_INPUTS else Float64())
             for name in rig.inputs}
     count = 0
-    n_blocks = int(round(seconds / rig.block_s))
-    tc_every = max(1, int(round(1.0 / (thermocouple_rate_Hz * rig.block_s))))
-    amb_every = max(1, int(round(1.0 / rig.block_s)))
     with BagWriter(path, metadata=metadata) as bag:
         for name in rig.inputs:
             bag.add_topic(topics.INPUT_TOPICS[name], topics.INPUT_TYPES[name], q_in)
@@ -134,8 +150,7 @@ def write_rig_bag(path: os.PathLike, rig: SimulatedRig, seconds: float, *,
                           QoSProfile(depth=10))
         bag.add_topic(topics.AMBIENT_TOPIC, 'sensor_msgs/msg/Temperature', QoSProfile(depth=10))
         temp = Temperature()
-        for k in range(n_blocks):
-            block = rig.next_block()
+        for k, n_blocks, block, tcs, amb in rig.run(seconds, thermocouple_rate_Hz):
             stamps = (start_ns + np.round(block['t_s'] * 1e9)).astype(np.int64).tolist()
             cols = [(topics.INPUT_TOPICS[n], msgs[n], n in topics.PRESSURE_INPUTS,
                      block[n].tolist()) for n in rig.inputs]
@@ -150,14 +165,14 @@ def write_rig_bag(path: os.PathLike, rig: SimulatedRig, seconds: float, *,
             count += len(stamps) * len(cols)
             ns = stamps[-1]
             temp.header.stamp.sec, temp.header.stamp.nanosec = divmod(ns, 10**9)
-            if k % tc_every == 0:
-                for tc, value in rig.thermocouples_C().items():
+            if tcs is not None:
+                for tc, value in tcs.items():
                     temp.temperature = value
                     temp.variance = THERMOCOUPLE_SIGMA_K ** 2 if rig.noise else 0.0
                     bag.write(f'{topics.MEASURED_PREFIX}/{tc}', temp, ns)
                     count += 1
-            if k % amb_every == 0:
-                temp.temperature = rig.ambient_reading_C()
+            if amb is not None:
+                temp.temperature = amb
                 temp.variance = AMBIENT_SIGMA_K ** 2 if rig.noise else 0.0
                 bag.write(topics.AMBIENT_TOPIC, temp, ns)
                 count += 1
