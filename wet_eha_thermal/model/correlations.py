@@ -202,12 +202,14 @@ _BB_NEG_EXPO = -_BB_EXPO
 _BB_POWER_TABLE = np.stack([0.5 * np.pi * _BB_COEF, _BB_NEG_EXPO, 3.0 - _BB_EXPO])
 
 
+#: Re_d where the Bilgen-Boulos regimes 2, 3 and 4 start.
+_BB_RE_EDGES = np.array([64.0, 500.0, 1.0e4])
+
+
 def _bilgen_boulos_regime_index(re):
     """Return the Bilgen-Boulos regime minus one (an index of the tables) at each Re_d."""
-    k = np.greater_equal(re, 64.0).astype(np.intp)
-    k += np.greater_equal(re, 500.0)
-    k += np.greater_equal(re, 1.0e4)
-    return k
+    # the count of edges at or below Re_d (NaN counts all three: its C_M is NaN either way)
+    return np.searchsorted(_BB_RE_EDGES, re, side='right')
 
 
 @functools.lru_cache(maxsize=16)

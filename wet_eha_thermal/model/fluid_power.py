@@ -62,7 +62,8 @@ def line_pressure_drop(flow_m3_s, length_m: float, bore_m: float, rho, mu,
         f = f_lam       # laminar throughout, the usual case: no blend to evaluate
     else:
         f_turb = 0.316 * np.maximum(re_safe, 2300.0) ** -0.25
-        blend = np.clip((re - 2300.0) / 1700.0, 0.0, 1.0)
+        # np.clip without its wrapper's overhead (the same values)
+        blend = np.minimum(np.maximum((re - 2300.0) / 1700.0, 0.0), 1.0)
         f = np.where(re <= 2300.0, f_lam, (1.0 - blend) * 64.0 / 2300.0 + blend * f_turb)
         f = np.where(re >= 4000.0, f_turb, f)
     return np.sign(q) * f * (length_m / bore_m) * 0.5 * rho * v ** 2
