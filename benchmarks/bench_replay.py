@@ -13,12 +13,16 @@ RSS is its own:
 - ``plain``: the reference loop of the issue, ``mcap.reader.make_reader``
   ``iter_messages()`` with a struct unpack of every message's double
   (``read_plain`` of ``bench_replay_read.py``);
-- ``replay``: :func:`wet_eha_thermal.replay.replay` of the whole log (read,
+- ``open-loop``: :func:`wet_eha_thermal.replay.replay` of the whole log (read,
   decode, estimator in sample time at its 20 ms step) plus the CSV and MCAP
-  outputs, as ``wet-eha-thermal replay --no-report`` does.
+  outputs, as ``wet-eha-thermal replay --no-report --open-loop`` does: the
+  work of the issue's log, four sensor topics and no thermocouple;
+- ``replay``: the same with the live correction on (the shipped default for
+  a log with thermocouples, as this one has).
 
-Printed: messages per second of both, their ratio, multiples of real time,
-and peak RSS.
+Printed: messages per second of each, the replays' ratios to the plain loop,
+multiples of real time, and peak RSS (the replay's reading process, which
+decodes the next block on the other core, on its own).
 """
 
 import argparse
@@ -34,14 +38,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_replay_read import read_plain  # noqa: E402,I100 - the same reference loop
 
 
-def peak_rss_MB() -> float:
-    """Return the peak resident memory of this process (MB)."""
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+def peak_rss_MB(who: int = resource.RUSAGE_SELF) -> float:
+    """Return the peak resident memory (MB) of this process (or of its largest child)."""
+    return resource.getrusage(who).ru_maxrss / 1024
 
 
 def run_phase(phase: str, path: Path) -> None:
     """Child process: one pass over the log, its figures as JSON on stdout."""
     from wet_eha_thermal import replay as rp
+    from wet_eha_thermal.config import with_values
 
     before = peak_rss_MB()
     t = time.perf_counter()
@@ -49,15 +54,19 @@ def run_phase(phase: str, path: Path) -> None:
         messages = read_plain(path)
         extra = {}
     else:
+        plan = rp.plan_replay(path)
+        if phase == 'open-loop':
+            plan.cfg = with_values(plan.cfg, {'estimator.correction.enabled': False})
         with tempfile.TemporaryDirectory() as out:
-            result = rp.replay(rp.plan_replay(path))
+            result = rp.replay(plan)
             rp.write_csv(result, Path(out) / 'estimates.csv')
             rp.write_mcap(result, Path(out) / 'estimates.mcap')
         messages = result.messages
         extra = {'steps': result.steps, 'sample_time_s': result.sample_time_s}
     seconds = time.perf_counter() - t
     print(json.dumps({'messages': messages, 'seconds': seconds, 'rss_before_MB': before,
-                      'peak_rss_MB': peak_rss_MB(), **extra}))
+                      'peak_rss_MB': peak_rss_MB(),
+                      'reader_rss_MB': peak_rss_MB(resource.RUSAGE_CHILDREN), **extra}))
 
 
 def write_log(path: Path, minutes: float) -> None:
@@ -82,7 +91,8 @@ def main() -> None:
     parser.add_argument('--bag', type=Path, help='replay this log instead of writing one')
     parser.add_argument('--dir', type=Path, help='where to write the log (default: temp dir)')
     parser.add_argument('--keep', action='store_true', help='keep the log written')
-    parser.add_argument('--phase', choices=('plain', 'replay'), help=argparse.SUPPRESS)
+    parser.add_argument('--phase', choices=('plain', 'open-loop', 'replay'),
+                        help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.phase:
         run_phase(args.phase, args.bag)
@@ -96,19 +106,22 @@ def main() -> None:
         write_log(path, args.minutes)
     try:
         r = {}
-        for phase in ('plain', 'replay'):
+        for phase in ('plain', 'open-loop', 'replay'):
             out = subprocess.run([sys.executable, __file__, '--phase', phase, '--bag', str(path)],
                                  check=True, capture_output=True, text=True)
             r[phase] = json.loads(out.stdout)
             rate = r[phase]['messages'] / r[phase]['seconds']
-            print(f'{phase:6s}: {r[phase]["messages"]} messages in {r[phase]["seconds"]:.1f} s '
+            print(f'{phase:9s}: {r[phase]["messages"]} messages in {r[phase]["seconds"]:.1f} s '
                   f'= {rate:.0f} msg/s, peak RSS {r[phase]["peak_rss_MB"]:.0f} MB (after '
-                  f'imports {r[phase]["rss_before_MB"]:.0f} MB)')
-        rp = r['replay']
-        ratio = (rp['messages'] / rp['seconds']) / (r['plain']['messages'] / r['plain']['seconds'])
-        print(f'replay / plain loop: {ratio:.2f}x; {rp["steps"]} model steps, '
-              f'{rp["sample_time_s"]:.0f} s of sample time in {rp["seconds"]:.1f} s = '
-              f'{rp["sample_time_s"] / rp["seconds"]:.1f}x real time')
+                  f'imports {r[phase]["rss_before_MB"]:.0f} MB)'
+                  + (f', reading process {r[phase]["reader_rss_MB"]:.0f} MB'
+                     if r[phase]['reader_rss_MB'] else ''), flush=True)
+        plain_rate = r['plain']['messages'] / r['plain']['seconds']
+        for phase in ('open-loop', 'replay'):
+            rp = r[phase]
+            print(f'{phase:9s} / plain loop: {rp["messages"] / rp["seconds"] / plain_rate:.2f}x; '
+                  f'{rp["steps"]} model steps, {rp["sample_time_s"]:.0f} s of sample time in '
+                  f'{rp["seconds"]:.1f} s = {rp["sample_time_s"] / rp["seconds"]:.1f}x real time')
     finally:
         if args.bag is None and not args.keep:
             path.unlink()

@@ -229,6 +229,50 @@ def test_read_columns_matches_mcap_ros2(sample_bag, tmp_path):
         assert_columns_equal(read_columns(other, SPECS).topics, expected)
 
 
+def blocks_and_state(blocks):
+    """Return every block of ``blocks`` with the attributes seen after each, then at the end."""
+    out = [(block, (blocks.message_count, blocks.truncated, blocks.problem)) for block in blocks]
+    return out, (blocks.message_count, blocks.truncated, blocks.problem)
+
+
+def test_prefetched_blocks_are_the_same_blocks(sample_bag, tmp_path):
+    path, _ = sample_bag
+    whole = path.read_bytes()
+    cut = tmp_path / 'cut.mcap'
+    cut.write_bytes(whole[:int(len(whole) * 0.6)])
+    for source in (path, cut):
+        progress = []
+        direct, end = blocks_and_state(iter_column_blocks(source, SPECS, max_block_s=0.05))
+        fetched = iter_column_blocks(source, SPECS, max_block_s=0.05, prefetch=True,
+                                     on_progress=lambda done, size: progress.append(done))
+        assert fetched.prefetch
+        ahead, ahead_end = blocks_and_state(fetched)
+        assert len(direct) > 3 and len(ahead) == len(direct) and ahead_end == end
+        assert end[1] == (source == cut)
+        for (a, state_a), (b, state_b) in zip(direct, ahead):
+            assert state_a == state_b
+            for topic in SPECS:
+                assert np.array_equal(a[topic].log_time_ns, b[topic].log_time_ns)
+                for name, values in a[topic].values.items():
+                    assert np.array_equal(values, b[topic].values[name])
+        # once per block, then at the end: never backwards, up to the file's size at most
+        assert len(progress) == len(direct) + 1 and progress == sorted(progress)
+        assert 0 < progress[-1] <= source.stat().st_size
+    # an error in the reading process is raised in the caller, as without prefetching
+    with pytest.raises(BagError, match='expected sensor_msgs/msg/Temperature'):
+        list(iter_column_blocks(path, {'/p': TEMPERATURE}, prefetch=True))
+
+
+def test_stopping_early_ends_the_reading_process(sample_bag):
+    import multiprocessing
+    path, _ = sample_bag
+    blocks = iter(iter_column_blocks(path, SPECS, max_block_s=0.05, prefetch=True))
+    next(blocks)
+    assert len(multiprocessing.active_children()) == 1
+    blocks.close()          # what a for loop left by break or an exception does
+    assert multiprocessing.active_children() == []
+
+
 def test_cut_files_read_up_to_the_cut(sample_bag, tmp_path):
     path, _ = sample_bag
     expected = expected_columns(path)

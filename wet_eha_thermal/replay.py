@@ -231,7 +231,8 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
     by_topic = {topic: name for name, topic in plan.inputs.items()}
     size = max(os.path.getsize(plan.info.path), 1)
     done_bytes = [0]
-    blocks = iter_column_blocks(plan.info.path, plan.specs,
+    # the next block is read and decoded on the other core while the model steps
+    blocks = iter_column_blocks(plan.info.path, plan.specs, prefetch=True,
                                 on_progress=lambda done, total: done_bytes.__setitem__(0, done))
 
     def advance() -> None:

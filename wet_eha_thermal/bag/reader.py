@@ -22,8 +22,10 @@ channels), are walked record by record.
 
 from dataclasses import dataclass
 import io
+import multiprocessing
 import os
 from pathlib import Path
+import pickle
 import struct
 from typing import Callable, Dict, Iterable, Iterator, List, Mapping, NamedTuple, Optional, Tuple
 import zlib
@@ -531,20 +533,87 @@ class ColumnBlocks:
     of log time. After the iteration (already before the last block),
     ``truncated`` and ``problem`` tell whether and why the file ended early,
     ``message_count`` how many messages were decoded.
+
+    With ``prefetch`` (where processes can fork) a child process reads and
+    decodes the next block while the caller works on this one: a replay's
+    model step and the reading then run on two cores. The pipe between them
+    holds about one block, so memory stays flat; the blocks, the attributes
+    and the errors are the same as without it, and ``on_progress`` is then
+    called once per block.
     """
 
     def __init__(self, path: os.PathLike, specs: Mapping[str, str], *,
                  max_block_s: float = 10.0,
-                 on_progress: Optional[Callable[[int, int], None]] = None):
+                 on_progress: Optional[Callable[[int, int], None]] = None,
+                 prefetch: bool = False):
         self.path = Path(path)
         self.specs = _check_specs(specs)
         self.max_block_s = max_block_s
         self.on_progress = on_progress
+        self.prefetch = prefetch and 'fork' in multiprocessing.get_all_start_methods()
         self.message_count = 0
         self.truncated = False
         self.problem: Optional[str] = None
 
     def __iter__(self) -> Iterator[Dict[str, Columns]]:
+        return self._prefetched() if self.prefetch else self._blocks()
+
+    def _prefetched(self) -> Iterator[Dict[str, Columns]]:
+        ctx = multiprocessing.get_context('fork')
+        receive, send = ctx.Pipe(duplex=False)
+        child = ctx.Process(target=self._produce, args=(send,), daemon=True,
+                            name=f'read {self.path.name}')
+        child.start()
+        send.close()
+        try:
+            while True:
+                try:
+                    kind, payload, state = receive.recv()
+                except EOFError:
+                    raise BagError(f'{self.path}: the reading process ended without a word '
+                                   f'(exit code {child.exitcode})') from None
+                self.message_count, self.truncated, self.problem, offset, size = state
+                if self.on_progress is not None:
+                    self.on_progress(offset, size)
+                if kind == 'error':
+                    raise payload
+                if kind == 'end':
+                    return
+                yield payload
+        finally:
+            # the caller may stop early (an error in its model step, ^C): the reader goes too
+            receive.close()
+            child.join(timeout=5.0)
+            if child.is_alive():
+                child.kill()
+                child.join()
+
+    def _produce(self, send) -> None:
+        """Child process: send every block, then the end (or the error), each with the state."""
+        progress = [0, 0]
+        self.on_progress = lambda done, size: progress.__setitem__(slice(None), (done, size))
+
+        def state():
+            return self.message_count, self.truncated, self.problem, *progress
+
+        try:
+            for block in self._blocks():
+                send.send(('block', block, state()))
+            send.send(('end', None, state()))
+        except (BrokenPipeError, KeyboardInterrupt):
+            pass                      # the caller stopped listening
+        except Exception as exc:      # noqa: BLE001 - handed to the caller, who raises it
+            try:
+                try:
+                    send.send(('error', exc, state()))
+                except (TypeError, AttributeError, pickle.PicklingError):
+                    send.send(('error', BagError(f'{self.path}: {exc!r}'), state()))
+            except BrokenPipeError:
+                pass
+        finally:
+            send.close()
+
+    def _blocks(self) -> Iterator[Dict[str, Columns]]:
         max_block_ns = self.max_block_s * 1e9
         self.message_count = 0
         self.truncated = False
@@ -576,15 +645,16 @@ class ColumnBlocks:
 
 def iter_column_blocks(path: os.PathLike, specs: Mapping[str, str], *,
                        max_block_s: float = 10.0,
-                       on_progress: Optional[Callable[[int, int], None]] = None
-                       ) -> ColumnBlocks:
+                       on_progress: Optional[Callable[[int, int], None]] = None,
+                       prefetch: bool = False) -> ColumnBlocks:
     """
     Return the blocks of columns of the topics ``specs`` (topic -> type name) of a bag.
 
     See :class:`ColumnBlocks`; ``on_progress(bytes_read, file_bytes)`` is
-    called after each chunk.
+    called after each chunk (after each block with ``prefetch``).
     """
-    return ColumnBlocks(path, specs, max_block_s=max_block_s, on_progress=on_progress)
+    return ColumnBlocks(path, specs, max_block_s=max_block_s, on_progress=on_progress,
+                        prefetch=prefetch)
 
 
 class _ColumnBuilder:
