@@ -1,5 +1,6 @@
 """Bag writer and reader: rosbag2 layout, crash safety, splitting, damage, fast decoding."""
 
+import multiprocessing
 import os
 from pathlib import Path
 import signal
@@ -264,7 +265,6 @@ def test_prefetched_blocks_are_the_same_blocks(sample_bag, tmp_path):
 
 
 def test_stopping_early_ends_the_reading_process(sample_bag):
-    import multiprocessing
     path, _ = sample_bag
     blocks = iter(iter_column_blocks(path, SPECS, max_block_s=0.05, prefetch=True))
     next(blocks)
