@@ -25,6 +25,7 @@ import numpy as np
 from scipy.constants import g as _GRAVITY
 from scipy.constants import Stefan_Boltzmann as _SIGMA
 
+from .compiled import jit
 from .validity import check, ValidityLog
 
 #: Specific gas constant of dry air, J/(kg K).
@@ -198,8 +199,9 @@ def bilgen_boulos_torque_coefficient(Re_d, gap_ratio, log: Optional[ValidityLog]
 _BB_COEF = np.array([10.0, 2.0, 1.03, 0.065])
 _BB_EXPO = np.array([1.0, 0.6, 0.5, 0.2])
 _BB_NEG_EXPO = -_BB_EXPO
-#: Per regime index, for the friction power: 0.5 pi c, the exponent -n of Re/w and 3 - n of w.
-_BB_POWER_TABLE = np.stack([0.5 * np.pi * _BB_COEF, _BB_NEG_EXPO, 3.0 - _BB_EXPO])
+#: Per regime index, for the friction power: 0.5 pi c and the exponent 3 - n of w.
+_BB_POWER_COEF = 0.5 * np.pi * _BB_COEF
+_BB_W_EXPO = 3.0 - _BB_EXPO
 
 
 #: Re_d where the Bilgen-Boulos regimes 2, 3 and 4 start.
@@ -220,10 +222,11 @@ def _airgap_friction_factors(r_rotor: float, r_bore: float, L: float) -> tuple:
     ``(couette, re_per_rho_w, gap_ratio, gap_in_data, g03, bb_rho)``: the
     Couette power is 4 pi mu w^2 couette; Re_d = re_per_rho_w rho w / mu; the
     Bilgen-Boulos power of regime index k is 0.5 pi c g03 (Re_d / w)^(-n)
-    w^(3 - n) rho bb_rho, g03 = g^0.3 (see ``_BB_POWER_TABLE``); gap_in_data
+    w^(3 - n) rho bb_rho, g03 = g^0.3 (see ``_BB_POWER_COEF``); gap_in_data
     tells whether g is inside the data of Bilgen and Boulos. Each factor is
-    formed as the full expressions form it, so the powers come out the same
-    to the last bit.
+    formed as the full expressions form it, so the powers agree with
+    :func:`couette_torque` and :func:`bilgen_boulos_torque_coefficient` to
+    rounding.
     """
     delta = np.subtract(r_bore, r_rotor)
     r1s = np.square(r_rotor)
@@ -271,20 +274,10 @@ def airgap_friction(rho, mu, omega, r_rotor, r_bore, L, log: Optional[ValidityLo
     except TypeError:           # array dimensions (not hashable)
         couette_geo, re_geo, gap_ratio, gap_in_data, g03, bb_rho = \
             _airgap_friction_factors.__wrapped__(r_rotor, r_bore, L)
-    p_couette = 4.0 * np.pi * np.multiply(mu, w * w) * couette_geo
-    # Re_d = w * re_per_w; write w^3 Re^-n = w^(3-n) re_per_w^-n (no 0 ** negative).
-    re_per_w = np.multiply(rho, re_geo) / np.asarray(mu, dtype=float)
-    re = w * re_per_w
-    k = _bilgen_boulos_regime_index(re)
-    coef, re_expo, w_expo = _BB_POWER_TABLE[:, k]
-    p_bb = (coef * g03 * np.power(re_per_w, re_expo) * np.power(w, w_expo)
-            * np.multiply(rho, bb_rho))
-    couette = p_couette >= p_bb
-    power = np.where(couette, p_couette, p_bb)
-    regime = np.where(couette, 0, k + 1)
+    power, regime, re = airgap_friction_power(rho, mu, w, couette_geo, re_geo, g03, bb_rho)
     if log is not None:
         # only where Bilgen-Boulos set the torque
-        bb = ~couette
+        bb = np.not_equal(regime, 0)
         if bb.any():
             check(log, 'Bilgen-Boulos airgap friction', 'Re_d', np.asarray(re)[bb],
                   0.0, BILGEN_BOULOS_RE_MAX,
@@ -294,6 +287,25 @@ def airgap_friction(rho, mu, omega, r_rotor, r_bore, L, log: Optional[ValidityLo
                   *BILGEN_BOULOS_GAP_RATIO,
                   'gap ratio outside the data of Bilgen and Boulos (1973)')
     return _scalar(power), _scalar(regime)
+
+
+@jit
+def airgap_friction_power(rho, mu, w, couette_geo, re_geo, g03, bb_rho):
+    """
+    Return the ``(power W, regime, Re_d)`` of :func:`airgap_friction`; no checks.
+
+    ``w`` is |omega| (rad/s); the geometric factors are those of
+    :func:`_airgap_friction_factors`. Arrays broadcast as in numpy.
+    """
+    p_couette = 4.0 * np.pi * (mu * (w * w)) * couette_geo
+    # Re_d = w * re_per_w; write w^3 Re^-n = w^(3-n) re_per_w^-n (no 0 ** negative).
+    re_per_w = rho * re_geo / mu
+    re = w * re_per_w
+    k = np.searchsorted(_BB_RE_EDGES, re, side='right')
+    p_bb = (np.take(_BB_POWER_COEF, k) * g03 * np.power(re_per_w, np.take(_BB_NEG_EXPO, k))
+            * np.power(w, np.take(_BB_W_EXPO, k)) * (rho * bb_rho))
+    couette = p_couette >= p_bb
+    return np.where(couette, p_couette, p_bb), np.where(couette, 0, k + 1), re
 
 
 # ------------------------------------------------------ airgap heat transfer
@@ -395,17 +407,25 @@ def _laminar_turbulent_nusselt(Re, Pr, nu_laminar, correlation, log):
               'Reynolds number above the Gnielinski range; extrapolated')
         check(log, correlation, 'Pr', np.where(re > _RE_LAMINAR, Pr, np.nan), 0.5, 2000.0,
               'Prandtl number outside the Gnielinski range; extrapolated')
-    pr = np.asarray(Pr)
+    re_b, pr_b = np.broadcast_arrays(re, np.asarray(Pr, dtype=float))
+    nu = laminar_turbulent_nusselt(re_b.ravel(), pr_b.ravel(), float(nu_laminar))
+    return _scalar(nu.reshape(re_b.shape))
+
+
+@jit
+def laminar_turbulent_nusselt(re, pr, nu_laminar):
+    """Return the Nusselt number of :func:`_laminar_turbulent_nusselt` (1-D arrays, no checks)."""
     if (re <= _RE_LAMINAR).all() and ((pr >= 0.0) & (pr < 1e300)).all():
         # laminar throughout, the usual case: the blend weight is zero, and the blend
         # below gives exactly the laminar value (for any physical Prandtl number)
-        return _scalar(np.full(np.broadcast(re, pr).shape, float(nu_laminar)))
+        return np.full(re.shape, nu_laminar)
     re_t = np.maximum(re, _RE_TURBULENT)
     f8 = 0.125 / np.square(0.790 * np.log(re_t) - 1.64)
-    denominator = 1.0 + 12.7 * np.sqrt(f8) * (np.power(Pr, 2.0 / 3.0) - 1.0)
-    nu_gn = f8 * (re_t - 1000.0) * Pr / denominator
-    weight = np.clip((re - _RE_LAMINAR) / (_RE_TURBULENT - _RE_LAMINAR), 0.0, 1.0)
-    return _scalar(nu_laminar + weight * (nu_gn - nu_laminar))
+    denominator = 1.0 + 12.7 * np.sqrt(f8) * (np.power(pr, 2.0 / 3.0) - 1.0)
+    nu_gn = f8 * (re_t - 1000.0) * pr / denominator
+    weight = np.minimum(np.maximum((re - _RE_LAMINAR) / (_RE_TURBULENT - _RE_LAMINAR), 0.0),
+                        1.0)
+    return nu_laminar + weight * (nu_gn - nu_laminar)
 
 
 def annulus_axial_nusselt(Re, Pr, log: Optional[ValidityLog] = None):

@@ -28,9 +28,10 @@ from typing import Dict, Optional
 import numpy as np
 
 from . import fluid_power as fp
-from .hydraulics import HydraulicCircuit, LINKS, StepFlows
+from .compiled import jit
+from .hydraulics import HydraulicCircuit, StepFlows
 from .motor import MotorInputs, WetMotor
-from .oil import get_oil, Oil
+from .oil import density as oil_density, get_oil, kinematic_viscosity as oil_nu, Oil
 from .validity import ValidityLog
 from ..config import Config
 
@@ -91,6 +92,11 @@ class EHAModel:
         self.d_rad = fp.displacement_per_rad(h.pump.displacement_m3_rev)
         self._leak_coeffs = np.array([[h.pump.internal_leak_coeff_m3],
                                       [h.pump.external_leak_coeff_m3]])
+        # the constants of the flows kernel (see step_flows_kernel)
+        self._geometry = (self.area, self.d_rad, h.lines.length_m, h.lines.bore_m,
+                          h.actuator.dead_volume_m3, h.actuator.half_stroke_m)
+        self._friction = (h.pump.viscous_friction_coeff, h.pump.pressure_friction_coeff,
+                          h.pump.coulomb_torque_Nm)
         self.T_hyd: Optional[np.ndarray] = None
         self.case_buffer_m3 = 0.0      # case oil above its nominal volume
         self._case_prev_K, self._dt_prev = 0.0, 0.0
@@ -108,8 +114,8 @@ class EHAModel:
         self.T_hyd = np.full(self.circuit.n, float(T_K))
         self.time_s = float(first.t_s[-1])
         raw = np.array([first.p_a_Pa[-1], first.p_b_Pa[-1], first.p_acc_Pa[-1]])
-        p = self._node_pressures(raw[:, None], 0.0)
-        self._last = (float(first.t_s[-1]), float(first.position_m[-1]), raw, p[:, -1])
+        p = self._node_pressures(raw[:, None], np.zeros(1))
+        self._last = (float(first.t_s[-1]), float(first.position_m[-1]), raw, p[:, -1].copy())
 
     @property
     def defer_refresh(self) -> bool:
@@ -131,29 +137,13 @@ class EHAModel:
         return np.concatenate([self.motor.x, self.T_hyd])
 
     # ------------------------------------------------------------ the samples
-    def _node_pressures(self, sensed: np.ndarray, flow_m3_s) -> np.ndarray:
+    def _node_pressures(self, sensed: np.ndarray, flow_m3_s: np.ndarray) -> np.ndarray:
         """Return the pressure (Pa) of every oil node (8 x n) from sensed p_a, p_b, p_acc."""
         ln = self.cfg.hydraulics.lines
-        # both lines at their mean temperature and the low-side pressure, as the kinetics
         i_a, i_b = self._i_lines
-        T_l = 0.5 * (self.T_hyd[i_a] + self.T_hyd[i_b])
-        pa, pb, pacc = sensed
-        p_l = float(pacc[-1])
-        rho = self.oil.density(T_l, p_l)
-        mu = self.oil.kinematic_viscosity(T_l, p_l) * rho     # the dynamic viscosity
-        dp = fp.line_pressure_drop(flow_m3_s, ln.length_m, ln.bore_m, rho, mu, log=self.log)
-        half = 0.5 * dp
-        # rows in OIL_NODES order: pump ports A and B (line ends), case (at the accumulator's
-        # pressure), lines A and B (mid-line), chambers A and B, accumulator
-        P = np.empty((8, pa.size))
-        np.add(pa, dp, out=P[0])
-        np.subtract(pb, dp, out=P[1])
-        P[2] = pacc
-        np.add(pa, half, out=P[3])
-        np.subtract(pb, half, out=P[4])
-        P[5] = pa
-        P[6] = pb
-        P[7] = pacc
+        P, re = node_pressures(sensed, flow_m3_s, 0.5 * (self.T_hyd[i_a] + self.T_hyd[i_b]),
+                               ln.length_m, ln.bore_m, self.oil.laws)
+        fp.check_line_reynolds(self.log, re)
         return P
 
     def step_flows(self, b: SampleBlock):
@@ -167,92 +157,23 @@ class EHAModel:
         by half an interval and book spurious load work).
         """
         t0, x0, raw0, p0 = self._last
-        n = b.t_s.size
-        # times, positions and pressures with the last sample of the previous step in
-        # front (filled in place: per-step arrays are small, building them costs more)
-        t = np.empty(n + 1)
-        t[0] = t0
-        t[1:] = b.t_s
-        dts = t[1:] - t[:-1]
-        if (dts <= 0.0).any():
-            raise ValueError('sample times must increase strictly')
-        dt = t[-1] - t0
-        wgt = dts / dt
-        x = np.empty(n + 1)
-        x[0] = x0
-        x[1:] = b.position_m
-        q = self.area * (x[1:] - x[:-1]) / dts          # into chamber A
-        raw = np.empty((3, n + 1))
-        raw[:, 0] = raw0
-        raw[0, 1:] = b.p_a_Pa
-        raw[1, 1:] = b.p_b_Pa
-        raw[2, 1:] = b.p_acc_Pa
-        P = self._node_pressures(0.5 * (raw[:, 1:] + raw[:, :-1]), q)
-        pump = self.cfg.hydraulics.pump
-        T_case = self.T_hyd[self._i_case]
-        # the two leakage gaps, in one evaluation: port to port (internal) and high port
-        # to case (external), each with the viscosity at its mean pressure
-        p_high = np.maximum(P[0], P[1])
-        gap_dp = np.empty((2, n))
-        np.subtract(P[0], P[1], out=gap_dp[0])
-        np.subtract(p_high, P[2], out=gap_dp[1])
-        gap_p = np.empty((2, n))
-        np.add(P[0], P[1], out=gap_p[0])
-        np.add(p_high, P[2], out=gap_p[1])
-        gap_mu = self.oil.dynamic_viscosity(T_case, 0.5 * gap_p)
-        q_int, q_ext = fp.laminar_leakage(self._leak_coeffs, gap_dp, gap_mu)
-        dp_ports, mu = gap_dp[0], gap_mu[0]
-        high_a = P[0] >= P[1]
-        q_ext = np.maximum(q_ext, 0.0)
-        q_ext_a = np.where(high_a, q_ext, 0.0)
-        q_ext_b = q_ext - q_ext_a
-        # The pump's transfer into the high port closes that port's balance (line flow,
-        # internal and external leakage); only the low port exchanges with the
-        # accumulator (check valves), by the external leakage. Measured speed and
-        # position never agree exactly (sampling, noise): closing the balance through
-        # the high port would pass that mismatch across the full load pressure.
-        q_line_int = q + q_int
-        q_pump = np.where(high_a, q_line_int + q_ext_a, q_line_int - q_ext_b)   # into port A
-        make_up_a = np.where(high_a, 0.0, q_ext)
-        make_up_b = q_ext - make_up_a
-        # flow of every link of LINKS per interval: a signed flow splits into its two
-        # directed links (forward part, reverse part); no make-up flows back
-        F = np.zeros((len(LINKS), n))
-        np.maximum(q_pump, 0.0, out=F[0])
-        np.maximum(-q_pump, 0.0, out=F[1])
-        np.maximum(q_int, 0.0, out=F[2])
-        np.maximum(-q_int, 0.0, out=F[3])
-        F[4] = q_ext_a
-        F[5] = q_ext_b
-        np.maximum(q, 0.0, out=F[6:14:2])       # the four line sections carry q
-        np.maximum(-q, 0.0, out=F[7:14:2])
-        F[14] = make_up_a
-        F[16] = make_up_b
-        ci = self.circuit
-        dP = P[ci.u] - P[ci.d]
-        flow = F @ wgt
-        work = (F * dP) @ wgt
-        fric = fp.pump_friction_torque(b.speed_rad_s, dp_ports, mu, self.d_rad,
-                                       pump.viscous_friction_coeff,
-                                       pump.pressure_friction_coeff, pump.coulomb_torque_Nm)
-        x_mean = float(np.dot(0.5 * (x[1:] + x[:-1]), wgt))
-        act = self.cfg.hydraulics.actuator
+        h, ci = self.cfg.hydraulics, self.circuit
+        i_a, i_b = self._i_lines
+        (flow, work, P_end, vdp, x_mean, dx, fric_W, q_ext, dt, wgt, raw_end,
+         re) = step_flows_kernel(
+            t0, x0, raw0, p0, b.t_s, b.position_m, b.p_a_Pa, b.p_b_Pa, b.p_acc_Pa,
+            b.speed_rad_s, 0.5 * (self.T_hyd[i_a] + self.T_hyd[i_b]),
+            float(self.T_hyd[self._i_case]), self._geometry, self._leak_coeffs, self._friction,
+            self.oil.laws, ci.u, ci.d, ci.oil_volumes)
+        fp.check_line_reynolds(self.log, re)
+        act = h.actuator
         chambers = (act.dead_volume_m3 + self.area * (act.half_stroke_m + x_mean),
                     act.dead_volume_m3 + self.area * (act.half_stroke_m - x_mean))
-        dv = self.area * (x[-1] - x[0])
-        # integral of V dp per oil node: P holds interval-mean pressures, so between two
-        # of them the chamber volume is the one at the sample instant in between
-        dP = np.empty((8, n))
-        np.subtract(P[:, 0], p0, out=dP[:, 0])
-        np.subtract(P[:, 1:], P[:, :-1], out=dP[:, 1:])
-        vdp = ci.oil_volumes * dP.sum(axis=1)
-        va = act.dead_volume_m3 + self.area * (act.half_stroke_m + x[:-1])
-        vb = 2 * act.dead_volume_m3 + 2 * self.area * act.half_stroke_m - va
-        vdp[5], vdp[6] = np.dot(va, dP[5]), np.dot(vb, dP[6])
-        sf = StepFlows(flow, work, p0, P[:, -1], vdp, chambers, (dv, -dv), 0.0, 0.0, 0.0, 0.0,
-                       float(np.dot(fric * np.abs(b.speed_rad_s), wgt)))
-        self._pending_last = (float(t[-1]), float(x[-1]), raw[:, -1], P[:, -1])
-        return sf, float(np.dot(q_ext, wgt)), dt, wgt
+        dv = self.area * dx
+        sf = StepFlows(flow, work, p0, P_end, vdp, chambers, (dv, -dv), 0.0, 0.0, 0.0, 0.0,
+                       fric_W)
+        self._pending_last = (float(b.t_s[-1]), float(b.position_m[-1]), raw_end, P_end)
+        return sf, q_ext, dt, wgt
 
     # ------------------------------------------------------------------ step
     def step(self, b: SampleBlock, ambient_K: float) -> None:
@@ -330,3 +251,133 @@ class EHAModel:
                 'stored': me['stored'] + he['stored'],
                 'to_ambient': me['to_ambient'] + he['to_ambient'],
                 'coupling_mismatch': me['to_oil'] - he['motor_loop']}
+
+
+@jit
+def node_pressures(sensed, flow_m3_s, T_line_K, length_m, bore_m, laws):
+    """
+    Return the pressures (Pa) of the oil nodes (8 x n) and the lines' Reynolds numbers.
+
+    From the sensed p_a, p_b, p_acc (3 x n) and the line flow into chamber A
+    (n): both lines at their mean temperature ``T_line_K`` and the low-side
+    pressure, as the kinetics. Rows in OIL_NODES order: pump ports A and B
+    (line ends), case (at the accumulator's pressure), lines A and B
+    (mid-line), chambers A and B, accumulator.
+    """
+    pa, pb, pacc = sensed[0], sensed[1], sensed[2]
+    p_l = pacc[-1]
+    rho = oil_density(T_line_K, p_l, laws)
+    mu = oil_nu(T_line_K, p_l, laws) * rho     # the dynamic viscosity
+    dp, re = fp.line_drop_and_reynolds(flow_m3_s, length_m, bore_m, rho, mu)
+    half = 0.5 * dp
+    P = np.empty((8, pa.size))
+    P[0] = pa + dp
+    P[1] = pb - dp
+    P[2] = pacc
+    P[3] = pa + half
+    P[4] = pb - half
+    P[5] = pa
+    P[6] = pb
+    P[7] = pacc
+    return P, re
+
+
+@jit
+def step_flows_kernel(t0, x0, raw0, p0, t_s, position_m, p_a, p_b, p_acc, speed, T_line_K,
+                      T_case_K, geometry, leak_coeffs, friction, laws, link_up, link_down,
+                      oil_volumes):
+    """
+    Return the flows of one block of samples, as :meth:`EHAModel.step_flows` uses them.
+
+    ``t0, x0, raw0, p0``: the last sample of the previous block (time s,
+    position m, sensed pressures Pa, node pressures Pa); ``geometry``: actuator
+    area m^2, pump displacement m^3/rad, line length and bore m, chamber dead
+    volume m^3 and half stroke m; ``friction``: the pump's viscous and pressure
+    coefficients and Coulomb torque N m; ``link_up``/``link_down``: the oil
+    nodes of each link of LINKS. Returns (mean flow of each link m^3/s, mean
+    flow x pressure drop W, end node pressures Pa, integral of V dp per oil
+    node m^3 Pa, mean position m, position change m, pump friction W, mean
+    external leakage m^3/s, step length s, interval weights, end sensed
+    pressures Pa, line Reynolds numbers).
+    """
+    area, d_rad, line_length, line_bore, dead_volume, half_stroke = geometry
+    n = t_s.size
+    # times, positions and pressures with the last sample of the previous step in front
+    t = np.empty(n + 1)
+    t[0] = t0
+    t[1:] = t_s
+    dts = t[1:] - t[:-1]
+    if (dts <= 0.0).any():
+        raise ValueError('sample times must increase strictly')
+    dt = t[-1] - t0
+    wgt = dts / dt
+    x = np.empty(n + 1)
+    x[0] = x0
+    x[1:] = position_m
+    q = area * (x[1:] - x[:-1]) / dts          # into chamber A
+    raw = np.empty((3, n + 1))
+    raw[:, 0] = raw0
+    raw[0, 1:] = p_a
+    raw[1, 1:] = p_b
+    raw[2, 1:] = p_acc
+    P, re = node_pressures(0.5 * (raw[:, 1:] + raw[:, :-1]), q, T_line_K, line_length,
+                           line_bore, laws)
+    # the two leakage gaps, in one evaluation: port to port (internal) and high port
+    # to case (external), each with the viscosity at its mean pressure
+    p_high = np.maximum(P[0], P[1])
+    gap_dp = np.empty((2, n))
+    gap_dp[0] = P[0] - P[1]
+    gap_dp[1] = p_high - P[2]
+    gap_p = np.empty((2, n))
+    gap_p[0] = P[0] + P[1]
+    gap_p[1] = p_high + P[2]
+    gap_p *= 0.5
+    gap_mu = oil_nu(T_case_K, gap_p, laws) * oil_density(T_case_K, gap_p, laws)
+    leak = fp.laminar_leakage(leak_coeffs, gap_dp, gap_mu)
+    q_int = leak[0]
+    high_a = P[0] >= P[1]
+    q_ext = np.maximum(leak[1], 0.0)
+    q_ext_a = np.where(high_a, q_ext, 0.0)
+    q_ext_b = q_ext - q_ext_a
+    # The pump's transfer into the high port closes that port's balance (line flow,
+    # internal and external leakage); only the low port exchanges with the
+    # accumulator (check valves), by the external leakage. Measured speed and
+    # position never agree exactly (sampling, noise): closing the balance through
+    # the high port would pass that mismatch across the full load pressure.
+    q_line_int = q + q_int
+    q_pump = np.where(high_a, q_line_int + q_ext_a, q_line_int - q_ext_b)   # into port A
+    make_up_a = np.where(high_a, 0.0, q_ext)
+    # flow of every link of LINKS per interval: a signed flow splits into its two
+    # directed links (forward part, reverse part); no make-up flows back
+    F = np.zeros((link_up.size, n))
+    F[0] = np.maximum(q_pump, 0.0)
+    F[1] = np.maximum(-q_pump, 0.0)
+    F[2] = np.maximum(q_int, 0.0)
+    F[3] = np.maximum(-q_int, 0.0)
+    F[4] = q_ext_a
+    F[5] = q_ext_b
+    q_fwd = np.maximum(q, 0.0)
+    q_rev = np.maximum(-q, 0.0)
+    for k in range(6, 14, 2):       # the four line sections carry q
+        F[k] = q_fwd
+        F[k + 1] = q_rev
+    F[14] = make_up_a
+    F[16] = q_ext - make_up_a
+    flow = F @ wgt
+    work = (F * (P[link_up] - P[link_down])) @ wgt
+    c_v, c_f, coulomb = friction
+    fric = fp.pump_friction_torque(speed, gap_dp[0], gap_mu[0], d_rad, c_v, c_f, coulomb)
+    x_mean = np.dot(0.5 * (x[1:] + x[:-1]), wgt)
+    # integral of V dp per oil node: P holds interval-mean pressures, so between two
+    # of them the chamber volume is the one at the sample instant in between
+    dP = np.empty((8, n))
+    dP[:, 0] = P[:, 0] - p0
+    dP[:, 1:] = P[:, 1:] - P[:, :-1]
+    vdp = oil_volumes * dP.sum(axis=1)
+    va = dead_volume + area * (half_stroke + x[:-1])
+    vb = 2 * dead_volume + 2 * area * half_stroke - va
+    vdp[5] = np.dot(va, dP[5])
+    vdp[6] = np.dot(vb, dP[6])
+    return (flow, work, P[:, -1].copy(), vdp, x_mean, x[-1] - x[0],
+            np.dot(fric * np.abs(speed), wgt), np.dot(q_ext, wgt), dt, wgt,
+            raw[:, -1].copy(), re)

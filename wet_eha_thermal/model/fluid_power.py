@@ -11,6 +11,7 @@ from typing import Optional
 
 import numpy as np
 
+from .compiled import jit
 from .validity import check, ValidityLog
 
 
@@ -19,6 +20,7 @@ def displacement_per_rad(displacement_m3_rev: float) -> float:
     return displacement_m3_rev / (2.0 * np.pi)
 
 
+@jit
 def laminar_leakage(coeff_m3, dp_Pa, mu_Pa_s):
     """
     Return a laminar gap leakage flow (m^3/s), Q = C dp / mu, signed like ``dp``.
@@ -26,9 +28,10 @@ def laminar_leakage(coeff_m3, dp_Pa, mu_Pa_s):
     C = b h^3 / (12 l) for a gap of width b, height h and length l, or a
     fitted value; valid while the gap flow stays laminar (Re_gap < ~2000).
     """
-    return coeff_m3 * np.asarray(dp_Pa) / mu_Pa_s
+    return coeff_m3 * dp_Pa / mu_Pa_s
 
 
+@jit
 def pump_friction_torque(speed_rad_s, dp_Pa, mu_Pa_s, displacement_m3_rad: float,
                          viscous_coeff: float, pressure_coeff: float, coulomb_Nm: float):
     """
@@ -52,18 +55,27 @@ def line_pressure_drop(flow_m3_s, length_m: float, bore_m: float, rho, mu,
     between. Fittings and bends are not included.
     """
     q = np.asarray(flow_m3_s, dtype=float)
-    area = 0.25 * np.pi * bore_m ** 2
-    v = np.abs(q) / area
-    re = rho * v * bore_m / mu
+    dp, re = line_drop_and_reynolds(q.reshape(-1), length_m, bore_m, rho, mu)
+    check_line_reynolds(log, re)
+    return dp.reshape(q.shape) if q.ndim != 1 else dp
+
+
+def check_line_reynolds(log: Optional[ValidityLog], re) -> None:
+    """Flag line Reynolds numbers outside the validity of :func:`line_pressure_drop`."""
     check(log, 'line friction (Blasius)', 'Re', re, 0.0, 1e5, 'above the smooth-tube range')
+
+
+@jit
+def line_drop_and_reynolds(flow_m3_s, length_m, bore_m, rho, mu):
+    """Return the (dp Pa, Re) of :func:`line_pressure_drop` for a 1-D array of flows; no checks."""
+    area = 0.25 * np.pi * bore_m ** 2
+    v = np.abs(flow_m3_s) / area
+    re = rho * v * bore_m / mu
     re_safe = np.maximum(re, 1e-12)
-    f_lam = 64.0 / re_safe
-    if (re <= 2300.0).all():
-        f = f_lam       # laminar throughout, the usual case: no blend to evaluate
-    else:
+    f = 64.0 / re_safe
+    if not (re <= 2300.0).all():        # laminar throughout is the usual case
         f_turb = 0.316 * np.maximum(re_safe, 2300.0) ** -0.25
-        # np.clip without its wrapper's overhead (the same values)
         blend = np.minimum(np.maximum((re - 2300.0) / 1700.0, 0.0), 1.0)
-        f = np.where(re <= 2300.0, f_lam, (1.0 - blend) * 64.0 / 2300.0 + blend * f_turb)
+        f = np.where(re <= 2300.0, f, (1.0 - blend) * 64.0 / 2300.0 + blend * f_turb)
         f = np.where(re >= 4000.0, f_turb, f)
-    return np.sign(q) * f * (length_m / bore_m) * 0.5 * rho * v ** 2
+    return np.sign(flow_m3_s) * f * (length_m / bore_m) * 0.5 * rho * v ** 2, re

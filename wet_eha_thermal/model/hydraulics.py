@@ -28,7 +28,8 @@ import scipy.linalg
 from scipy.linalg.lapack import dgesv
 
 from . import correlations as corr
-from .oil import Oil
+from .compiled import jit
+from .oil import conductivity, density, kinematic_viscosity, Oil, specific_heat
 from ..config import Hydraulics
 
 OIL_NODES = ('port_a', 'port_b', 'case', 'line_a', 'line_b', 'chamber_a', 'chamber_b',
@@ -39,6 +40,7 @@ NODES = OIL_NODES + SOLID_NODES
 _I = {name: i for i, name in enumerate(NODES)}
 _CASE, _ACC, _PUMP_SHELL = _I['case'], _I['accumulator'], _I['pump_shell']
 _CHAMBER_A, _CHAMBER_B = _I['chamber_a'], _I['chamber_b']
+_LINE_A, _LINE_B = _I['line_a'], _I['line_b']
 
 # Directed flow links (upstream, downstream); 'pump' is the displacement flow, the
 # rest are throttles (leaks, line friction, check valves).
@@ -147,8 +149,8 @@ class HydraulicCircuit:
         self.alpha_T_filter_s = 30.0
         # per-step constants: the lines' oil nodes (adjacent), their flow section, and the
         # heat capacities with the solids' filled in (the oil's change every step)
-        self._lines = slice(_I['line_a'], _I['line_b'] + 1)
-        self._line_flow_area = 0.25 * np.pi * ln.bore_m ** 2
+        # (bore m, flow section m^2, inner wall area m^2) of a line, for circuit_matrices
+        self._line_geometry = (ln.bore_m, 0.25 * np.pi * ln.bore_m ** 2, self.line_inner_area)
         self._capacities = np.concatenate([np.zeros(self.n_oil), self.solid_capacity])
         self._T_alpha: Optional[float] = None
         # energies (J): heat generated, stored (a moving chamber's oil included), to
@@ -177,28 +179,14 @@ class HydraulicCircuit:
         constant input; the step mean follows from one solve, since
         K int(T) = s dt - C (T1 - T0).
         """
-        n, no = self.n, self.n_oil
-        p_mid = 0.5 * (sf.p_start_Pa + sf.p_end_Pa)
-        T_oil = T0[:no]
-        rho, cp = self.oil.density(T_oil, p_mid), self.oil.specific_heat(T_oil)
-        vol = self.oil_volumes.copy()
-        vol[5], vol[6] = sf.chamber_volumes_m3
-        vol[2] = sf.case_volume_m3
-        C = self._capacities.copy()
-        np.multiply(rho * cp, vol, out=C[:no])
-        rate = rho_cp_flow * sf.flow_m3_s
-        g_line = self._line_conductances(T0, p_mid, rho, cp, sf.flow_m3_s)
-        motor_rate = rho_cp_flow * sf.motor_flow_m3_s
-        K = self.K_static + np.bincount(
-            self._k_index, minlength=n * n,
-            weights=np.concatenate([rate, -rate, g_line, g_line, -g_line, -g_line,
-                                    [motor_rate]])).reshape(n, n)
+        n = self.n
         heat = self.sources(T0, dt_s, sf)
-        s = self.G_amb * ambient_K + heat
-        s[_ACC] += motor_rate * sf.motor_outlet_K
-        M = np.zeros((n + 1, n + 1))
-        M[:n, :n] = -K * (dt_s / C[:, None])
-        M[:n, n] = s * (dt_s / C)
+        motor_rate = rho_cp_flow * sf.motor_flow_m3_s
+        K, M, C, s = circuit_matrices(
+            T0, dt_s, sf.flow_m3_s, 0.5 * (sf.p_start_Pa + sf.p_end_Pa), sf.chamber_volumes_m3,
+            sf.case_volume_m3, motor_rate, sf.motor_outlet_K, ambient_K, rho_cp_flow, heat,
+            self.K_static, self._k_index, self.oil_volumes, self._capacities, self.G_amb,
+            self._line_geometry, self.oil.laws)
         T0_1 = np.empty(n + 1)         # the start temperatures and the constant input's 1
         T0_1[:n] = T0
         T0_1[n] = 1.0
@@ -227,24 +215,6 @@ class HydraulicCircuit:
         self.last_step = (E, M, C, motor_rate)
         return T1
 
-    def _line_conductances(self, T, p, rho, cp, flows) -> np.ndarray:
-        """
-        Return the oil-to-wall conductances (W/K) of lines A and B at their mean flows.
-
-        Fully developed pipe flow (laminar 3.66, Gnielinski above Re 4000);
-        ``rho`` and ``cp`` are the oil-node values already evaluated.
-        """
-        bore = self.cfg.lines.bore_m
-        lines = self._lines
-        T_l, rho_l = T[lines], rho[lines]
-        # mu = nu rho: the density at these (T, p) is already in rho
-        mu = self.oil.kinematic_viscosity(T_l, p[lines]) * rho_l
-        k = self.oil.conductivity(T_l)
-        q = flows[6:11:4] + flows[7:12:4]       # links 6 + 7 (line A), 10 + 11 (line B)
-        re = rho_l * q / self._line_flow_area * bore / mu
-        nu = corr.pipe_internal_nusselt(re, mu * cp[lines] / k)
-        return nu * k / bore * self.line_inner_area
-
     def sources(self, T0: np.ndarray, dt_s: float, sf: StepFlows) -> np.ndarray:
         """
         Return the heat input (W) of each node over a step: pressure work, compression, friction.
@@ -263,15 +233,79 @@ class HydraulicCircuit:
             self._T_alpha = T_oil
         else:
             self._T_alpha += -np.expm1(-dt_s / self.alpha_T_filter_s) * (T_oil - self._T_alpha)
-        alpha_T = self.oil.alpha_p * self._T_alpha
-        # throttles: (1 - alpha T) dp Q; pump: alpha T (p_d - p_u) Q = -alpha T * work
-        per_link = np.where(self.is_pump, -alpha_T * sf.work_W, (1 - alpha_T) * sf.work_W)
-        heat = np.bincount(self.d, weights=per_link, minlength=self.n)
-        heat[:self.n_oil] += alpha_T * sf.volume_dp_m3Pa / dt_s
-        heat[_CASE] += self.friction_to_case * sf.pump_friction_W + self.extra_loss_W
-        heat[_PUMP_SHELL] += (1 - self.friction_to_case) * sf.pump_friction_W
-        return heat
+        return node_sources(self.oil.alpha_p * self._T_alpha, dt_s, sf.work_W,
+                            sf.volume_dp_m3Pa, sf.pump_friction_W, self.is_pump, self.d,
+                            self.n, self.friction_to_case, self.extra_loss_W)
 
     def named(self, T: np.ndarray) -> Dict[str, float]:
         """Return the node temperatures (K) by name."""
         return dict(zip(NODES, T.tolist()))
+
+
+@jit
+def node_sources(alpha_T, dt_s, work_W, volume_dp_m3Pa, pump_friction_W, is_pump, link_down,
+                 n, friction_to_case, extra_loss_W):
+    """Return the heat input (W) of each node, see :meth:`HydraulicCircuit.sources`."""
+    # throttles: (1 - alpha T) dp Q; pump: alpha T (p_d - p_u) Q = -alpha T * work
+    per_link = np.where(is_pump, -alpha_T * work_W, (1 - alpha_T) * work_W)
+    heat = np.bincount(link_down, weights=per_link, minlength=n)
+    heat[:volume_dp_m3Pa.size] += alpha_T * volume_dp_m3Pa / dt_s
+    heat[_CASE] += friction_to_case * pump_friction_W + extra_loss_W
+    heat[_PUMP_SHELL] += (1 - friction_to_case) * pump_friction_W
+    return heat
+
+
+@jit
+def line_conductances(T_K, p_Pa, rho, cp, flows, line_geometry, laws):
+    """
+    Return the oil-to-wall conductances (W/K) of lines A and B at their mean flows.
+
+    Fully developed pipe flow (laminar 3.66, Gnielinski above Re 4000).
+    ``T_K``, ``p_Pa``, ``rho`` and ``cp`` are the two lines' oil values;
+    ``flows`` the mean flow of every link; ``line_geometry`` the bore (m),
+    flow section (m^2) and inner wall area (m^2) of a line.
+    """
+    bore, flow_area, inner_area = line_geometry
+    mu = kinematic_viscosity(T_K, p_Pa, laws) * rho
+    k = conductivity(T_K, laws)
+    q = np.empty(2)
+    q[0] = flows[6] + flows[7]          # links 6 + 7 (line A), 10 + 11 (line B)
+    q[1] = flows[10] + flows[11]
+    re = rho * q / flow_area * bore / mu
+    nu = corr.laminar_turbulent_nusselt(re, mu * cp / k, corr.NU_PIPE_T)
+    return nu * k / bore * inner_area
+
+
+@jit
+def circuit_matrices(T0, dt_s, flows, p_mid, chamber_volumes, case_volume, motor_rate,
+                     motor_outlet_K, ambient_K, rho_cp_flow, heat, K_static, k_index,
+                     oil_volumes, capacities, G_amb, line_geometry, laws):
+    """
+    Return (K, M, C, s) of one step of :meth:`HydraulicCircuit.step`.
+
+    K (W/K) the conductance matrix with the step's advection and line
+    convection, C (J/K) the heat capacities, s (W) the constant input and M
+    the exponent of the augmented system (its last column holds s).
+    """
+    n = T0.size
+    no = p_mid.size
+    T_oil = T0[:no]
+    rho, cp = density(T_oil, p_mid, laws), specific_heat(T_oil, laws)
+    vol = oil_volumes.copy()
+    vol[5], vol[6] = chamber_volumes
+    vol[2] = case_volume
+    C = capacities.copy()
+    C[:no] = rho * cp * vol
+    rate = rho_cp_flow * flows
+    lines = slice(_LINE_A, _LINE_B + 1)       # adjacent nodes
+    g_line = line_conductances(T0[lines], p_mid[lines], rho[lines], cp[lines], flows,
+                               line_geometry, laws)
+    weights = np.concatenate((rate, -rate, g_line, g_line, -g_line, -g_line,
+                              np.full(1, motor_rate)))
+    K = K_static + np.bincount(k_index, weights=weights, minlength=n * n).reshape(n, n)
+    s = G_amb * ambient_K + heat
+    s[_ACC] += motor_rate * motor_outlet_K
+    M = np.zeros((n + 1, n + 1))
+    M[:n, :n] = -K * (dt_s / C.reshape(n, 1))
+    M[:n, n] = s * (dt_s / C)
+    return K, M, C, s

@@ -33,10 +33,11 @@ particular batch; replace them with the data sheet of the fluid on the rig.
 
 from dataclasses import dataclass
 import math
-from typing import Dict, Optional, Tuple
+from typing import Dict, NamedTuple, Optional, Tuple
 
 import numpy as np
 
+from .compiled import interpreted, jit
 from .validity import check, ValidityLog
 
 #: 0 degC in kelvin.
@@ -95,6 +96,65 @@ def cragoe_laws(specific_gravity_15: float) -> Tuple[Tuple[float, float], Tuple[
     cp = (1685.0 / root_s, 3.391 / root_s)
     k = (0.1172 / specific_gravity_15, -0.1172 * 0.00054 / specific_gravity_15)
     return cp, k
+
+
+class OilLaws(NamedTuple):
+    """
+    The constants of one grade's property laws, as compiled kernels take them.
+
+    rho = rho15 [1 - alpha (T - 288.15)] (1 + p inv_k); Walther lines
+    ``(a_hot, b_hot)`` for T >= 40 degC and ``(a_cold, b_cold)`` below, Barus
+    coefficient ``barus`` (1/Pa); c_p = c0 + c1 t_C; k = k0 + k1 t_C.
+    """
+
+    rho15: float
+    alpha: float
+    inv_k: float
+    a_hot: float
+    b_hot: float
+    a_cold: float
+    b_cold: float
+    barus: float
+    c0: float
+    c1: float
+    k0: float
+    k1: float
+
+
+# The property laws take ``laws`` as a plain tuple in OilLaws order: numba types a plain
+# tuple three times faster than a NamedTuple, which counts on every call from Python.
+
+@jit
+def density(T_K, p_Pa, laws):
+    """Return rho (kg/m^3) as :meth:`Oil.density` does (floats or arrays, no checks)."""
+    return laws[0] * (1.0 - laws[1] * (T_K - T15_K)) * (1.0 + p_Pa * laws[2])
+
+
+@jit
+def kinematic_viscosity(T_K, p_Pa, laws):
+    """Return nu (m^2/s) of :meth:`Oil.kinematic_viscosity` (floats or arrays, no checks)."""
+    log_t = np.log10(T_K)
+    z = np.where(T_K >= T0_K + 40.0, laws[3] - laws[4] * log_t, laws[5] - laws[6] * log_t)
+    nu_cst = np.power(10.0, np.power(10.0, z)) - 0.7
+    return 1.0e-6 * nu_cst * np.exp(laws[7] * p_Pa)
+
+
+@jit
+def specific_heat(T_K, laws):
+    """Return c_p (J/(kg K)) of :meth:`Oil.specific_heat` (floats or arrays, no checks)."""
+    return laws[8] + laws[9] * (T_K - T0_K)
+
+
+@jit
+def conductivity(T_K, laws):
+    """Return k (W/(m K)) of :meth:`Oil.conductivity` (floats or arrays, no checks)."""
+    return laws[10] + laws[11] * (T_K - T0_K)
+
+
+# a few operators: as Python arithmetic on a float, cheaper than a compiled call
+_density_interpreted = interpreted(density)
+_specific_heat_interpreted = interpreted(specific_heat)
+_conductivity_interpreted = interpreted(conductivity)
 
 
 @dataclass(frozen=True)
@@ -165,14 +225,12 @@ class Oil:
     def __init__(self, grade: OilGrade) -> None:
         """Precompute the property laws of ``grade`` (Walther lines, constants)."""
         self.grade = grade
-        self._rho15 = grade.rho15_kg_m3
+        #: the constants of the property laws, a plain tuple in :class:`OilLaws` order
+        self.laws = tuple(OilLaws(grade.rho15_kg_m3, grade.alpha_p_1_K,
+                                  1.0 / grade.bulk_modulus_Pa, *grade.walther_hot,
+                                  *grade.walther_cold, grade.barus_1_Pa, *grade.cp_J_kgK,
+                                  *grade.k_W_mK))
         self._alpha = grade.alpha_p_1_K
-        self._inv_k = 1.0 / grade.bulk_modulus_Pa
-        self._a_hot, self._b_hot = grade.walther_hot
-        self._a_cold, self._b_cold = grade.walther_cold
-        self._barus = grade.barus_1_Pa
-        self._c0, self._c1 = grade.cp_J_kgK
-        self._k0, self._k1 = grade.k_W_mK
         self._t_lo = grade.T_min_K
         self._t_hi = grade.T_max_K
         self._t_note = (f'{grade.name} property data valid for '
@@ -220,9 +278,7 @@ class Oil:
         if log is not None:
             self._check_T(log, 'density', T_K)
             self._check_p(log, 'density', p_Pa)
-        # operators, not ufunc calls: the same arithmetic, and far cheaper on a float
-        return (self._rho15 * (1.0 - self._alpha * (T_K - T15_K))
-                * (1.0 + p_Pa * self._inv_k))
+        return _density_interpreted(T_K, p_Pa, self.laws)
 
     def kinematic_viscosity(self, T_K, p_Pa=0.0, log: Optional[ValidityLog] = None):
         """
@@ -240,23 +296,7 @@ class Oil:
         if log is not None:
             self._check_T(log, 'viscosity', T_K)
             self._check_p(log, 'viscosity', p_Pa)
-        log_t = np.log10(T_K)
-        # form only the line(s) in use: one temperature, or all hot or all cold, is the
-        # usual case
-        if np.ndim(T_K) == 0:
-            hot = T_K >= T0_K + 40.0
-            z = self._a_hot - self._b_hot * log_t if hot else self._a_cold - self._b_cold * log_t
-        else:
-            hot = np.greater_equal(T_K, T0_K + 40.0)
-            if hot.all():
-                z = self._a_hot - self._b_hot * log_t
-            elif not hot.any():
-                z = self._a_cold - self._b_cold * log_t
-            else:
-                z = np.where(hot, self._a_hot - self._b_hot * log_t,
-                             self._a_cold - self._b_cold * log_t)
-        nu_cst = np.power(10.0, np.power(10.0, z)) - 0.7
-        return 1.0e-6 * nu_cst * np.exp(np.multiply(self._barus, p_Pa))
+        return kinematic_viscosity(T_K, p_Pa, self.laws)
 
     def dynamic_viscosity(self, T_K, p_Pa=0.0, log: Optional[ValidityLog] = None):
         """Return the dynamic viscosity mu = rho nu in Pa s (same models and validity)."""
@@ -272,7 +312,7 @@ class Oil:
         """
         if log is not None:
             self._check_T(log, 'specific heat', T_K)
-        return self._c0 + self._c1 * (T_K - T0_K)
+        return _specific_heat_interpreted(T_K, self.laws)
 
     def conductivity(self, T_K, log: Optional[ValidityLog] = None):
         """
@@ -283,7 +323,7 @@ class Oil:
         """
         if log is not None:
             self._check_T(log, 'conductivity', T_K)
-        return self._k0 + self._k1 * (T_K - T0_K)
+        return _conductivity_interpreted(T_K, self.laws)
 
     def prandtl(self, T_K, p_Pa=0.0, log: Optional[ValidityLog] = None):
         """Return the Prandtl number Pr = mu c_p / k (dimensionless)."""

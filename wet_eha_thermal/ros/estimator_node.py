@@ -43,6 +43,7 @@ from wet_eha_thermal.config import ConfigError, load_config
 from wet_eha_thermal.estimator.core import Estimate, Estimator
 from wet_eha_thermal.ros import topics
 from wet_eha_thermal.ros.runtime import accept_whole_numbers, EXECUTORS, run_node
+from wet_eha_thermal.simulation import compile_model
 
 NODE_NAME = 'eha_thermal_estimator'
 LIMITED = ('winding_hotspot', 'magnet', 'oil')   # quantities with limits and a forecast
@@ -135,6 +136,11 @@ class EstimatorNode(Node):
                              f'{", ".join(EXECUTORS)}')
         self.cfg = load_config(p['config_file'] or None)
         self.est = Estimator(self.cfg)
+        # before any subscription or publisher: a first step that compiled would keep
+        # samples waiting for half a minute
+        self.get_logger().info('loading the compiled model step (after an install or a change '
+                               'of the model code it compiles once, in about half a minute)')
+        self.get_logger().info(f'model step ready in {compile_model(self.cfg):.1f} s')
         self.hardware_id = p['hardware_id']
         self.frame_id = p['frame_id']
         self.prefix = p['topic_prefix'].rstrip('/')

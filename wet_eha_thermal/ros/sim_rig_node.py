@@ -61,6 +61,7 @@ from wet_eha_thermal.ros.topics import (AMBIENT_TOPIC, DIAGNOSTICS_TOPIC, input_
                                         PRESSURE_INPUTS, publish_inputs, THERMOCOUPLES)
 from wet_eha_thermal.simulated_rig import (AMBIENT_SIGMA_K, BLOCK_S, NOISE_SIGMA, SimulatedRig,
                                            THERMOCOUPLE_SIGMA_K)
+from wet_eha_thermal.simulation import compile_model
 
 NODE_NAME = 'eha_sim_rig'
 #: Most sample time published in one tick when catching up (s); older samples are skipped.
@@ -110,6 +111,11 @@ class SimRigNode(Node):
                                 seed=p['seed'], ambient_C=p['ambient_C'],
                                 thermocouple_lag_s=p['thermocouple_lag_s'])
         self.truth = self.rig.truth
+        # before any subscription or publisher: a first step that compiled would keep
+        # samples waiting for half a minute
+        self.get_logger().info('loading the compiled model step (after an install or a change '
+                               'of the model code it compiles once, in about half a minute)')
+        self.get_logger().info(f'model step ready in {compile_model(self.cfg):.1f} s')
         self.n_block = self.rig.n_block
         self.period_s = self.rig.period_s
         self.period_ns = int(round(self.period_s * 1e9))
