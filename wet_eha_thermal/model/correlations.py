@@ -208,6 +208,7 @@ _BB_W_EXPO = 3.0 - _BB_EXPO
 _BB_RE_EDGES = np.array([64.0, 500.0, 1.0e4])
 
 
+@jit
 def _bilgen_boulos_regime_index(re):
     """Return the Bilgen-Boulos regime minus one (an index of the tables) at each Re_d."""
     # the count of edges at or below Re_d (NaN counts all three: its C_M is NaN either way)
@@ -301,7 +302,7 @@ def airgap_friction_power(rho, mu, w, couette_geo, re_geo, g03, bb_rho):
     # Re_d = w * re_per_w; write w^3 Re^-n = w^(3-n) re_per_w^-n (no 0 ** negative).
     re_per_w = rho * re_geo / mu
     re = w * re_per_w
-    k = np.searchsorted(_BB_RE_EDGES, re, side='right')
+    k = _bilgen_boulos_regime_index(re)
     p_bb = (np.take(_BB_POWER_COEF, k) * g03 * np.power(re_per_w, np.take(_BB_NEG_EXPO, k))
             * np.power(w, np.take(_BB_W_EXPO, k)) * (rho * bb_rho))
     couette = p_couette >= p_bb

@@ -57,7 +57,7 @@ def line_pressure_drop(flow_m3_s, length_m: float, bore_m: float, rho, mu,
     q = np.asarray(flow_m3_s, dtype=float)
     dp, re = line_drop_and_reynolds(q.reshape(-1), length_m, bore_m, rho, mu)
     check_line_reynolds(log, re)
-    return dp.reshape(q.shape) if q.ndim != 1 else dp
+    return dp.reshape(q.shape)
 
 
 def check_line_reynolds(log: Optional[ValidityLog], re) -> None:

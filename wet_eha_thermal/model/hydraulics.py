@@ -147,9 +147,9 @@ class HydraulicCircuit:
         self.friction_to_case = pump.friction_to_case_fraction
         self.extra_loss_W = pump.extra_loss_W
         self.alpha_T_filter_s = 30.0
-        # per-step constants: the lines' oil nodes (adjacent), their flow section, and the
-        # heat capacities with the solids' filled in (the oil's change every step)
-        # (bore m, flow section m^2, inner wall area m^2) of a line, for circuit_matrices
+        # per-step constants: a line's bore (m), flow section (m^2) and inner wall area
+        # (m^2), and the heat capacities with the solids' filled in (the oil's change
+        # every step)
         self._line_geometry = (ln.bore_m, 0.25 * np.pi * ln.bore_m ** 2, self.line_inner_area)
         self._capacities = np.concatenate([np.zeros(self.n_oil), self.solid_capacity])
         self._T_alpha: Optional[float] = None

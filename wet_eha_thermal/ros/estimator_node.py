@@ -42,8 +42,8 @@ from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension, String
 from wet_eha_thermal.config import ConfigError, load_config
 from wet_eha_thermal.estimator.core import Estimate, Estimator
 from wet_eha_thermal.ros import topics
-from wet_eha_thermal.ros.runtime import accept_whole_numbers, EXECUTORS, run_node
-from wet_eha_thermal.simulation import compile_model
+from wet_eha_thermal.ros.runtime import (accept_whole_numbers, EXECUTORS, prepare_model_step,
+                                         run_node)
 
 NODE_NAME = 'eha_thermal_estimator'
 LIMITED = ('winding_hotspot', 'magnet', 'oil')   # quantities with limits and a forecast
@@ -138,9 +138,7 @@ class EstimatorNode(Node):
         self.est = Estimator(self.cfg)
         # before any subscription or publisher: a first step that compiled would keep
         # samples waiting for half a minute
-        self.get_logger().info('loading the compiled model step (after an install or a change '
-                               'of the model code it compiles once, in about half a minute)')
-        self.get_logger().info(f'model step ready in {compile_model(self.cfg):.1f} s')
+        prepare_model_step(self, self.cfg)
         self.hardware_id = p['hardware_id']
         self.frame_id = p['frame_id']
         self.prefix = p['topic_prefix'].rstrip('/')

@@ -19,8 +19,18 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
+from wet_eha_thermal.config import Config
 
 EXECUTORS = ('events', 'single')
+
+
+def prepare_model_step(node: Node, cfg: Config) -> None:
+    """Compile the model's kernels (or load them from numba's cache), saying so in the log."""
+    # imported here: the recorder and the player use this module and need no model
+    from wet_eha_thermal.simulation import compile_model
+    node.get_logger().info('loading the compiled model step (after an install or a change of '
+                           'the model code it compiles once, in about half a minute)')
+    node.get_logger().info(f'model step ready in {compile_model(cfg):.1f} s')
 
 
 def make_executor(kind: str):

@@ -55,13 +55,13 @@ from std_msgs.msg import Float64
 from wet_eha_thermal.config import ConfigError, load_config
 from wet_eha_thermal.model.kinetics import DutyError, load_duty_csv, stage_duty, STAGES
 from wet_eha_thermal.model.motor import C_TO_K
-from wet_eha_thermal.ros.runtime import accept_whole_numbers, descriptor, run_node
+from wet_eha_thermal.ros.runtime import (accept_whole_numbers, descriptor, prepare_model_step,
+                                         run_node)
 from wet_eha_thermal.ros.topics import (AMBIENT_TOPIC, DIAGNOSTICS_TOPIC, input_qos,
                                         INPUT_TOPICS, MEASURED_PREFIX, PREFIX, prefixed,
                                         PRESSURE_INPUTS, publish_inputs, THERMOCOUPLES)
 from wet_eha_thermal.simulated_rig import (AMBIENT_SIGMA_K, BLOCK_S, NOISE_SIGMA, SimulatedRig,
                                            THERMOCOUPLE_SIGMA_K)
-from wet_eha_thermal.simulation import compile_model
 
 NODE_NAME = 'eha_sim_rig'
 #: Most sample time published in one tick when catching up (s); older samples are skipped.
@@ -113,9 +113,7 @@ class SimRigNode(Node):
         self.truth = self.rig.truth
         # before any subscription or publisher: a first step that compiled would keep
         # samples waiting for half a minute
-        self.get_logger().info('loading the compiled model step (after an install or a change '
-                               'of the model code it compiles once, in about half a minute)')
-        self.get_logger().info(f'model step ready in {compile_model(self.cfg):.1f} s')
+        prepare_model_step(self, self.cfg)
         self.n_block = self.rig.n_block
         self.period_s = self.rig.period_s
         self.period_ns = int(round(self.period_s * 1e9))
