@@ -35,6 +35,8 @@ from .oil import density as oil_density, get_oil, kinematic_viscosity as oil_nu,
 from .validity import ValidityLog
 from ..config import Config
 
+#: the case oil may fall this far below its nominal volume (a fraction), never further
+CASE_BUFFER_FLOOR = 0.75
 #: the oil volumes whose hottest value is the ``oil`` output, checked against the oil limit
 OIL_OUTPUTS = ('airgap_oil_outlet', 'motor_oil_outlet', 'pump_case', 'chamber_a', 'chamber_b',
                'accumulator')
@@ -99,6 +101,7 @@ class EHAModel:
                           h.pump.coulomb_torque_Nm)
         self.T_hyd: Optional[np.ndarray] = None
         self.case_buffer_m3 = 0.0      # case oil above its nominal volume
+        self.case_floor_hits = 0       # steps where the case would have emptied (a guard)
         self._case_prev_K, self._dt_prev = 0.0, 0.0
         # slower than the two filter stages, so buffer -> filter -> flow stays damped
         self.buffer_time_s = max(3.0 * coefficient_filter_s, 1.0)
@@ -176,26 +179,40 @@ class EHAModel:
         return sf, q_ext, dt, wgt
 
     # ------------------------------------------------------------------ step
-    def step(self, b: SampleBlock, ambient_K: float) -> None:
-        """Advance the coupled model over one block of samples."""
+    def step(self, b: SampleBlock, ambient_K: float,
+             max_substep_s: Optional[float] = None) -> None:
+        """
+        Advance the coupled model over one block of samples.
+
+        ``max_substep_s`` overrides the motor's sub-step limit for this block:
+        a long block (the estimator crossing a silence of the sensors, its
+        forecast) is then one exact motor step. A block longer than the case
+        buffer's time constant refreshes the motor's coefficients exactly: the
+        1 % tolerance on the motor's flow, integrated over minutes, would
+        drain or flood the 40 mL of case oil.
+        """
         if self._last is None:
             raise RuntimeError('initialise the model with a first sample before stepping')
         sf, q_ext, dt, wgt = self.step_flows(b)
         ci = self.circuit
         # the motor's inlet over the step: the case temperature extrapolated to mid-step
-        # (the case moves with the leakage heat; a start-of-step value would lag)
+        # (the case moves with the leakage heat; a start-of-step value would lag), over
+        # at most twice the previous step (a step much longer than the one before would
+        # stretch a trend over far more time than it was seen in)
         T_now = float(self.T_hyd[self._i_case])
-        T_case = T_now + 0.5 * (T_now - self._case_prev_K) * dt / self._dt_prev \
-            if self._dt_prev else T_now
+        T_case = T_now + 0.5 * (T_now - self._case_prev_K) * min(dt, 2.0 * self._dt_prev) \
+            / self._dt_prev if self._dt_prev else T_now
         self._case_prev_K, self._dt_prev = T_now, dt
         p_case = float(sf.p_end_Pa[2])
         i_sq = float(np.dot(b.current_A ** 2, wgt))
         # the buffered oil drains through the motor: the motor's (filtered) flow follows
-        # the leakage plus the buffer over buffer_time_s
-        q_drive = max(q_ext + self.case_buffer_m3 / self.buffer_time_s, 0.0)
+        # the leakage plus the buffer over buffer_time_s, or over the step when that is
+        # longer (draining faster than in one step would overshoot and ring)
+        q_drive = max(q_ext + self.case_buffer_m3 / max(self.buffer_time_s, dt), 0.0)
         u = MotorInputs(current_sq_mean_A2=i_sq, speed_rad_s=b.speed_rad_s, oil_inlet_K=T_case,
                         oil_flow_m3_s=q_drive, ambient_K=ambient_K, case_pressure_Pa=p_case)
-        self.motor.step(dt, u)
+        self.motor.step(dt, u, max_substep_s=max_substep_s,
+                        exact_coefficients=dt > self.buffer_time_s)
         m = self.motor
         # the enthalpy flow the motor network used decides the flow through the motor;
         # the rest of the leakage bypasses it, so the loop's mass balance is exact
@@ -203,6 +220,13 @@ class EHAModel:
         rho_cp = float(ci.rho_cp(T_case, p_case))
         q_motor = m_cp / rho_cp
         dv_case = (q_ext - q_motor) * dt
+        # the motor's filtered flow lags a sudden fall of the leakage (the pressures
+        # dropping with hot, thin oil): the case never gives more oil than it holds, and
+        # each time this guard acts it is counted (the books then miss that volume's heat)
+        floor = -CASE_BUFFER_FLOOR * ci.oil_volumes[2]
+        if self.case_buffer_m3 + dv_case < floor:
+            dv_case = floor - self.case_buffer_m3
+            self.case_floor_hits += 1
         sf.case_volume_m3 = ci.oil_volumes[2] + self.case_buffer_m3 + 0.5 * dv_case
         sf.case_dV_m3 = dv_case
         self.case_buffer_m3 += dv_case

@@ -107,6 +107,7 @@ class WetMotor:
         self._friction_memo: Optional[tuple] = None
         self._case_pressure_Pa = 0.0
         self.refresh_count = 0
+        self.last_substeps = 1      # sub-steps of the last step (a state estimator needs it)
         # energies (J) since construction: heat generated, stored, to ambient, carried by the oil
         self.energy_J = {'losses': 0.0, 'stored': 0.0, 'to_ambient': 0.0, 'to_oil': 0.0}
         # coefficients that moved less than this (relative) keep the cached discretisation
@@ -512,25 +513,35 @@ class WetMotor:
         self.T = np.full(self.net.n, float(T_K))
         self.x = self.net.initial_state(self.T)
 
-    def step(self, dt_s: float, u: MotorInputs) -> np.ndarray:
+    def step(self, dt_s: float, u: MotorInputs, max_substep_s: Optional[float] = None,
+             exact_coefficients: bool = False) -> np.ndarray:
         """
         Advance by ``dt_s`` with inputs ``u`` held over the step; return all node temperatures.
 
         Coefficients are refreshed at the start of each (sub-)step when due,
         losses are evaluated for every step, and the linear network is then
-        integrated exactly over the step.
+        integrated exactly over the step. ``max_substep_s`` overrides the
+        sub-step limit for this step (the estimator's long steps over a
+        silence, the forecast's); with ``exact_coefficients`` the coefficients
+        are refreshed and put into use however little they moved: the
+        tolerances that spare a re-discretisation between 20 ms steps (1 % of
+        the oil flow) must not be integrated over minutes.
         """
         if self.x is None:
             raise RuntimeError('set an initial state first (initialise or steady_state)')
-        substeps, h = self._substeps(dt_s)
+        substeps, h = self._substeps(dt_s, max_substep_s)
+        self.last_substeps = substeps
+        exact = exact_coefficients
         Tb = self.boundaries(u)
         for k in range(substeps):
             # changes held by defer_refresh in the previous step come into use, discretised
             # before this step's refresh (which is then held in turn)
             self.net.apply_changes(h)
             T_c, u_c = self._coefficient_point(h, u)
-            if self._refresh_due(T_c, u_c):
+            if exact or self._refresh_due(T_c, u_c):
                 self.refresh(T_c, u_c)
+                if exact:
+                    self.net.use_new_coefficients()
             self.power_W = self.losses(u)
             if self.extra_power_W is not None:
                 self.power_W = self.power_W + self.extra_power_W
@@ -546,9 +557,10 @@ class WetMotor:
         """Discretise now for a next step of ``dt_s`` if a deferred refresh is pending."""
         return self.net.apply_changes(self._substeps(dt_s)[1])
 
-    def _substeps(self, dt_s: float) -> Tuple[int, float]:
+    def _substeps(self, dt_s: float,
+                  max_substep_s: Optional[float] = None) -> Tuple[int, float]:
         """Return the number and length (s) of the sub-steps of a step of ``dt_s``."""
-        n = max(1, math.ceil(dt_s / self.max_substep_s - 1e-9))
+        n = max(1, math.ceil(dt_s / (max_substep_s or self.max_substep_s) - 1e-9))
         return n, dt_s / n
 
     def _book(self, h: float, dx: np.ndarray, T_mean: np.ndarray, u: MotorInputs,
