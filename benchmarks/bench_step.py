@@ -102,7 +102,7 @@ def run(cfg, stamps: np.ndarray, values: dict, thermocouples: Optional[dict] = N
             a, b = np.searchsorted(ts, [stamps[lo], stamps[hi - 1]], side='right')
             for t_tc, v_tc in zip(ts[a:b].tolist(), vs[a:b].tolist()):
                 est.add_measured(name, t_tc, v_tc)
-        estimates = est.advance()
+        estimates = est.advance_all()
         wall = time.perf_counter() - t0
         blocks_s += wall
         if estimates:

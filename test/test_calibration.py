@@ -135,7 +135,7 @@ def test_calibrated_yaml_loads_and_runs_in_the_estimator(run, tmp_path):
     for name in est.inputs:
         t, v = log.inputs[name]
         est.add_many(name, t[:500], v[:500])
-    estimates = est.advance()
+    estimates = est.advance_all()
     assert len(estimates) > 400 and math.isfinite(estimates[-1].temperatures_C['winding_mean'])
     report = (tmp_path / 'report.md').read_text()
     assert f'| {MAGNET_GLUE} |' in report and '**no**' in report

@@ -71,7 +71,7 @@ def run(cfg, data, thermocouples=(), reading=None):
             value = tc[name] if reading is None else reading(name, t_end, tc[name])
             if value is not None:
                 est.add_measured(name, t_end, value)
-        for e in est.advance():
+        for e in est.advance_all():
             out['t'].append(e.stamp_s)
             out['temps'].append(e.temperatures_C)
             out['sigma'].append(e.uncertainty_K)
@@ -213,7 +213,7 @@ def test_stale_thermocouple_is_reported_and_comes_back(cfg, rig_data):
     for block, _, _ in rig_data[:8]:
         for name in est2.inputs:
             est2.add_many(name, block['t_s'], block[name])
-        est2.advance()
+        est2.advance_all()
     assert est2.correction.tcs['frame'].used == 0 and not est2.correction.active
     assert frame.used == used
 
@@ -242,7 +242,7 @@ def test_readings_apply_in_sample_time_whatever_the_feeding(cfg, rig_data):
     for block, _, tc in data:
         for name in est.inputs:
             est.add_many(name, block['t_s'], block[name])
-        est.advance()
+        est.advance_all()
         for name in ('frame', 'pump_case'):
             est.add_measured(name, float(block['t_s'][-1]), tc[name])
     assert est.correction.updates == block_wise.correction.updates > 0
@@ -284,7 +284,7 @@ def test_a_numerical_failure_restarts_the_filter_and_never_stops_the_estimator(c
         est.add_measured('frame', float(block['t_s'][-1]), tc['frame'])
         if k == 120:
             est.correction.P[0, 0] = math.nan               # injected
-        out = est.advance()
+        out = est.advance_all()
         assert all(math.isfinite(e.temperatures_C['winding_hotspot']) for e in out)
     assert est.correction.failures == 1 and 'FloatingPointError' in est.correction.last_failure
     assert est.correction.active                            # restarted at the next reading

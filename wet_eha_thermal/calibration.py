@@ -404,7 +404,7 @@ def simulate(log: LogData, cfg: Config,
     rows: List[List[float]] = []
 
     def advance() -> None:
-        for e in est.advance():
+        for e in est.advance_all():
             stamps.append(e.stamp_s)
             temps = e.temperatures_C
             rows.append([temps[n] for n in names])

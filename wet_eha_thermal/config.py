@@ -568,6 +568,21 @@ class EstimatorSettings:
     pressure_inputs: str = spec(choices=('ports', 'differential'), doc=(
         'ports: absolute pressures of port A, port B and the accumulator; differential: '
         'one p_A - p_B sensor, the low side at the accumulator precharge pressure'))
+    max_future_s: float = spec(0.0, 86400.0, default=0.5, doc=(
+        'a sample stamped further ahead of the receiving clock is rejected (counted as '
+        'future): a clock glitch of the source never moves the model'))
+    max_lag_s: float = spec(0.0, 60.0, default=2.0, doc=(
+        'an input still arriving whose stamps lag the receiving clock by up to this is '
+        'waited for (a busy receiver delivers late); more, and it is stale'))
+    clock_jump_s: float = spec(0.0, 86400.0, low_open=True, default=1.0, doc=(
+        'the receiving clock going back by more than this is a jump: the model time '
+        're-starts there, the thermal state is kept'))
+    max_steps_per_call: int = spec(1, 1000000, default=5, doc=(
+        'model steps one advance() makes at most (a held block across a silence counts '
+        'as one); the rest waits for the next call, so no call blocks for long'))
+    buffer_samples: int = spec(1024, 100000000, default=131072, doc=(
+        'samples kept per input until the model steps past them; beyond, new samples are '
+        'dropped and counted (overflow)'))
     channels: Channels
     alerts: Alerts
     correction: Correction = field(default_factory=Correction)

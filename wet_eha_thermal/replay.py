@@ -236,7 +236,7 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
                                 on_progress=lambda done, total: done_bytes.__setitem__(0, done))
 
     def advance() -> None:
-        for e in est.advance():
+        for e in est.advance_all():
             for ev in e.alert_events:
                 events.append((e.stamp_s, ev.message))
             if e.step % every == 0:

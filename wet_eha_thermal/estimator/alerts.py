@@ -272,6 +272,22 @@ class AlertManager:
                 track.since_s = stamp_s
         return stamp_s
 
+    def shift_time(self, delta_s: float) -> None:
+        """
+        Move every stored stamp by ``delta_s``: the clock of the stamps jumped, no time passed.
+
+        Pickup timers and the stamps of the last changes keep their age, so a
+        running on-delay neither restarts nor completes because of the jump.
+        """
+        if self._stamp_s is not None:
+            self._stamp_s += delta_s
+        for track in self._tracks.values():
+            if track.since_s is not None:
+                track.since_s += delta_s
+            for pickup in (track.warn, track.critical):
+                if pickup.since_s is not None:
+                    pickup.since_s += delta_s
+
     def _track(self, quantity: str) -> _Track:
         try:
             return self._tracks[quantity]

@@ -93,6 +93,8 @@ READING_RANGE_C = (-60.0, 400.0)
 MIN_READINGS = 5
 #: Statuses in which a thermocouple is dropped from the correction (reported as such).
 DROPPED = ('stuck', 'noisy', 'implausible')
+#: readings of one thermocouple kept until the model steps to them (at 10 Hz, 100 s)
+PENDING_READINGS = 1000
 #: sigma of a reading from the median |difference| of two: 1 / (0.6745 sqrt(2))
 _MEDIAN_TO_SIGMA = 1.0 / (0.6744897501960817 * math.sqrt(2.0))
 
@@ -106,7 +108,7 @@ class ThermocoupleHealth:
     use: bool                       # configured for the correction
     status: str = 'absent'   # absent, waiting, ok, held, stuck, noisy, implausible, stale, unused
     received: int = 0
-    rejected: int = 0               # non-finite, out of range or stamp not increasing
+    rejected: int = 0               # non-finite, out of range, stamp not increasing or ahead
     used: int = 0                   # readings that corrected the model
     gated: int = 0                  # readings beyond the innovation gate
     late: int = 0                   # processed a step or more after their stamp
@@ -130,7 +132,10 @@ class ThermocoupleHealth:
 class _Guard:
     """Per-thermocouple memory of the guards."""
 
-    pending: Deque[Tuple[float, float]] = field(default_factory=deque)
+    # readings wait here for the step of their stamp; while the model does not step (no
+    # input at all) the oldest go first, being stale by then anyway
+    pending: Deque[Tuple[float, float]] = field(
+        default_factory=lambda: deque(maxlen=PENDING_READINGS))
     recent: Deque[Tuple[float, float]] = field(default_factory=deque)   # for the stuck test
     diffs: Deque[float] = field(default_factory=deque)                  # |differences| (K)
     prev_value: Optional[float] = None     # last reading (K)
@@ -235,13 +240,21 @@ class ThermalCorrection:
         """Tell whether the filter runs (it starts at the first usable reading)."""
         return self.P is not None
 
-    def add_reading(self, name: str, stamp_s: float, value_C: float) -> bool:
-        """Buffer one reading (degC) of thermocouple ``name``; return whether it was accepted."""
+    def add_reading(self, name: str, stamp_s: float, value_C: float,
+                    latest_s: float = math.inf) -> bool:
+        """
+        Buffer one reading (degC) of thermocouple ``name``; return whether it was accepted.
+
+        A reading stamped after ``latest_s`` (the receiving clock plus the
+        estimator's ``max_future_s``) is rejected: its stamp would make every
+        later good reading look older.
+        """
         h = self.tcs[name]                  # KeyError names an unknown thermocouple
         h.received += 1
         lo, hi = READING_RANGE_C
         if not (math.isfinite(stamp_s) and math.isfinite(value_C) and lo <= value_C <= hi) \
-                or (h.last_stamp_s is not None and stamp_s <= h.last_stamp_s):
+                or (h.last_stamp_s is not None and stamp_s <= h.last_stamp_s) \
+                or stamp_s > latest_s:
             h.rejected += 1
             return False
         h.last_stamp_s, h.last_value_C = stamp_s, value_C
@@ -249,6 +262,17 @@ class ThermalCorrection:
             self._guards[name].pending.append((stamp_s, value_C + C_TO_K))
             self._received = True
         return True
+
+    def restart_time(self) -> None:
+        """Forget every stamp after a jump of the receiving clock; the filter's state stays."""
+        for h in self.tcs.values():
+            h.last_stamp_s = None
+        for g in self._guards.values():
+            g.pending.clear()
+            g.recent.clear()
+            g.prev_value = None
+            g.frozen_since = None
+        self._last_t0 = None
 
     # ------------------------------------------------------------------ step
     def step(self, model: EHAModel, t0: float, t1: float, dt: float,
@@ -452,7 +476,7 @@ class ThermalCorrection:
         mo, ci = model.motor, model.circuit
         m, nh, n = self.m, self.nh, self.n
         disc = mo.net.last_disc
-        substeps = mo._substeps(dt)[0]
+        substeps = mo.last_substeps
         Ad, Bd = disc.Ad, disc.Bd
         Phi = np.zeros((n, n))
         # motor: x+ = Ad x + Bd w, copper losses linear in their temperatures (R(T))
