@@ -1,41 +1,52 @@
 """
-Load benchmark of the estimator node: CPU, lost samples and step latency at 1 kHz inputs.
+Load benchmark of the estimator node: CPU against a bare subscriber, lost samples, latency.
 
 Run: OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_estimator.py
      [--minutes 10] [--pressure differential|ports] [--rate-Hz 1000] [--stage 6]
-     [--depth 1000] [--executor events] [--warmup-s 5]
+     [--depth 1000] [--executor events] [--warmup-s 5] [--busy-live-s 60]
 
 The issue's setting is "four sensor topics at 1 kHz each and estimates
 published at 50 Hz": current, speed, one differential pressure and position
 (``--pressure differential``, the default); ``--pressure ports`` publishes
-six (both ports and the accumulator). Reliable QoS; the estimator publishes
-at its default 50 Hz. Three processes on a private ROS domain (from the pid,
-or ``$WET_EHA_BENCH_DOMAIN_ID``):
+six (both ports and the accumulator). Reliable QoS. Processes on a private
+ROS domain (from the pid, or ``$WET_EHA_BENCH_DOMAIN_ID``):
 
-- the estimator (``python -m wet_eha_thermal.ros.estimator_node``, reliable
-  QoS, history ``--depth``, the reference configuration with
-  ``estimator.pressure_inputs`` set by ``--pressure``);
 - a publisher (this script with ``--role publisher``): the stage's kinetic
   signals, one sample per topic per timer tick, pressures stamped with their
   send time (the ROS clock just before publishing); it starts once every
-  topic has matched its subscriber, so that nothing is lost to discovery;
+  topic has matched its subscriber;
+- first a bare subscriber (``--role bare``): the same topics, QoS and
+  executor, empty callbacks, rclpy deserialising every message, an
+  EventsExecutor turned by ``spin_once`` in a loop: what any rclpy node on
+  these topics costs at least;
+- then the estimator (``python -m wet_eha_thermal.ros.estimator_node``,
+  reliable QoS, history ``--depth``, the reference configuration with
+  ``estimator.pressure_inputs`` set by ``--pressure``); the publisher starts
+  once it said it is ready (``/eha/ready``);
 - this process: follows the estimates, the first pressure topic (for the
   send times) and /diagnostics.
 
-Figures:
+Figures, both subscribers measured in this one run:
 
-- CPU of the estimator process: utime + stime from ``/proc/<pid>/stat``
-  over the measured ``--minutes`` (after ``--warmup-s``), in % of one core;
+- CPU of the bare subscriber and of the estimator: utime + stime from
+  ``/proc/<pid>/stat`` over the measured ``--minutes`` (after
+  ``--warmup-s``), in % of one core, and their ratio;
 - lost samples: per input, what the publisher sent minus what the estimator
   received (its diagnostics' ``received`` counter, read after the publisher
-  stopped), and how many it rejected (late, backwards, out of range);
+  stopped), and how many it rejected (late, backwards, out of range, future);
 - latency added by the estimator: the node's own figure from its
   diagnostics, callback start of the sample that closed a step to its
-  estimate published (p50/p99/max over its last 3000 estimates);
+  estimates published (p50/p99/max over its last 3000 estimates);
 - end-to-end latency: for every estimate (stamp t1 = the end of its 20 ms
   step), the receive time here minus the send time of the first pressure
   sample stamped at or after t1 (the sample that closed the step); p50, p99
   and max. It adds two DDS hops and this process's own scheduling.
+
+Then, with ``--busy-live-s`` (default 60; 0 skips it), the busy-machine case:
+``wet-eha-thermal live`` for that long while another process keeps one core
+busy (a Python loop this script starts and stops), and the figures of its
+summary: the samples the rig published and the estimator received, the stale
+events, the start-up time.
 """
 
 import argparse
@@ -46,6 +57,7 @@ from pathlib import Path
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -54,7 +66,7 @@ import rclpy
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import FluidPressure, Temperature
-from std_msgs.msg import Float64
+from std_msgs.msg import Float64, String
 from wet_eha_thermal.config import default_config_path, load_config
 from wet_eha_thermal.estimator.core import sensor_inputs, sensor_signal
 from wet_eha_thermal.model.kinetics import KineticModel, stage_duty, ThermalFeedback
@@ -163,6 +175,32 @@ def run_publisher(args) -> None:
     rclpy.try_shutdown()
 
 
+# ----------------------------------------------------------------------- bare
+def run_bare(args) -> None:
+    """Subscribe to the inputs with empty callbacks until SIGINT; print a JSON report."""
+    inputs = sensor_inputs(bench_config(args.pressure))
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node('bench_bare_subscriber')
+    count = [0]
+
+    def on_message(msg) -> None:
+        count[0] += 1
+
+    for k in inputs:
+        node.create_subscription(FluidPressure if k in topics.PRESSURE_INPUTS else Float64,
+                                 topics.INPUT_TOPICS[k], on_message, reliable(args.depth))
+    executor = make_executor(args.executor)
+    executor.add_node(node)
+    stop = []
+    signal.signal(signal.SIGINT, lambda *a: stop.append(1))
+    signal.signal(signal.SIGTERM, lambda *a: stop.append(1))
+    while not stop:
+        executor.spin_once(timeout_sec=0.1)
+    print(json.dumps({'received': count[0]}), flush=True)
+    node.destroy_node()
+    rclpy.try_shutdown()
+
+
 # -------------------------------------------------------------------- monitor
 class Monitor:
     """Estimates, pressure send times and the estimator's input counters."""
@@ -223,11 +261,96 @@ def spin_for(executor, seconds: float, until=None) -> bool:
     return False
 
 
+def start(cmd, env, log, **kw) -> subprocess.Popen:
+    """Start a child in its own session (so that a signal reaches it alone)."""
+    return subprocess.Popen(cmd, env=env, stderr=log, start_new_session=True, **kw)
+
+
+def stop(procs) -> None:
+    """SIGINT the children, then SIGKILL what is left after 8 s."""
+    for proc in procs:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGINT)
+    for proc in procs:
+        try:
+            proc.wait(timeout=8.0)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+
+
+class Publisher:
+    """The publisher child and its JSON lines on stdout."""
+
+    def __init__(self, cmd, env, log) -> None:
+        self.proc = start(cmd, env, log, stdout=subprocess.PIPE)
+        os.set_blocking(self.proc.stdout.fileno(), False)
+        self.out = ''
+
+    def read(self) -> str:
+        try:
+            chunk = os.read(self.proc.stdout.fileno(), 65536)
+        except BlockingIOError:
+            chunk = b''
+        self.out += chunk.decode()
+        return self.out
+
+    def lines(self):
+        return [json.loads(line) for line in self.read().strip().splitlines()]
+
+
+def measure(args, executor, sub, pub, mon=None):
+    """Warm up, then measure the CPU of ``sub`` over ``--minutes``; return the figures."""
+    if not spin_for(executor, 120.0, lambda: 'started' in pub.read()):
+        raise SystemExit('the publisher did not start within 120 s')
+    t_start = time.monotonic()
+    spin_for(executor, args.warmup_s)
+    cpu0, w0 = cpu_seconds(sub.pid), time.monotonic()
+    lat_from = len(mon.latency_ms) if mon else 0
+    est0 = mon.estimates if mon else 0
+    spin_for(executor, max(args.minutes * 60.0 - (time.monotonic() - t_start - args.warmup_s),
+                           0.0))
+    cpu1, w1 = cpu_seconds(sub.pid), time.monotonic()
+    if not spin_for(executor, 30.0, lambda: pub.read().count('\n') >= 2):
+        raise SystemExit('the publisher did not report')
+    out = {'cpu': 100.0 * (cpu1 - cpu0) / (w1 - w0), 'seconds': w1 - w0,
+           'report': pub.lines()[-1], 'match_s': pub.lines()[0]['match_s']}
+    if mon:
+        out['latency'] = np.array(mon.latency_ms[lat_from:])
+        out['estimates'] = mon.estimates - est0
+    return out
+
+
+def busy_live(seconds: float, env) -> None:
+    """Run ``wet-eha-thermal live`` with one core kept busy; print its figures."""
+    busy = subprocess.Popen([sys.executable, '-c', 'while True: pass'],
+                            start_new_session=True)
+    try:
+        with tempfile.TemporaryDirectory() as folder:
+            cli = Path(sys.executable).parent / 'wet-eha-thermal'
+            cmd = [str(cli)] if cli.exists() else [sys.executable, '-m', 'wet_eha_thermal.cli']
+            res = subprocess.run(cmd + ['live', '--duration', f'{seconds:g}'], env=env,
+                                 cwd=folder, capture_output=True, text=True,
+                                 timeout=seconds + 300)
+    finally:
+        stop([busy])
+    lines = res.stdout.splitlines()
+    keep = ('run ', 'samples ', 'stale events ', 'rig figures ', 'estimates ')
+    print(f'busy machine: `wet-eha-thermal live --duration {seconds:g}` with one core kept '
+          f'busy by another process (exit status {res.returncode}):')
+    for line in lines:
+        if line.strip().startswith(keep):
+            print('  ' + line.strip())
+    if res.returncode:
+        print('  ' + res.stderr.strip().replace('\n', '\n  '))
+
+
 def main() -> None:
     """Run the benchmark and print the figures."""
     p = argparse.ArgumentParser(description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument('--minutes', type=float, default=10.0, help='measured time (default 10)')
+    p.add_argument('--minutes', type=float, default=10.0,
+                   help='measured time of each subscriber (default 10)')
     p.add_argument('--pressure', choices=('differential', 'ports'), default='differential',
                    help='one differential pressure (four topics, the default) or both ports '
                         'and the accumulator (six topics)')
@@ -237,12 +360,17 @@ def main() -> None:
                    help='reliable history depth (default 1000, as the estimator)')
     p.add_argument('--executor', choices=('events', 'single'), default='events')
     p.add_argument('--warmup-s', type=float, default=5.0)
-    p.add_argument('--role', choices=('main', 'publisher'), default='main',
+    p.add_argument('--busy-live-s', type=float, default=60.0,
+                   help='length of the busy-machine live run (0: skip it)')
+    p.add_argument('--role', choices=('main', 'publisher', 'bare'), default='main',
                    help=argparse.SUPPRESS)
     p.add_argument('--seconds', type=float, default=0.0, help=argparse.SUPPRESS)
     args = p.parse_args()
     if args.role == 'publisher':
         run_publisher(args)
+        return
+    if args.role == 'bare':
+        run_bare(args)
         return
 
     domain = int(os.environ.get('WET_EHA_BENCH_DOMAIN_ID', 100 + os.getpid() % 133))
@@ -263,103 +391,84 @@ def main() -> None:
         est_cmd += ['--params-file', str(PARAMS_FILE)]
     est_cmd += ['-p', 'qos:=reliable', '-p', f'qos_depth:={args.depth}',
                 '-p', f'config_file:={config_file}']
+    common = ['--rate-Hz', str(args.rate_Hz), '--stage', str(args.stage), '--depth',
+              str(args.depth), '--executor', args.executor, '--pressure', args.pressure]
     pub_cmd = [sys.executable, __file__, '--role', 'publisher', '--seconds',
-               str(args.warmup_s + measure_s), '--rate-Hz', str(args.rate_Hz), '--stage',
-               str(args.stage), '--depth', str(args.depth), '--executor', args.executor,
-               '--pressure', args.pressure]
+               str(args.warmup_s + measure_s)] + common
+    bare_cmd = [sys.executable, __file__, '--role', 'bare'] + common
     print(f'Estimator benchmark: {len(inputs)} inputs ({", ".join(inputs)}) at '
           f'{args.rate_Hz:g} Hz each, reliable QoS depth {args.depth}, stage {args.stage} '
           f'signals, estimates at 50 Hz, {args.executor} executor; {args.minutes:g} min '
-          f'measured after a {args.warmup_s:g} s warm-up, ROS domain {domain}')
+          f'measured per subscriber after a {args.warmup_s:g} s warm-up, ROS domain {domain}')
     print('command: OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_estimator.py '
           + ' '.join(sys.argv[1:]), flush=True)
     log = open(tmp / f'bench_estimator_{domain}.log', 'wb')
-    procs = []
     rclpy.init(domain_id=domain, signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node('bench_monitor')
-    mon = Monitor(node, topics.INPUT_TOPICS[next(k for k in inputs
-                                                 if k in topics.PRESSURE_INPUTS)])
     executor = make_executor(args.executor)
     executor.add_node(node)
+    ready = []
+    node.create_subscription(String, topics.READY_TOPIC, lambda m: ready.append(m.data),
+                             topics.latched_qos())
     try:
-        est = subprocess.Popen(est_cmd, env=env, stdout=log, stderr=subprocess.STDOUT,
-                               start_new_session=True)
-        procs.append(est)
-        if not spin_for(executor, 60.0, lambda: mon.diag_count > 0):
-            raise SystemExit('the estimator did not publish diagnostics within 60 s')
-        pub = subprocess.Popen(pub_cmd, env=env, stdout=subprocess.PIPE, stderr=log,
-                               start_new_session=True)
-        procs.append(pub)
-        os.set_blocking(pub.stdout.fileno(), False)
-        out = ''
-
-        def read_pub() -> str:
-            nonlocal out
-            try:
-                chunk = os.read(pub.stdout.fileno(), 65536)
-            except BlockingIOError:
-                chunk = b''
-            out += chunk.decode()
-            return out
-
-        if not spin_for(executor, 60.0, lambda: 'started' in read_pub()):
-            raise SystemExit('the publisher did not start within 60 s')
-        t_start = time.monotonic()
-        spin_for(executor, args.warmup_s)
-        cpu0, w0 = cpu_seconds(est.pid), time.monotonic()
-        lat_from = len(mon.latency_ms)
-        est0 = mon.estimates
-        spin_for(executor, max(measure_s - (time.monotonic() - t_start - args.warmup_s), 0.0))
-        cpu1, w1 = cpu_seconds(est.pid), time.monotonic()
-        lat = np.array(mon.latency_ms[lat_from:])
-        n_est = mon.estimates - est0
-        if not spin_for(executor, 30.0, lambda: read_pub().count('\n') >= 2):
-            raise SystemExit('the publisher did not report')
-        report = json.loads(out.strip().splitlines()[-1])
+        # 1. the bare subscriber
+        bare = start(bare_cmd, env, log, stdout=subprocess.PIPE)
+        pub = Publisher(pub_cmd, env, log)
+        bare_fig = measure(args, executor, bare, pub)
+        stop([pub.proc, bare])
+        bare_rx = json.loads(bare.stdout.read().decode().strip().splitlines()[-1])['received']
+        # 2. the estimator, once it is ready (model warmed, inputs matched)
+        mon = Monitor(node, topics.INPUT_TOPICS[next(k for k in inputs
+                                                     if k in topics.PRESSURE_INPUTS)])
+        est = start(est_cmd, env, log, stdout=log)
+        pub = Publisher(pub_cmd, env, log)     # it waits for the estimator's subscriptions
+        if not spin_for(executor, 120.0, lambda: any('"ready": true' in r for r in ready)):
+            raise SystemExit('the estimator did not say it is ready within 120 s')
+        est_fig = measure(args, executor, est, pub, mon)
         # two more diagnostics so that the counters include the last samples
         d0 = mon.diag_count
         spin_for(executor, 5.0, lambda: mon.diag_count >= d0 + 2)
+        stop([pub.proc, est])
     finally:
-        for proc in procs:
-            if proc.poll() is None:
-                os.killpg(proc.pid, signal.SIGINT)
-        for proc in procs:
-            try:
-                proc.wait(timeout=8.0)
-            except subprocess.TimeoutExpired:
-                os.killpg(proc.pid, signal.SIGKILL)
-                proc.wait()
         node.destroy_node()
         rclpy.try_shutdown()
         log.close()
 
-    sent = report['sent']
-    cpu = 100.0 * (cpu1 - cpu0) / (w1 - w0)
-    print(f'estimator CPU: {cpu:.1f} % of one core (utime+stime of /proc/{est.pid}/stat over '
-          f'{w1 - w0:.1f} s); {n_est} estimates received, {n_est / (w1 - w0):.1f} per s')
+    sent = est_fig['report']['sent']
+    print(f'bare subscriber CPU: {bare_fig["cpu"]:.1f} % of one core over '
+          f'{bare_fig["seconds"]:.1f} s; it received {bare_rx} of '
+          f'{bare_fig["report"]["sent"] * len(inputs)} samples')
+    print(f'estimator CPU: {est_fig["cpu"]:.1f} % of one core over {est_fig["seconds"]:.1f} s '
+          f'(utime+stime of /proc/<pid>/stat); {est_fig["estimates"]} estimates received, '
+          f'{est_fig["estimates"] / est_fig["seconds"]:.1f} per s')
+    print(f'ratio estimator / bare subscriber: {est_fig["cpu"] / bare_fig["cpu"]:.2f}')
     lost_total = 0
     for name in inputs:
         c = mon.counters.get(name, {})
         rx = int(c.get('received', 0))
         rejected = sum(int(c.get(k, 0)) for k in ('late', 'backwards', 'out_of_range',
-                                                  'non_finite'))
+                                                  'non_finite', 'future', 'overflow'))
         lost_total += sent - rx
         print(f'  {name:<12} sent {sent}, received {rx}, lost {sent - rx} '
               f'({100.0 * (sent - rx) / max(sent, 1):.3f} %), rejected {rejected} '
               f'(late {c.get("late", "?")}, backwards {c.get("backwards", "?")})')
     print(f'lost samples: {lost_total} of {sent * len(inputs)} '
           f'({100.0 * lost_total / max(sent * len(inputs), 1):.4f} %) with reliable QoS over '
-          f'{report["seconds"]:.1f} s of publishing')
+          f'{est_fig["report"]["seconds"]:.1f} s of publishing')
     print('latency added by the estimator (its diagnostics: callback of the closing sample -> '
-          f'estimate published), p50/p99/max: {mon.latency_text or "not reported"}')
+          f'estimates published), p50/p99/max: {mon.latency_text or "not reported"}')
+    lat = est_fig['latency']
     if lat.size:
         p50, p99 = np.percentile(lat, [50, 99])
         print(f'end-to-end latency, closing sample sent -> its estimate received here: p50 '
               f'{p50:.2f} ms, p99 {p99:.2f} ms, max {lat.max():.2f} ms over {lat.size} '
               'estimates')
-    print(f'publisher: CPU {report["cpu_percent"]:.1f} % of a core, tick interval p50/p99/max '
-          f'{report["tick_p50_ms"]:.3f}/{report["tick_p99_ms"]:.3f}/{report["tick_max_ms"]:.1f} '
-          f'ms; subscribers matched after {json.loads(out.splitlines()[0])["match_s"]:.1f} s')
+    r = est_fig['report']
+    print(f'publisher (estimator phase): CPU {r["cpu_percent"]:.1f} % of a core, tick interval '
+          f'p50/p99/max {r["tick_p50_ms"]:.3f}/{r["tick_p99_ms"]:.3f}/{r["tick_max_ms"]:.1f} ms',
+          flush=True)
+    if args.busy_live_s > 0:
+        busy_live(args.busy_live_s, dict(os.environ))
 
 
 if __name__ == '__main__':

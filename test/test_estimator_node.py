@@ -317,11 +317,11 @@ def test_model_failure_keeps_publishing_and_reports_error(rig):
     def broken(now_s=None):
         raise FloatingPointError('injected')
 
-    def broken_add(*args):
+    def broken_push(*args):
         raise RuntimeError('injected')
 
     rig.node.est.advance = broken
-    rig.node.est.add = broken_add
+    rig.node.est.push = broken_push
     n = len(rig.estimates['oil'])
     assert rig.feed(3.0, until=lambda: rig.level('estimate') == ERROR
                     and len(rig.estimates['oil']) > n + 10)

@@ -8,6 +8,7 @@ recorder as a subprocess and reads its cut file with
 :mod:`wet_eha_thermal.bag.reader`.
 """
 
+import json
 import os
 from pathlib import Path
 import signal
@@ -175,7 +176,10 @@ def test_records_every_field_qos_and_config(context, tmp_path):
     assert [d.data for _, d in by_topic[topics.ALERT_TOPIC]] == [alert.data]
     # topics without a message are not in the file
     assert topics.INPUT_TOPICS['p_a_Pa'] not in channels
-    assert set(channels) == {*sent, topics.ALERT_TOPIC}
+    assert set(channels) == {*sent, topics.ALERT_TOPIC, topics.READY_TOPIC}
+    # the recorder said it was ready once its inputs matched, and recorded that too
+    ready = [json.loads(d.data) for _, d in by_topic[topics.READY_TOPIC]]
+    assert ready and ready[0]['node'] == recorder_node.NODE_NAME and ready[0]['ready']
 
     def offered(topic):
         return yaml.safe_load(channels[topic].metadata['offered_qos_profiles'])[0]

@@ -38,6 +38,8 @@ from mcap.records import Channel, Chunk, Header, Metadata, MetadataIndex, Schema
 import numpy as np
 import zstandard
 
+from . import cdr
+
 MAGIC = b'\x89MCAP0\r\n'
 FLOAT64 = 'std_msgs/msg/Float64'
 FLUID_PRESSURE = 'sensor_msgs/msg/FluidPressure'
@@ -433,23 +435,24 @@ def _decode(buf: np.ndarray, pos: np.ndarray, type_name: str, where: str) -> Col
     data = pos + _DATA_AT
     size = _take(buf, pos + _LENGTH_AT, '<u8').astype(np.int64) - _MESSAGE_HEADER_BYTES
     log_time_ns = _take(buf, pos + _LOG_TIME_AT, '<i8')
-    _require(size >= 4, where, 'a CDR encapsulation header')
-    plain_le = (buf[data] == 0) & (buf[data + 1] == 1)
+    head = cdr.ENCAPSULATION_BYTES
+    _require(size >= head, where, 'a CDR encapsulation header')
+    plain_le = (buf[data] == cdr.PLAIN_LE[0]) & (buf[data + 1] == cdr.PLAIN_LE[1])
     if not plain_le.all():
         k = data[np.argmin(plain_le)]
         raise BagError(f'{where}: CDR encapsulation {buf[k]:02x}{buf[k + 1]:02x}; only 0001 '
                        '(little-endian plain CDR, what rclpy writes) is decoded')
-    body = data + 4  # CDR alignment counts from the end of the encapsulation header
+    body = data + head  # CDR alignment counts from the end of the encapsulation header
     if type_name == FLOAT64:
-        _require(size >= 4 + 8, where, type_name)
+        _require(size >= head + 8, where, type_name)
         return Columns(type_name, log_time_ns, log_time_ns, {'data': _take(buf, body, '<f8')})
-    # Header: stamp (int32 sec, uint32 nanosec), frame_id (uint32 length incl. NUL, bytes),
-    # then the two float64, aligned to 8.
-    _require(size >= 4 + 12, where, 'a std_msgs/Header')
-    sec = _take(buf, body, '<i4').astype(np.int64)
-    nanosec = _take(buf, body + 4, '<u4')
-    first = (12 + _take(buf, body + 8, '<u4').astype(np.int64) + 7) & ~7
-    _require(size >= 4 + first + 16, where, type_name)
+    # a Header, then the two float64 (cdr.py has the layout)
+    _require(size >= head + cdr.FRAME_ID_AT, where, 'a std_msgs/Header')
+    sec = _take(buf, body + cdr.STAMP_SEC_AT, '<i4').astype(np.int64)
+    nanosec = _take(buf, body + cdr.STAMP_NANOSEC_AT, '<u4')
+    first = cdr.first_after_header(
+        _take(buf, body + cdr.FRAME_ID_LENGTH_AT, '<u4').astype(np.int64))
+    _require(size >= head + first + 16, where, type_name)
     stamp_ns = sec * 1_000_000_000 + nanosec
     a, b = COLUMN_FIELDS[type_name]
     return Columns(type_name, log_time_ns, np.where(stamp_ns != 0, stamp_ns, log_time_ns),

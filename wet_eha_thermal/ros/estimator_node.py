@@ -1,21 +1,39 @@
 """
 The live estimator as a ROS 2 node: sensor topics in; estimates, diagnostics and alerts out.
 
-The node wraps :class:`wet_eha_thermal.estimator.core.Estimator`. Every
-sample goes to the core with its stamp (a Float64 has none: it takes the
-node's ROS clock, so /clock under use_sim_time). A sample that can complete
-a model step steps it at once, so the estimate leaves within the step's
-computing time. A timer at ``publish_rate_Hz`` also calls ``advance(now)``
-with the ROS clock, so the model keeps stepping on its fallbacks when inputs
-fall silent. Each new estimate is published: one sensor_msgs/Temperature per name in
-``topics.ESTIMATES`` (stamped with the estimate's sample time, strictly
+The node wraps :class:`wet_eha_thermal.estimator.core.Estimator`. The input
+topics are taken raw (CDR bytes) and decoded in place (:mod:`..bag.cdr`); each
+sample is pushed into the core's preallocated buffer with its stamp (a Float64
+has none: it takes the node's ROS clock, so /clock under use_sim_time), and
+that is all the per-sample work. A sample that can complete a model step steps
+it at once (the core checks the new samples then, vectorised), so the estimate
+leaves within the step's computing time. A timer at ``publish_rate_Hz`` also
+calls ``advance(now)`` with the ROS clock, so the model keeps stepping on its
+fallbacks when inputs fall silent. No call steps more than
+``estimator.max_steps_per_call`` steps: after a stall the model catches up over
+several calls. Each new estimate is published: one sensor_msgs/Temperature per
+name in ``topics.ESTIMATES`` (stamped with the estimate's sample time, strictly
 increasing), the state vector, and the alert summary whenever it changes
 (latched). The rest of each tick's budget goes to the forecast and margin.
 Thermocouples (``/eha/measured/<tc>``) go to the core with their header stamps:
 with the live correction on they correct the model, and /diagnostics carries
 one status per thermocouple (used, held, dropped or stale, with counters).
-A second timer publishes /diagnostics. No callback ever raises: a failure is
-logged, counted and shown in the diagnostics.
+
+Time: samples stamped more than ``estimator.max_future_s`` ahead of the clock
+are rejected; the clock going back by more than ``estimator.clock_jump_s``
+re-starts the model time (the core's rule); without sim time, the ROS clock
+moving ahead of the steady clock by more than that between two ticks (the
+system clock stepped) re-starts it too, so that the model never steps across a
+jump. Under sim time a leap forward of /clock is taken as elapsed time. Data
+gaps (every input silent) and clock jumps are logged, listed in the alert
+summary's events and counted in /diagnostics.
+
+Once the model is compiled and warmed and every input subscription has
+matched a publisher, the node says so on ``/eha/ready`` (latched); the
+simulated rig waits for that. A second timer publishes /diagnostics. No
+callback ever raises: a failure is logged, counted and shown in the
+diagnostics. At shutdown one summary line (samples received and rejected per
+input, gaps, clock jumps) goes to stderr.
 
 Run it with ``wet-eha-thermal-estimator --ros-args --params-file
 config/estimator.params.yaml`` or ``python -m wet_eha_thermal.ros.estimator_node``.
@@ -37,15 +55,17 @@ from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescr
 from rclpy.exceptions import NameValidationException, ParameterException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension, String
+from wet_eha_thermal.bag import cdr
 from wet_eha_thermal.config import ConfigError, load_config
 from wet_eha_thermal.estimator.core import Estimate, Estimator
 from wet_eha_thermal.ros import topics
-from wet_eha_thermal.ros.runtime import (accept_whole_numbers, EXECUTORS, prepare_model_step,
-                                         run_node)
+from wet_eha_thermal.ros.runtime import (accept_whole_numbers, EXECUTORS, FastClock,
+                                         prepare_model_step, Readiness, run_node)
 
-NODE_NAME = 'eha_thermal_estimator'
+NODE_NAME = topics.ESTIMATOR_NODE
 LIMITED = ('winding_hotspot', 'magnet', 'oil')   # quantities with limits and a forecast
 _LEVEL_NAMES = {0: 'OK', 1: 'WARN', 2: 'ERROR', 3: 'STALE'}
 
@@ -139,6 +159,10 @@ class EstimatorNode(Node):
         # before any subscription or publisher: a first step that compiled would keep
         # samples waiting for half a minute
         prepare_model_step(self, self.cfg)
+        self.clock = FastClock(self)
+        # the clock read at the last tick, and the steady clock then: a system clock that
+        # moves ahead of the steady one was stepped, not waited for
+        self._tick_clock: Optional[tuple] = None
         self.hardware_id = p['hardware_id']
         self.frame_id = p['frame_id']
         self.prefix = p['topic_prefix'].rstrip('/')
@@ -164,15 +188,18 @@ class EstimatorNode(Node):
         self._implausible_prev = 0
         self.topic_names: Dict[str, str] = {}
 
-        # inputs
+        # inputs, raw: decoded here in a fraction of rclpy's deserialisation
+        input_subs = []
         for name in self.est.inputs:
             topic = self._topic(topics.INPUT_TOPICS[name])
             if name in topics.PRESSURE_INPUTS:
                 cb = functools.partial(self._on_pressure, name)
-                self.create_subscription(FluidPressure, topic, cb, in_qos)
+                input_subs.append(self.create_subscription(FluidPressure, topic, cb, in_qos,
+                                                           raw=True))
             else:
                 cb = functools.partial(self._on_float, name)
-                self.create_subscription(Float64, topic, cb, in_qos)
+                input_subs.append(self.create_subscription(Float64, topic, cb, in_qos,
+                                                           raw=True))
             self.topic_names[name] = topic
         self.create_subscription(Temperature, self._topic(topics.AMBIENT_TOPIC),
                                  self._on_ambient, in_qos)
@@ -201,6 +228,8 @@ class EstimatorNode(Node):
         self.diag_timer = self.create_timer(1.0 / p['diagnostics_rate_Hz'], self._on_diagnostics)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._publish_alerts(force=True)
+        self.readiness = Readiness(self, self._topic(topics.READY_TOPIC), input_subs,
+                                   self.hardware_id, require_all=True)
         self.get_logger().info(
             f"estimating {len(topics.ESTIMATES)} temperatures at {p['publish_rate_Hz']:g} Hz "
             f"from {self.prefix or '/'}/* ({p['qos']} QoS, depth {p['qos_depth']}); config "
@@ -213,7 +242,7 @@ class EstimatorNode(Node):
 
     def _now_s(self) -> Optional[float]:
         """Return the ROS clock in seconds, or None while sim time has not started."""
-        ns = self.get_clock().now().nanoseconds
+        ns = self.clock.now_ns()
         return ns * 1e-9 if ns > 0 else None
 
     def _header_s(self, stamp: TimeMsg) -> Optional[float]:
@@ -227,27 +256,39 @@ class EstimatorNode(Node):
                                 throttle_duration_sec=5.0)
 
     # ----------------------------------------------------------- callbacks
-    def _on_float(self, channel: str, msg: Float64) -> None:
+    def _on_float(self, channel: str, data: bytes) -> None:
         t_rx = time.perf_counter()
         try:
-            now = self._now_s()
-            if now is None:
+            ns = self.clock.now_ns()
+            if not ns:
                 self.waiting_for_clock += 1
                 return
-            if self.est.add(channel, now, float(msg.data)) and self.est.ready(now):
-                self._step(None, t_rx)
+            now = ns * 1e-9
+            value = cdr.float64_data(data) if cdr.is_plain_le(data) \
+                else deserialize_message(data, Float64).data
+            if self.est.push(channel, now, value) and self.est.due(channel, now):
+                self._step(now, t_rx)
         except Exception as exc:  # noqa: B902 - a callback never raises
             self._failed(channel, exc)
 
-    def _on_pressure(self, channel: str, msg: FluidPressure) -> None:
+    def _on_pressure(self, channel: str, data: bytes) -> None:
         t_rx = time.perf_counter()
         try:
-            t = self._header_s(msg.header.stamp)
-            if t is None:
-                self.waiting_for_clock += 1
-                return
-            if self.est.add(channel, t, float(msg.fluid_pressure)) and self.est.ready(t):
-                self._step(None, t_rx)
+            if cdr.is_plain_le(data):
+                ns, value = cdr.header_stamp_and_value(data)
+            else:
+                msg = deserialize_message(data, FluidPressure)
+                ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+                value = msg.fluid_pressure
+            if not ns:
+                ns = self.clock.now_ns()     # a zero stamp: the clock, as for a Float64
+                if not ns:
+                    self.waiting_for_clock += 1
+                    return
+            t = ns * 1e-9
+            if self.est.push(channel, t, value) and self.est.due(channel, t):
+                # the clock, read once per step: the pushed Float64 samples carry it
+                self._step(self._now_s(), t_rx)
         except Exception as exc:  # noqa: B902
             self._failed(channel, exc)
 
@@ -302,6 +343,15 @@ class EstimatorNode(Node):
             now = self._now_s()
             if now is None:
                 return
+            steady = time.monotonic()
+            if self._tick_clock is not None and not self.clock.sim:
+                ahead = (now - self._tick_clock[0]) - (steady - self._tick_clock[1])
+                if ahead > self.cfg.estimator.clock_jump_s:
+                    self.est.restart_time(now)      # the system clock was stepped forward
+            self._tick_clock = (now, steady)
+            t_model = self.est.t_model
+            if t_model is not None and now - t_model < 2.0 * self.cfg.estimator.step_s:
+                return          # the samples keep the model current: nothing to catch up
             self._step(now)
         except Exception as exc:  # noqa: B902
             self._failed('publish', exc)
@@ -337,6 +387,7 @@ class EstimatorNode(Node):
         """
         estimates: List[Estimate] = []
         try:
+            jumps = self.est.clock_jumps
             try:
                 estimates = self.est.advance(now)
                 self.model_failing = False
@@ -346,7 +397,12 @@ class EstimatorNode(Node):
                 self.model_failing = True
                 self.get_logger().error(f'model step failed: {self.model_error}',
                                         throttle_duration_sec=5.0)
+            if self.est.clock_jumps != jumps:
+                self._last_ns = None         # the estimates' stamps start over with the clock
             for e in estimates:
+                for text in e.notices:
+                    self.get_logger().warning(text)
+                    self._pending_events.append(text)
                 for ev in e.alert_events:
                     log = self.get_logger().warning if ev.kind in ('raised', 'escalated') \
                         else self.get_logger().info
@@ -356,9 +412,11 @@ class EstimatorNode(Node):
                 self._publish_estimate(estimates[-1], estimates[-1].stamp_s)
                 if t_rx is not None:
                     self.latency_ms.append((time.perf_counter() - t_rx) * 1e3)
+                self._publish_state()
             elif self.model_failing and self._last_published is not None and now is not None:
                 # keep the consumers alive on the last good estimate, stamped now
-                self._publish_estimate(self._last_published, now)
+                if self._publish_estimate(self._last_published, now):
+                    self._publish_state()
             if estimates or now is not None:
                 self._publish_alerts()
         except Exception as exc:  # noqa: B902
@@ -366,10 +424,11 @@ class EstimatorNode(Node):
         if estimates:
             self._after_publish()
 
-    def _publish_estimate(self, est: Estimate, stamp_s: float) -> None:
+    def _publish_estimate(self, est: Estimate, stamp_s: float) -> bool:
+        """Publish the temperatures of ``est`` stamped ``stamp_s``; return whether they went."""
         ns = int(round(stamp_s * 1e9))
         if self._last_ns is not None and ns <= self._last_ns:
-            return                      # never the same or an older stamp twice
+            return False                # never the same or an older stamp twice
         self._last_ns = ns
         self._last_published = est
         stamp = _stamp_msg(ns)
@@ -379,6 +438,11 @@ class EstimatorNode(Node):
             msg.temperature = float(est.temperatures_C[name])
             msg.variance = float(est.uncertainty_K[name]) ** 2
             pub.publish(msg)
+        self.published += 1
+        return True
+
+    def _publish_state(self) -> None:
+        """Publish the model's state vector (after the estimates: no consumer waits on it)."""
         state = self.est.model.state
         n_motor = state.size - self.est.model.circuit.n
         arr = Float64MultiArray()
@@ -387,19 +451,24 @@ class EstimatorNode(Node):
             size=state.size, stride=state.size)]
         arr.data = state.astype(float).tolist()
         self.state_pub.publish(arr)
-        self.published += 1
 
     def _publish_alerts(self, force: bool = False) -> None:
         """Publish the alert summary (latched) when its levels or acknowledgements change."""
         summary = self.est.alerts.summary()
-        key = (int(summary['level']),) + tuple(
+        gaps = self.est.gaps
+        key = (int(summary['level']), gaps.open_since_s) + tuple(
             (q, d['reported'], d['active'], d['acknowledged'])
             for q, d in sorted(summary['quantities'].items()))
-        if not force and key == self._alert_key:
+        if not force and key == self._alert_key and not self._pending_events:
             return
         self._alert_key = key
         summary['level'] = int(summary['level'])
         summary['hardware_id'] = self.hardware_id
+        # the estimates of a data gap run on held inputs: say so beside the alerts
+        summary['data_gaps'] = {'count': gaps.count, 'longest_s': gaps.longest_s,
+                                'total_s': gaps.total_s, 'open_since_s': gaps.open_since_s,
+                                'last': list(gaps.last) if gaps.last else None}
+        summary['clock_jumps'] = self.est.clock_jumps
         summary['events'] = self._pending_events
         self._pending_events = []
         self.alert_pub.publish(String(data=json.dumps(_json_safe(summary))))
@@ -440,7 +509,7 @@ class EstimatorNode(Node):
             message += f'; on fallback: {", ".join(stale)}'
         if len(stale) == len(self.est.inputs):
             level = DiagnosticStatus.STALE[0]
-            message = 'every input stale: estimates run on held values; ' + \
+            message = 'every input stale (data gap): estimates run on held values; ' + \
                 self.est.alerts.summary()['message']
         if self.model_failing:
             level = DiagnosticStatus.ERROR[0]
@@ -470,7 +539,16 @@ class EstimatorNode(Node):
                                f'{t_meas:.2f} (estimate {name} '
                                f'{est.temperatures_C[name] - t_meas:+.2f} K)'))
         values += self._correction_values()
+        gaps = self.est.gaps
+        gap_text = f'{gaps.count}, longest {gaps.longest_s:.1f} s, total {gaps.total_s:.1f} s'
+        if gaps.open_since_s is not None:
+            gap_text = f'every input silent since {gaps.open_since_s:.3f} s; ' + gap_text
+        jump = self.est.last_clock_jump
         values += [('alerts', self.est.alerts.summary()['message']),
+                   ('data gaps (every input silent)', gap_text),
+                   ('held blocks (silences crossed)', self.est.held_blocks),
+                   ('clock jumps', self.est.clock_jumps if jump is None else
+                    f'{self.est.clock_jumps} (last from {jump[0]:.3f} s to {jump[1]:.3f} s)'),
                    ('inputs on fallback', ', '.join(stale) or 'none'),
                    ('estimates published', self.published),
                    ('model errors', self.model_errors),
@@ -553,7 +631,8 @@ class EstimatorNode(Node):
         values = [('topic', self.topic_names[name]), ('received', h.received),
                   ('accepted', h.accepted), ('non_finite', h.non_finite),
                   ('out_of_range', h.out_of_range), ('backwards', h.backwards),
-                  ('late', h.late), ('stale_events', h.stale_events),
+                  ('late', h.late), ('future', h.future), ('overflow', h.overflow),
+                  ('discarded at clock jumps', h.discarded), ('stale_events', h.stale_events),
                   ('callback_errors', self.callback_errors.get(name, 0)),
                   ('last_value', _fmt(h.last_value, 'g', 'none')),
                   ('last_stamp [s]', _fmt(h.last_stamp_s, '.3f', 'none')),
@@ -575,6 +654,19 @@ class EstimatorNode(Node):
             level, message = DiagnosticStatus.OK[0], 'OK'
         return self._status('plausibility', level, message, list(counts.items()))
 
+    def summary(self) -> str:
+        """Return a one-line account of the run: samples per input, gaps, clock jumps."""
+        parts = []
+        for name in self.est.inputs:
+            h = self.est.health[name]
+            parts.append(f'{name} {h.received} received, {h.accepted} accepted, '
+                         f'{h.rejected} rejected, {h.stale_events} stale events')
+        g = self.est.gaps
+        return (f'estimator summary: {self.published} estimates, {self.est.steps} steps; '
+                + '; '.join(parts) + f'; data gaps {g.count} (longest {g.longest_s:.1f} s); '
+                f'clock jumps {self.est.clock_jumps}; callback errors '
+                f'{sum(self.callback_errors.values())}, model errors {self.model_errors}')
+
 
 _DESCRIPTION = ('Live thermal estimator of the wet EHA (ROS 2 node). ROS arguments follow '
                 '--ros-args, e.g. --ros-args --params-file config/estimator.params.yaml '
@@ -583,9 +675,13 @@ _DESCRIPTION = ('Live thermal estimator of the wet EHA (ROS 2 node). ROS argumen
 
 def main(args: Optional[List[str]] = None) -> int:
     """Run the estimator node until Ctrl-C or shutdown; return the exit status."""
+    def close(node: EstimatorNode) -> int:
+        print(node.summary(), file=sys.stderr, flush=True)
+        return 0
+
     return run_node(args, 'wet-eha-thermal-estimator', _DESCRIPTION, EstimatorNode,
                     (ConfigError, NameValidationException, ParameterException, ValueError),
-                    log_executor=True)
+                    log_executor=True, close=close)
 
 
 if __name__ == '__main__':

@@ -1,24 +1,30 @@
 """
 The live digital twin in one command: simulated rig, estimator and a status line.
 
-:func:`run` starts three child processes, the recorder
+:func:`run` starts three child processes together, the recorder
 (:mod:`.recorder_node`, unless ``record`` is off), the estimator
-(:mod:`.estimator_node`) and, once the recorder listens, the simulated rig
-(:mod:`.sim_rig_node`), on a
+(:mod:`.estimator_node`) and the simulated rig (:mod:`.sim_rig_node`), on a
 private ROS domain (``WET_EHA_LIVE_DOMAIN_ID``, or the first domain with no
 ROS node on this machine from one picked by the process id; discovery
-limited to this machine), and a small
-node in this process that follows the estimates, the alerts and
-/diagnostics and prints one status line about twice a second (updated in
-place on a terminal, one line every few seconds otherwise). After
-``duration_s``, or on Ctrl-C / SIGTERM, it stops the children (SIGINT, then
-SIGTERM, then SIGKILL, each after a timeout; the recorder last, so that it
-keeps everything the others sent), prints a summary (with the recording's
-path and message count) and returns the exit status: 0 when every child ran
-to the end, shut down cleanly and estimates came, 1 otherwise (with the last
-lines a failed child printed). The recording (``runs/live_<UTC time>.mcap``
-by default) holds the configuration and the estimator's parameters file, so
-the run can be replayed from it alone.
+limited to this machine), and a small node in this process that follows the
+ready topic, the estimates, the alerts and /diagnostics and prints one status
+line about twice a second (updated in place on a terminal, one line every few
+seconds otherwise).
+
+The rig starts its duty only once the estimator and the recorder have said on
+``/eha/ready`` that they are ready (model compiled and warmed, every input
+matched), so no sample is published before they listen, however long the
+start-up takes on this machine; ``duration_s`` counts from that start. A
+start-up longer than ``START_TIMEOUT_S`` ends the run with a message naming
+who was not ready. After ``duration_s``, or on Ctrl-C / SIGTERM, it stops the
+children (SIGINT, then SIGTERM, then SIGKILL, each after a timeout; the
+recorder last, so that it keeps everything the others sent), prints a summary
+(samples the rig published and the estimator received, from their own
+shutdown lines; the recording's path and message count) and returns the exit
+status: 0 when every child ran to the end, shut down cleanly and estimates
+came, 1 otherwise (with the last lines a failed child printed). The recording
+(``runs/live_<UTC time>.mcap`` by default) holds the configuration and the
+estimator's parameters file, so the run can be replayed from it alone.
 
 The children run in their own session, so a Ctrl-C on the terminal reaches
 this process only and the shutdown stays in order; they also get SIGKILL
@@ -32,6 +38,7 @@ import json
 import math
 import os
 from pathlib import Path
+import re
 import shutil
 import signal
 import subprocess
@@ -50,7 +57,8 @@ from sensor_msgs.msg import Temperature
 from std_msgs.msg import String
 from wet_eha_thermal.bag.reader import BagError, open_bag
 from wet_eha_thermal.ros import topics
-from wet_eha_thermal.ros.recorder_node import default_output, NODE_NAME as RECORDER_NODE
+from wet_eha_thermal.ros.recorder_node import default_output
+from wet_eha_thermal.ros.topics import ESTIMATOR_NODE, RECORDER_NODE, RIG_NODE
 
 #: Environment variable that fixes the ROS domain of a live run (0..232).
 DOMAIN_ENV = 'WET_EHA_LIVE_DOMAIN_ID'
@@ -64,8 +72,9 @@ WATCHED = ('winding_hotspot', 'winding_mean', 'magnet', 'oil')
 TTY_PERIOD_S, LOG_PERIOD_S = 0.5, 5.0
 #: Shutdown timeouts (s) after SIGINT, then after SIGTERM.
 SIGINT_WAIT_S, SIGTERM_WAIT_S = 6.0, 3.0
-#: Longest wait for the recorder to subscribe before the rig starts anyway (s).
-RECORDER_READY_S = 15.0
+#: Longest start-up (processes, model warm-up, discovery) before the rig's duty (s): the
+#: rig starts anyway after it, the run ends with an error a little later.
+START_TIMEOUT_S = 120.0
 #: History depth of the recorder's subscriptions (1 s of a 1 kHz topic).
 RECORDER_DEPTH = 1000
 ESTIMATE_STATUS = 'wet_eha_thermal: estimate'
@@ -144,12 +153,15 @@ def child_commands(opts: LiveOptions, hardware_id: str,
     executor (the single-threaded one loses messages above about 2 k msg/s).
     """
     py = sys.executable
+    waits = waited_nodes(record_path is not None)
     rig = [py, '-m', 'wet_eha_thermal.ros.sim_rig_node', '--executor', opts.executor,
            '--ros-args', '-p', f'rate_Hz:={float(opts.rate_Hz)!r}',
            '-p', f'noise:={"true" if opts.noise else "false"}', '-p', 'qos:=reliable',
-           # start the duty once the estimator (and the recorder) hear every input: with
-           # best effort or before the match, a loaded machine lost seconds of a recording
-           '-p', f'wait_for_subscribers:={2 if record_path is not None else 1}']
+           # the duty starts once the estimator and the recorder are warm and hear every
+           # input: before that, samples would be lost or wait behind a start-up
+           '-p', f'wait_for:=[{", ".join(waits)}]',
+           '-p', f'wait_for_subscribers:={len(waits)}',
+           '-p', f'start_timeout_s:={START_TIMEOUT_S!r}']
     if opts.duty is not None:
         rig += ['-p', f'duty_file:={Path(opts.duty).resolve()}']
     else:
@@ -174,6 +186,11 @@ def child_commands(opts: LiveOptions, hardware_id: str,
     if record_path is not None:
         commands['recorder'] = rec
     return commands
+
+
+def waited_nodes(recording: bool) -> List[str]:
+    """Return the nodes the rig waits for before its duty (the recorder when recording)."""
+    return [ESTIMATOR_NODE] + ([RECORDER_NODE] if recording else [])
 
 
 def _die_with_parent() -> None:
@@ -276,9 +293,10 @@ class TwinState:
     time_to_limit: Dict[str, str] = field(default_factory=dict)
     fallback: str = 'unknown'
     stale_events: Dict[str, int] = field(default_factory=dict)
-    stale_baseline: Optional[Dict[str, int]] = None   # counters once every input was live
     received: Dict[str, int] = field(default_factory=dict)
     rig: Dict[str, str] = field(default_factory=dict)
+    ready: Dict[str, dict] = field(default_factory=dict)      # node -> its ready message
+    rig_started: Optional[float] = None                       # when the duty started
     hardware_id: str = field(default_factory=lambda: f'wet-eha-live-{os.getpid()}')
 
     # --------------------------------------------------------------- updates
@@ -336,14 +354,18 @@ class TwinState:
                         pass
             elif st.name == RIG_STATUS:
                 self.rig = kv
-        if self.stale_baseline is None and self.fallback == 'none' and self.stale_events:
-            # the estimator counts every input stale until its first sample: not an event
-            self.stale_baseline = dict(self.stale_events)
 
-    def stale_during_run(self) -> Dict[str, int]:
-        """Return the stale events per input since every input was first live."""
-        base = self.stale_baseline or {}
-        return {k: v - base.get(k, 0) for k, v in self.stale_events.items()}
+    def on_ready(self, text: str, rx: float) -> None:
+        """Take one ready message (JSON); the rig's ``running`` starts the run's clock."""
+        try:
+            data = json.loads(text)
+        except ValueError:
+            return
+        if not isinstance(data, dict) or not isinstance(data.get('node'), str):
+            return
+        self.ready[data['node']] = data
+        if data['node'] == RIG_NODE and data.get('running') and self.rig_started is None:
+            self.rig_started = rx
 
     # ---------------------------------------------------------------- output
     def limit_text(self) -> str:
@@ -362,6 +384,13 @@ class TwinState:
         if all(t == 'beyond horizon' for t in self.time_to_limit.values()):
             return 'beyond horizon'
         return 'pending'
+
+    def starting_line(self, waited_s: float, waits: List[str]) -> str:
+        """Return the status line of the start-up: who the rig still waits for."""
+        missing = [n for n in waits if n not in self.ready]
+        what = ('waiting for ' + ', '.join(missing) + ' (starting, warming the model, '
+                'matching the inputs)') if missing else 'everyone ready, the rig starts'
+        return f'start-up {waited_s:5.1f} s | {what}'
 
     def status_line(self, elapsed_s: float, duration_s: float) -> str:
         """Return the one-line status."""
@@ -453,6 +482,9 @@ def _monitor_node(context, state: TwinState):
                              topics.latched_qos())
     node.create_subscription(DiagnosticArray, topics.DIAGNOSTICS_TOPIC,
                              lambda m: state.on_diagnostics(m.status), QoSProfile(depth=20))
+    node.create_subscription(String, topics.READY_TOPIC,
+                             lambda m: state.on_ready(m.data, time.monotonic()),
+                             topics.latched_qos())
     return node
 
 
@@ -468,22 +500,51 @@ def recording_text(path: Path) -> str:
     return text + (f' (cut: {bag.problem})' if bag.truncated else '')
 
 
-def _wait_for_recorder(node: Node, recorder: Child, stop: Dict[str, Optional[str]]) -> None:
-    """Wait until the recorder subscribes to every input (or it ends, a signal, a timeout)."""
-    end = time.monotonic() + RECORDER_READY_S
-    while stop['why'] is None and recorder.running() and time.monotonic() < end:
-        if all(any(i.node_name == RECORDER_NODE for i in node.get_subscriptions_info_by_topic(t))
-               for t in topics.INPUT_TOPICS.values()):
-            return
-        time.sleep(0.05)
+_COUNTS = re.compile(r'(\w+) (\d+) received, (\d+) accepted, (\d+) rejected, '
+                     r'(\d+) stale events')
+
+
+def _summary_line(child: Optional[Child], tag: str) -> str:
+    """Return what follows ``tag`` on the last line of the child's log that has it ('')."""
+    lines = [ln for ln in child.tail(60) if tag in ln] if child is not None else []
+    return lines[-1].split(tag, 1)[1].strip() if lines else ''
+
+
+def sample_counts(estimator: Optional[Child], rig: Optional[Child]) -> Dict[str, object]:
+    """
+    Return the samples the rig published and the estimator received, from their last lines.
+
+    ``published`` (per input, the rig's count), ``received``, ``rejected`` and
+    ``stale`` (per input, the estimator's counts at its shutdown); empty where
+    a child printed no summary.
+    """
+    out: Dict[str, object] = {}
+    figures = _summary_line(rig, 'rig summary:')
+    m = re.search(r'(\d+) samples x', figures)
+    if m:
+        out['published'] = int(m.group(1))
+    figures = _summary_line(estimator, 'estimator summary:')
+    found = _COUNTS.findall(figures)
+    if found:
+        out['received'] = {n: int(r) for n, r, _, _, _ in found}
+        out['rejected'] = {n: int(x) for n, _, _, x, _ in found}
+        out['stale'] = {n: int(st) for n, _, _, _, st in found}
+    return out
 
 
 def summary(opts: LiveOptions, state: TwinState, children: List[Child], run_s: float,
-            domain: int, stopped_by: str, recording: Optional[Path] = None) -> List[str]:
-    """Return the lines of the end-of-run summary; ``recording`` is the recorder's file."""
+            domain: int, stopped_by: str, recording: Optional[Path] = None,
+            start_s: float = 0.0) -> List[str]:
+    """
+    Return the lines of the end-of-run summary.
+
+    ``run_s``: the duty's length (s), after ``start_s`` of start-up; ``recording``:
+    the recorder's file.
+    """
     out = ['', 'Live twin summary',
-           f'  run             {run_s:.1f} s ({stopped_by}); {_what(opts)} on the simulated rig '
-           f'at {opts.rate_Hz:g} Hz, noise {"on" if opts.noise else "off"}, ROS domain {domain}']
+           f'  run             {run_s:.1f} s of duty after {start_s:.1f} s of start-up '
+           f'({stopped_by}); {_what(opts)} on the simulated rig at {opts.rate_Hz:g} Hz, noise '
+           f'{"on" if opts.noise else "off"}, ROS domain {domain}']
     if state.estimates and state.first_rx is not None:
         span = max(state.last_rx - state.first_rx, 1e-9)
         rate = (state.estimates - 1) / span if state.estimates > 1 else 0.0
@@ -514,20 +575,29 @@ def summary(opts: LiveOptions, state: TwinState, children: List[Child], run_s: f
     out.append(line)
     for e in state.alert_events[-5:]:
         out.append(f'                  {e}')
-    during = state.stale_during_run()
+    rig = next((c for c in children if c.name == 'rig'), None)
+    est = next((c for c in children if c.name == 'estimator'), None)
+    counts = sample_counts(est, rig)
+    if 'stale' in counts:       # the estimator's own count: an input that fell silent
+        during = counts['stale']
+        since = 'during the duty'
+    else:                       # its last diagnostics (up to a second old)
+        during = state.stale_events
+        since = 'at the last diagnostics'
     per = ', '.join(f'{k} {v}' for k, v in during.items() if v)
-    since = 'since all inputs were live' if state.stale_baseline is not None else \
-        'including the start'
     out.append(f'  stale events    {sum(during.values())} ({since})' + (f': {per}' if per else '')
                + f'; inputs on fallback at the end: {state.fallback}')
-    rig = next((c for c in children if c.name == 'rig'), None)
-    rig_lines = [ln for ln in rig.tail(40) if 'rig summary:' in ln] if rig is not None else []
-    rig_figures = rig_lines[-1].split('rig summary:', 1)[1].strip() if rig_lines else ''
-    if state.received:
+    rig_figures = _summary_line(rig, 'rig summary:')
+    if 'published' in counts and 'received' in counts:
+        sent = counts['published']
+        low = min(counts['received'].values())
+        out.append(f'  samples         the rig published {sent} per input; the estimator '
+                   f'received {low} of them on its worst input ({100.0 * low / max(sent, 1):.2f} '
+                   f'%), rejected {sum(counts["rejected"].values())}')
+    elif state.received:
         mean = sum(state.received.values()) / len(state.received)
-        sent = rig_figures.split(' samples', 1)[0].split(', ')[-1] if rig_figures else '?'
-        out.append(f'  samples         the rig published {sent} per input; the estimator had '
-                   f'received {mean:.0f} per input at its last diagnostics (up to 1 s earlier)')
+        out.append(f'  samples         the estimator had received {mean:.0f} per input at its '
+                   'last diagnostics')
     for c in children:
         out.append(f'  {c.name:<15} {c.describe()}')
     if rig_figures:
@@ -576,34 +646,41 @@ def run(opts: LiveOptions, out: TextIO = sys.stdout, err: TextIO = sys.stderr,
         env.setdefault('OPENBLAS_NUM_THREADS', '1')
         commands = child_commands(opts, state.hardware_id, record_path)
         node = _monitor_node(context, state)
-        # the rig publishes from its start: it starts once the recorder listens
-        for name in ('recorder', 'estimator'):
-            if name in commands:
-                children.append(Child(name, commands[name], env, log_dir))
-        if record_path is not None:
-            _wait_for_recorder(node, children[0], stop)
-        children.append(Child('rig', commands['rig'], env, log_dir))
-        children.sort(key=lambda c: ('rig', 'estimator', 'recorder').index(c.name))
+        waits = waited_nodes(record_path is not None)
+        # all at once: the rig waits for the others to be ready before its duty starts
+        children = [Child(name, commands[name], env, log_dir)
+                    for name in ('rig', 'estimator', 'recorder') if name in commands]
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node)
-        deadline = t0 + opts.duration_s
+        # the rig starts anyway after START_TIMEOUT_S; a little later the run gives up
+        start_limit = t0 + START_TIMEOUT_S + 10.0
         while stop['why'] is None:
             now = time.monotonic()
-            if now >= deadline:
-                stop['why'] = 'duration reached'
-                break
-            executor.spin_once(timeout_sec=min(0.05, max(deadline - now, 0.0)))
+            if state.rig_started is None:
+                if now >= start_limit:
+                    stop['why'] = 'start-up timed out'
+                    break
+                line = state.starting_line(now - t0, waits)
+            else:
+                elapsed = now - state.rig_started
+                if elapsed >= opts.duration_s:
+                    stop['why'] = 'duration reached'
+                    break
+                line = state.status_line(elapsed, opts.duration_s)
+            executor.spin_once(timeout_sec=0.05)
             early = next((c for c in children if not c.running()), None)
             if early is not None:
                 stop['why'] = f'the {early.name} exited early'
                 break
-            printer.update(now, state.status_line(now - t0, opts.duration_s),
-                           state.estimates > 0)
-        printer.update(math.inf, state.status_line(time.monotonic() - t0, opts.duration_s),
-                       state.estimates > 0)
+            printer.update(now, line, state.estimates > 0)
+        if state.rig_started is not None:
+            printer.update(math.inf, state.status_line(time.monotonic() - state.rig_started,
+                                                       opts.duration_s), state.estimates > 0)
     finally:
         printer.finish()
-        run_s = time.monotonic() - t0
+        end = time.monotonic()
+        start_s = (state.rig_started if state.rig_started is not None else end) - t0
+        run_s = end - t0 - start_s
         # the recorder last, so that it keeps what the others sent until they stopped
         stop_children([c for c in children if c.name != 'recorder'])
         stop_children([c for c in children if c.name == 'recorder'])
@@ -618,11 +695,16 @@ def run(opts: LiveOptions, out: TextIO = sys.stdout, err: TextIO = sys.stderr,
         for s, handler in old.items():
             signal.signal(s, handler)
     for line in summary(opts, state, children, run_s, domain, stop['why'] or 'stopped',
-                        record_path):
+                        record_path, start_s):
         print(line, file=out)
     out.flush()
-    ok = early is None and state.estimates > 0 and all(c.clean() for c in children)
-    if early is not None:
+    ok = (early is None and state.rig_started is not None and state.estimates > 0
+          and all(c.clean() for c in children))
+    if state.rig_started is None and early is None:
+        missing = [n for n in waited_nodes(record_path is not None) if n not in state.ready]
+        print(f'error: the rig did not start its duty within {start_s:.0f} s of start-up'
+              + (f': not ready: {", ".join(missing)}' if missing else ''), file=err)
+    elif early is not None:
         print(f'error: the {early.name} {early.describe()} before the end of the run; its last '
               'lines:', file=err)
         for line in early.tail():

@@ -67,10 +67,11 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from wet_eha_thermal.bag.writer import BagWriter, COMPRESSIONS
 from wet_eha_thermal.config import ConfigError, default_config_path, load_config
 from wet_eha_thermal.ros import topics
-from wet_eha_thermal.ros.runtime import accept_whole_numbers, descriptor, EXECUTORS, run_node
+from wet_eha_thermal.ros.runtime import (accept_whole_numbers, descriptor, EXECUTORS,
+                                         FastClock, Readiness, run_node)
 import yaml
 
-NODE_NAME = 'eha_recorder'
+NODE_NAME = topics.RECORDER_NODE
 #: Metadata record names in the file (see the module docstring).
 CONFIG_METADATA = 'wet_eha_thermal.config'
 PARAMS_METADATA = 'wet_eha_thermal.params'
@@ -138,6 +139,7 @@ def recorded_topics(prefix: str = topics.PREFIX) -> Dict[str, Tuple[str, str]]:
         found[f'{topics.ESTIMATE_PREFIX}/{name}'] = (TEMPERATURE, 'output')
     found[topics.STATE_TOPIC] = ('std_msgs/msg/Float64MultiArray', 'output')
     found[topics.ALERT_TOPIC] = ('std_msgs/msg/String', 'latched')
+    found[topics.READY_TOPIC] = ('std_msgs/msg/String', 'latched')
     found[topics.ACK_TOPIC] = ('std_msgs/msg/String', 'output')
     found[topics.DIAGNOSTICS_TOPIC] = ('diagnostic_msgs/msg/DiagnosticArray', 'output')
     return {topics.prefixed(topic, prefix): spec for topic, spec in found.items()}
@@ -216,13 +218,23 @@ class RecorderNode(Node):
         self.last_error = ''
         self.write_failed = False                   # the writer gave up (disk full, ...)
         self.started_s = time.monotonic()
+        self.clock = FastClock(self)
+        inputs = {topics.prefixed(t, p['topic_prefix']) for t in topics.INPUT_TOPICS.values()}
+        input_subs = []
         for topic, (type_name, kind) in recorded_topics(p['topic_prefix']).items():
-            self._subscribe(topic, type_name, qos_of[kind])
+            sub = self._subscribe(topic, type_name, qos_of[kind])
+            if topic in inputs:
+                input_subs.append(sub)
         extra = ['/' + t.lstrip('/') for t in p['extra_topics']]    # as rosbag2 names them
         self.extra_wanted = [t for t in extra if t not in self.types]
         self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS_TOPIC,
                                               QoSProfile(depth=10))
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._on_diagnostics)
+        # ready once every input topic that has a publisher is matched (a rig publishes
+        # either the three pressures or the differential one)
+        self.readiness = Readiness(
+            self, topics.prefixed(topics.READY_TOPIC, p['topic_prefix']), input_subs,
+            self.hardware_id, require_all=False)
         if self.extra_wanted:
             # steady clock: under use_sim_time an extra topic may be /clock itself
             self._discovery = self.create_timer(DISCOVERY_PERIOD_S, self._discover,
@@ -234,11 +246,13 @@ class RecorderNode(Node):
             + (f'; waiting for {", ".join(self.extra_wanted)}' if self.extra_wanted else ''))
 
     # ------------------------------------------------------------ subscriptions
-    def _subscribe(self, topic: str, type_name: str, qos: QoSProfile) -> None:
-        self.create_subscription(message_class(type_name), topic,
-                                 functools.partial(self._on_message, topic), qos, raw=True)
+    def _subscribe(self, topic: str, type_name: str, qos: QoSProfile):
+        sub = self.create_subscription(message_class(type_name), topic,
+                                       functools.partial(self._on_message, topic), qos,
+                                       raw=True)
         self.types[topic] = type_name
         self.qos[topic] = qos
+        return sub
 
     def _discover(self) -> None:
         """Subscribe to the extra topics that have appeared, with their publishers' QoS."""
@@ -275,7 +289,7 @@ class RecorderNode(Node):
 
     def _on_message(self, topic: str, data: bytes) -> None:
         try:
-            log_time_ns = self.get_clock().now().nanoseconds
+            log_time_ns = self.clock.now_ns()
             if log_time_ns == 0:
                 self.before_clock += 1
                 return

@@ -3,7 +3,7 @@ The simulated rig: a ROS 2 node that plays the reference EHA and its sensors.
 
 Node ``eha_sim_rig``. From a duty (a reference stage or a duty CSV) the
 kinetic model makes the sensor signals, computed vectorised in blocks of
-20 ms and published one sample per topic per tick of a ``rate_Hz`` timer, so
+``block_s`` and published one sample per topic per tick of a ``rate_Hz`` timer, so
 that a receiver stamping on arrival (the estimator does, for the Float64
 inputs) sees them spread as a real rig's would. A "truth" thermal model
 (:class:`~wet_eha_thermal.model.eha.EHAModel`) is stepped by the rig itself
@@ -29,6 +29,14 @@ speed 2 rad/s, pressures 20 kPa, position 10 um, thermocouples 0.2 K,
 ambient 0.05 K. Thermocouples lag the truth with a first-order time
 constant ``thermocouple_lag_s`` (1 s).
 
+Start: the duty (sample 1) starts once every node named in ``wait_for`` has
+said it is ready on ``/eha/ready`` (model warmed, inputs matched: see
+:class:`~wet_eha_thermal.ros.runtime.Readiness`) and every input topic has
+``wait_for_subscribers`` matched subscribers; after ``start_timeout_s`` it
+starts anyway, with a warning that names who was not ready. It then says so on
+``/eha/ready`` itself (``running``), which is where ``wet-eha-thermal live``
+starts counting its duration.
+
 Time: the sample schedule follows the node's clock, so under
 ``use_sim_time`` it follows /clock; nothing is published before the first
 /clock message, and a clock that jumps backwards (a replay restarting)
@@ -40,6 +48,7 @@ Run: ``python -m wet_eha_thermal.ros.sim_rig_node [--executor events|single]
 --ros-args -p stage:=3``.
 """
 
+import json
 import math
 import sys
 import time
@@ -48,26 +57,31 @@ from typing import Dict, List, Optional
 from builtin_interfaces.msg import Time as TimeMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 import numpy as np
+from rcl_interfaces.msg import ParameterDescriptor, ParameterType
 import rclpy
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from sensor_msgs.msg import FluidPressure, Temperature
-from std_msgs.msg import Float64
+from std_msgs.msg import Float64, String
 from wet_eha_thermal.config import ConfigError, load_config
 from wet_eha_thermal.model.kinetics import DutyError, load_duty_csv, stage_duty, STAGES
 from wet_eha_thermal.model.motor import C_TO_K
 from wet_eha_thermal.ros.runtime import (accept_whole_numbers, descriptor, prepare_model_step,
                                          run_node)
 from wet_eha_thermal.ros.topics import (AMBIENT_TOPIC, DIAGNOSTICS_TOPIC, input_qos,
-                                        INPUT_TOPICS, MEASURED_PREFIX, PREFIX, prefixed,
-                                        PRESSURE_INPUTS, publish_inputs, THERMOCOUPLES)
-from wet_eha_thermal.simulated_rig import (AMBIENT_SIGMA_K, BLOCK_S, NOISE_SIGMA, SimulatedRig,
+                                        INPUT_TOPICS, latched_qos, MEASURED_PREFIX, PREFIX,
+                                        prefixed, PRESSURE_INPUTS, publish_inputs, READY_TOPIC,
+                                        RIG_NODE, THERMOCOUPLES)
+from wet_eha_thermal.simulated_rig import (AMBIENT_SIGMA_K, NOISE_SIGMA, SimulatedRig,
                                            THERMOCOUPLE_SIGMA_K)
 
-NODE_NAME = 'eha_sim_rig'
+NODE_NAME = RIG_NODE
 #: Most sample time published in one tick when catching up (s); older samples are skipped.
 MAX_BURST_S = 0.1
-#: Longest wait for the subscribers of wait_for_subscribers (s).
-SUBSCRIBER_WAIT_S = 15.0
+#: Default block of the kinetics and the truth model (s): with 20 ms blocks the rig took
+#: 40-50 % of a core at 1 kHz, 90 % of it computing blocks (py-spy); 0.1 s blocks make a
+#: fifth of the numpy calls, and the truth model steps at 0.1 s
+RIG_BLOCK_S = 0.1
 #: Tick intervals and publish lags kept for the jitter figures (a ring of this many).
 STATS_WINDOW = 20000
 
@@ -109,7 +123,8 @@ class SimRigNode(Node):
             duty = stage_duty(self.cfg, p['stage'])
         self.rig = SimulatedRig(self.cfg, duty, rate_Hz=p['rate_Hz'], noise=p['noise'],
                                 seed=p['seed'], ambient_C=p['ambient_C'],
-                                thermocouple_lag_s=p['thermocouple_lag_s'])
+                                thermocouple_lag_s=p['thermocouple_lag_s'],
+                                block_s=p['block_s'])
         self.truth = self.rig.truth
         # before any subscription or publisher: a first step that compiled would keep
         # samples waiting for half a minute
@@ -119,6 +134,10 @@ class SimRigNode(Node):
         self.period_ns = int(round(self.period_s * 1e9))
         self.noise = p['noise']
         self.wait_for_subscribers = p['wait_for_subscribers']
+        self.wait_for = set(p['wait_for'])
+        self.start_timeout_s = p['start_timeout_s']
+        self.ready_nodes: Dict[str, dict] = {}      # node name -> its ready message
+        self.started_after_s: Optional[float] = None
         # publishers
         prefix = p['topic_prefix']
         # a second of samples: a reliable reader that stalls catches up instead of losing them
@@ -139,6 +158,9 @@ class SimRigNode(Node):
             Temperature, prefixed(f'{MEASURED_PREFIX}/{name}', prefix), 10)
             for name in THERMOCOUPLES}
         self.diag_pub = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, 10)
+        self.ready_topic = prefixed(READY_TOPIC, prefix)
+        self.ready_pub = self.create_publisher(String, self.ready_topic, latched_qos())
+        self.create_subscription(String, self.ready_topic, self._on_ready, latched_qos())
         # schedule: sample k (1, 2, ...) has duty time k * period and is due at t0 + k * period
         self.t0_ns: Optional[int] = None
         self.last_now_ns = 0
@@ -165,8 +187,8 @@ class SimRigNode(Node):
         what = duty.name if p['duty_file'] else f'stage {p["stage"]}'
         self.get_logger().info(
             f'rig: {what} at {1.0 / self.period_s:g} Hz ({self.n_block} samples per '
-            f'{BLOCK_S * 1e3:g} ms block), noise {"on" if self.noise else "off"}, ambient '
-            f'{p["ambient_C"]:g} degC, qos {p["qos"]}, topics under {prefix}')
+            f'{self.rig.block_s * 1e3:g} ms block), noise {"on" if self.noise else "off"}, '
+            f'ambient {p["ambient_C"]:g} degC, qos {p["qos"]}, topics under {prefix}')
 
     # ------------------------------------------------------------ parameters
     def _declare_parameters(self) -> Dict[str, object]:
@@ -182,17 +204,29 @@ class SimRigNode(Node):
             ('ambient_C', 20.0, descriptor('ambient temperature, degC', -40.0, 60.0)),
             ('thermocouple_rate_Hz', 10.0, descriptor('thermocouple rate, Hz', 0.1, 100.0)),
             ('thermocouple_lag_s', 1.0, descriptor('thermocouple time constant, s', 0.0, 60.0)),
+            ('block_s', RIG_BLOCK_S, descriptor(
+                'samples are computed (kinetics, truth model step) in blocks this long, s',
+                0.005, 1.0)),
             ('config_file', '', descriptor('YAML configuration; empty: the reference rig')),
             ('topic_prefix', PREFIX, descriptor('namespace of the rig topics')),
             ('qos', 'sensor_data', descriptor('QoS of the inputs: sensor_data or reliable')),
             ('wait_for_subscribers', 0, descriptor(
-                'start the duty once every input topic has this many subscribers (at most '
-                f'{SUBSCRIBER_WAIT_S:g} s)', 0, 100)),
+                'start the duty once every input topic has this many matched subscribers',
+                0, 100)),
+            # declared by type: rclpy takes an empty list for a byte array
+            ('wait_for', Parameter.Type.STRING_ARRAY, ParameterDescriptor(
+                type=ParameterType.PARAMETER_STRING_ARRAY, read_only=True,
+                description='nodes that must say they are ready on /eha/ready before the '
+                            'duty starts (e.g. [eha_thermal_estimator, eha_recorder])')),
+            ('start_timeout_s', 120.0, descriptor(
+                'longest wait for wait_for and wait_for_subscribers before starting anyway, s',
+                0.0, 3600.0)),
         ]
         accept_whole_numbers(self, {name: default for name, default, _ in specs})
         values = {}
         for name, default, desc in specs:
             values[name] = self.declare_parameter(name, default, desc).value
+        values['wait_for'] = list(values['wait_for'] or [])
         if values['qos'] not in ('sensor_data', 'reliable'):
             raise ValueError(f'parameter qos {values["qos"]!r}: expected sensor_data or '
                              'reliable')
@@ -254,25 +288,44 @@ class SimRigNode(Node):
             self.published += 1
             self.k_next += 1
 
+    def _on_ready(self, msg: String) -> None:
+        try:
+            data = json.loads(msg.data)
+        except ValueError:
+            return
+        if isinstance(data, dict) and data.get('ready') and isinstance(data.get('node'), str):
+            self.ready_nodes[data['node']] = data
+
     def _subscribers_ready(self) -> bool:
         """
-        Tell whether every input has its ``wait_for_subscribers`` subscribers (or waited long).
+        Tell whether the duty may start: the awaited nodes ready, the inputs matched.
 
-        Samples published before a subscriber has matched never reach it; the
-        duty starts once they have, or after ``SUBSCRIBER_WAIT_S`` regardless.
+        Samples published before a subscriber has matched never reach it, and
+        a node still compiling or warming up would fall behind at once; the
+        duty starts when both are settled, or after ``start_timeout_s``
+        regardless (with a warning naming what was missing). Says so on the
+        ready topic.
         """
-        if self.wait_for_subscribers <= 0:
-            return True
+        waiting = sorted(self.wait_for - set(self.ready_nodes))
         matched = min(pub.get_subscription_count() for pub in self.pubs.values())
-        if matched >= self.wait_for_subscribers:
-            return True
-        if time.monotonic() - self.started_wall > SUBSCRIBER_WAIT_S:
+        short = matched < self.wait_for_subscribers
+        waited = time.monotonic() - self.started_wall
+        if (waiting or short) and waited <= self.start_timeout_s:
+            return False
+        if waiting or short:
             self.get_logger().warning(
-                f'starting with {matched} of {self.wait_for_subscribers} subscribers on some '
-                f'input after {SUBSCRIBER_WAIT_S:g} s')
-            self.wait_for_subscribers = 0
-            return True
-        return False
+                f'starting the duty after {waited:.1f} s without: '
+                + ', '.join((['not ready: ' + ', '.join(waiting)] if waiting else [])
+                            + ([f'{matched} of {self.wait_for_subscribers} subscribers on some '
+                                'input'] if short else [])))
+        self.started_after_s = waited
+        self.ready_pub.publish(String(data=json.dumps({
+            'node': self.get_name(), 'ready': True, 'running': True,
+            'waited_s': round(waited, 3), 'ready_nodes': sorted(self.ready_nodes)})))
+        self.get_logger().info(f'duty started after {waited:.1f} s of start-up'
+                               + (f' ({", ".join(sorted(self.wait_for))} ready)'
+                                  if self.wait_for and not waiting else ''))
+        return True
 
     def _publish_ambient(self) -> None:
         now = self.get_clock().now()

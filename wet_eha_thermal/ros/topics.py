@@ -29,6 +29,8 @@ empty for all).
 """
 
 PREFIX = '/eha'
+#: The nodes' names (one place: ``live`` and the rig's ``wait_for`` name them too)
+ESTIMATOR_NODE, RIG_NODE, RECORDER_NODE = 'eha_thermal_estimator', 'eha_sim_rig', 'eha_recorder'
 INPUT_TOPICS = {
     'current_A': f'{PREFIX}/current',
     'speed_rad_s': f'{PREFIX}/speed',
@@ -49,6 +51,9 @@ ESTIMATE_PREFIX = f'{PREFIX}/estimate'
 STATE_TOPIC = f'{PREFIX}/state'
 ALERT_TOPIC = f'{PREFIX}/alerts'
 ACK_TOPIC = f'{PREFIX}/alerts/ack'
+#: latched std_msgs/String JSON of each node that is ready ({"node", "ready", ...}); the
+#: simulated rig starts its duty once the nodes it waits for are, and says so here too
+READY_TOPIC = f'{PREFIX}/ready'
 DIAGNOSTICS_TOPIC = '/diagnostics'
 ESTIMATES = ('winding_mean', 'winding_hotspot', 'frame', 'magnet', 'airgap_oil_outlet',
              'motor_oil_outlet', 'pump_case', 'pump_outlet', 'chamber_a', 'chamber_b',
