@@ -24,7 +24,7 @@ import time
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
-from test_estimator_time import catch_up, fuzz, LOAD  # noqa: E402 (the test's fuzz, reused)
+from test_estimator_time import fuzz, good_data  # noqa: E402 (the test's fuzz, reused)
 from wet_eha_thermal.config import load_config  # noqa: E402
 from wet_eha_thermal.estimator.core import Estimator  # noqa: E402
 
@@ -60,13 +60,7 @@ def main() -> None:
               f'{est.held_blocks}, data gaps {est.gaps.count}, clock jumps {est.clock_jumps}, '
               f'rejected {sum(x.rejected for x in h)} (future {sum(x.future for x in h)}), '
               f'discarded {sum(x.discarded for x in h)}', flush=True)
-    for k in range(1, 1001):
-        t = clock + k / 1000.0
-        for ch in est.inputs:
-            est.add(ch, t, LOAD[ch])
-        if k % 20 == 0:
-            est.advance(t)
-    catch_up(est, t)
+    t = good_data(est, clock, 1.0)
     last = est.latest
     finite = all(math.isfinite(v) for v in last.temperatures_C.values())
     print(f'good data again: estimate at {last.stamp_s - t:+.3f} s of the clock, finite '

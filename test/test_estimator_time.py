@@ -208,6 +208,18 @@ def fuzz(est, rng, iterations=None, seconds=None):
     return clock, slowest
 
 
+def good_data(est, clock, seconds):
+    """Feed ``seconds`` of good 1 kHz samples after ``clock``, stepping; return the last stamp."""
+    for k in range(1, int(round(seconds * 1000.0)) + 1):
+        t = clock + k / 1000.0
+        for ch in est.inputs:
+            est.add(ch, t, LOAD[ch])
+        if k % 20 == 0:
+            est.advance(t)
+    catch_up(est, t)
+    return t
+
+
 def test_seeded_fuzz_raises_nothing_stays_bounded_and_recovers(cfg):
     # a few seconds of fuzz (benchmarks/fuzz_estimator.py runs it for 10 minutes), then
     # good data again
@@ -225,13 +237,7 @@ def test_seeded_fuzz_raises_nothing_stays_bounded_and_recovers(cfg):
     assert est.clock_jumps > 0 and est.gaps.count > 0 and est.held_blocks > 0
     assert sum(h.future for h in est.health.values()) > 0
     # good data again: estimates finite and current
-    for k in range(1, 3001):
-        t = clock + k / 1000.0
-        for ch in est.inputs:
-            est.add(ch, t, LOAD[ch])
-        if k % 20 == 0:
-            est.advance(t)
-    catch_up(est, t)
+    t = good_data(est, clock, 3.0)
     last = est.latest
     assert last.stamp_s == pytest.approx(t, abs=0.05) and last.stale == []
     assert all(math.isfinite(v) for v in last.temperatures_C.values())
