@@ -125,7 +125,7 @@ def test_default_step_agrees_with_a_fine_step(cfg):
     fine = simulate(cfg, duty, 120.0, dt_s=0.01, sample_rate_Hz=200.0, record_every_s=0.01)
     coarse = simulate(cfg, duty, 120.0, record_every_s=1.0)
     ref, got = cycle_means(fine), cycle_means(coarse)
-    assert max(ref[k] - C_TO_K for k in ref) > 30.0        # it did heat up
+    assert max(ref[k] - C_TO_K for k in ref) > 25.0        # it did heat up
     for k in ref:
         assert got[k] == pytest.approx(ref[k], abs=0.2), k
 

@@ -36,6 +36,18 @@ R_AIR = 287.05
 BILGEN_BOULOS_GAP_RATIO = (0.0068, 0.114)
 #: Bilgen-Boulos: highest Couette Reynolds number Re_d of the data.
 BILGEN_BOULOS_RE_MAX = 1.0e5
+#: Modified Taylor number Ta_m at which Taylor vortices appear in a narrow gap with a
+#: rotating inner cylinder (Taylor 1923; 1697.6 in the narrow-gap limit, as used by
+#: Becker and Kaye 1962 for :func:`becker_kaye_geometric_factor`).
+TAYLOR_ONSET = 1700.0
+#: Ta_m / TAYLOR_ONSET where the airgap friction has become Bilgen-Boulos's: between
+#: onset and there, the torque grows from the exact Couette value linearly in
+#: Ta_m / TAYLOR_ONSET - 1, as the weakly nonlinear theory of the supercritical onset
+#: gives (Davey 1962, J. Fluid Mech. 14, 336-368: the excess torque is proportional to
+#: the excess Taylor number near onset); the width of the blend is a modelling choice.
+TAYLOR_BLEND_END = 2.0
+#: Airgap friction regime code of that blend (see :func:`airgap_friction`).
+AIRGAP_ONSET_BLEND = 5
 #: Reynolds number range of the reference paper's (Jiao et al. 2022) airgap
 #: axial-flow correlation.
 REFERENCE_AXIAL_RE = (380.0, 4220.0)
@@ -158,17 +170,22 @@ def bilgen_boulos_torque_coefficient(Re_d, gap_ratio, log: Optional[ValidityLog]
     J. Fluids Eng. 95(1), 1973, 122-126. With C_M = 2 M / (pi rho omega^2
     r1^4 L), Re_d = rho omega r1 delta / mu and g = delta / r1:
 
-    ======  ===================  ==============================
-    regime  Re_d                 C_M
-    ======  ===================  ==============================
-    1       Re_d < 64            10 g^0.3 / Re_d
-    2       64 <= Re_d < 500     2 g^0.3 / Re_d^0.6
-    3       500 <= Re_d < 1e4    1.03 g^0.3 / Re_d^0.5
-    4       Re_d >= 1e4          0.065 g^0.3 / Re_d^0.2
-    ======  ===================  ==============================
+    ======  =====================  ==============================
+    regime  Re_d (published)       C_M
+    ======  =====================  ==============================
+    1       Re_d < 64              10 g^0.3 / Re_d
+    2       64 <= Re_d < 500       2 g^0.3 / Re_d^0.6
+    3       500 <= Re_d < 1e4      1.03 g^0.3 / Re_d^0.5
+    4       Re_d >= 1e4            0.065 g^0.3 / Re_d^0.2
+    ======  =====================  ==============================
 
-    The published constants are only approximately continuous: C_M jumps by
-    +5.6 % at Re_d = 64, -4.1 % at 500 and +0.02 % at 1e4.
+    The published laws do not meet at the published edges (C_M would jump by
+    +5.6 % at Re_d = 64, -4.1 % at 500 and +0.02 % at 1e4). Here each regime
+    ends where its law meets the next one's, Re_d = (c_k / c_k+1)^(1 /
+    (n_k - n_k+1)): 55.9, 762.0 and 9994 (``BILGEN_BOULOS_RE_EDGES``), so C_M
+    is continuous; the laws themselves are the published ones. Between a
+    published edge and the crossing the value differs from the published
+    table by at most those jumps.
 
     Validity flagged: Re_d <= 1e5 and 0.0068 <= g <= 0.114. The gap-ratio
     range is the one usually quoted for the data Bilgen and Boulos fitted
@@ -204,8 +221,9 @@ _BB_POWER_COEF = 0.5 * np.pi * _BB_COEF
 _BB_W_EXPO = 3.0 - _BB_EXPO
 
 
-#: Re_d where the Bilgen-Boulos regimes 2, 3 and 4 start.
-_BB_RE_EDGES = np.array([64.0, 500.0, 1.0e4])
+#: Re_d where the Bilgen-Boulos regimes 2, 3 and 4 start: where each law meets the next.
+BILGEN_BOULOS_RE_EDGES = (_BB_COEF[:-1] / _BB_COEF[1:]) ** (1.0 / (_BB_EXPO[:-1] - _BB_EXPO[1:]))
+_BB_RE_EDGES = BILGEN_BOULOS_RE_EDGES
 
 
 @jit
@@ -220,11 +238,13 @@ def _airgap_friction_factors(r_rotor: float, r_bore: float, L: float) -> tuple:
     """
     Return the geometric factors of :func:`airgap_friction` for one airgap (cached).
 
-    ``(couette, re_per_rho_w, gap_ratio, gap_in_data, g03, bb_rho)``: the
-    Couette power is 4 pi mu w^2 couette; Re_d = re_per_rho_w rho w / mu; the
-    Bilgen-Boulos power of regime index k is 0.5 pi c g03 (Re_d / w)^(-n)
-    w^(3 - n) rho bb_rho, g03 = g^0.3 (see ``_BB_POWER_COEF``); gap_in_data
-    tells whether g is inside the data of Bilgen and Boulos. Each factor is
+    ``(couette, re_per_rho_w, gap_ratio, gap_in_data, g03, bb_rho,
+    ta_per_re2)``: the Couette power is 4 pi mu w^2 couette; Re_d =
+    re_per_rho_w rho w / mu; the Bilgen-Boulos power of regime index k is
+    0.5 pi c g03 (Re_d / w)^(-n) w^(3 - n) rho bb_rho, g03 = g^0.3 (see
+    ``_BB_POWER_COEF``); gap_in_data tells whether g is inside the data of
+    Bilgen and Boulos; Ta_m = ta_per_re2 Re_d^2 (Ta = Re_d^2 R_m delta /
+    r1^2, divided by the Becker-Kaye factor). Each factor is
     formed as the full expressions form it, so the powers agree with
     :func:`couette_torque` and :func:`bilgen_boulos_torque_coefficient` to
     rounding.
@@ -235,21 +255,28 @@ def _airgap_friction_factors(r_rotor: float, r_bore: float, L: float) -> tuple:
     gap_ratio = delta / np.asarray(r_rotor, dtype=float)
     low, high = BILGEN_BOULOS_GAP_RATIO
     gap_in_data = bool(np.all((gap_ratio >= low) & (gap_ratio <= high)))
+    r_mean = 0.5 * np.add(r_rotor, r_bore)
+    ta_per_re2 = r_mean * delta / r1s / becker_kaye_geometric_factor(r_rotor, r_bore)
     return (np.multiply(L, r1s * r2s / (r2s - r1s)), np.multiply(r_rotor, delta), gap_ratio,
-            gap_in_data, np.power(gap_ratio, 0.3), np.multiply(np.square(r1s), L))
+            gap_in_data, np.power(gap_ratio, 0.3), np.multiply(np.square(r1s), L),
+            _scalar(ta_per_re2))
 
 
 def airgap_friction(rho, mu, omega, r_rotor, r_bore, L, log: Optional[ValidityLog] = None):
     """
     Return the viscous friction power of a flooded airgap and its regime.
 
-    physics.md section 2. The torque coefficient is
-    C_M = max(C_M,Couette, C_M,Bilgen-Boulos), with C_M,Couette that of the
-    exact laminar Couette torque (:func:`couette_torque`) and C_M,BB from
-    :func:`bilgen_boulos_torque_coefficient`. Taylor vortices and turbulence
-    only ever add torque to the laminar value, so the low-Re limit is the
-    exact Couette torque and the switch between the two is continuous
-    (the Bilgen-Boulos curve keeps its own small jumps at 64, 500, 1e4).
+    physics.md section 2. Below the onset of Taylor vortices (modified Taylor
+    number Ta_m < ``TAYLOR_ONSET``, 1700) the flow is laminar circular
+    Couette flow and the torque is exactly :func:`couette_torque`'s. Above
+    it, the torque grows linearly in eps = Ta_m / 1700 - 1 from the Couette
+    value to Bilgen-Boulos's (:func:`bilgen_boulos_torque_coefficient`),
+    reached at eps = 1 (``TAYLOR_BLEND_END``), and follows Bilgen-Boulos from
+    there: P = P_C + s max(P_BB - P_C, 0), s = clip(eps, 0, 1). Vortices and
+    turbulence only ever add torque to the laminar value, hence the max. The
+    curve is continuous everywhere: at the onset, at the end of the blend and
+    at the Bilgen-Boulos regime edges. (Bilgen-Boulos alone reads up to 50 %
+    above the exact Couette torque below the onset.)
     Power P = 0.5 C_M pi rho |omega|^3 r1^4 L (= M |omega|). The pump is
     bidirectional, so |omega| is used; omega = 0 gives 0 W.
 
@@ -265,17 +292,19 @@ def airgap_friction(rho, mu, omega, r_rotor, r_bore, L, log: Optional[ValidityLo
 
     :return: ``(power_W, regime)``: power in W (>= 0) and an int regime: 0 =
         laminar Couette (exact torque), 1-4 = the Bilgen-Boulos regime that
-        set the torque (1: Re_d < 64, 2: 64-500, 3: 500-1e4, 4: > 1e4).
+        set the torque (edges ``BILGEN_BOULOS_RE_EDGES``), 5
+        (``AIRGAP_ONSET_BLEND``) = the blend just above the vortex onset.
 
     """
     w = np.abs(omega)
     try:      # a machine's dimensions come back every call: their factors are cached
-        couette_geo, re_geo, gap_ratio, gap_in_data, g03, bb_rho = \
+        couette_geo, re_geo, gap_ratio, gap_in_data, g03, bb_rho, ta_per_re2 = \
             _airgap_friction_factors(r_rotor, r_bore, L)
     except TypeError:           # array dimensions (not hashable)
-        couette_geo, re_geo, gap_ratio, gap_in_data, g03, bb_rho = \
+        couette_geo, re_geo, gap_ratio, gap_in_data, g03, bb_rho, ta_per_re2 = \
             _airgap_friction_factors.__wrapped__(r_rotor, r_bore, L)
-    power, regime, re = airgap_friction_power(rho, mu, w, couette_geo, re_geo, g03, bb_rho)
+    power, regime, re = airgap_friction_power(rho, mu, w, couette_geo, re_geo, g03, bb_rho,
+                                              ta_per_re2)
     if log is not None:
         # only where Bilgen-Boulos set the torque
         bb = np.not_equal(regime, 0)
@@ -291,7 +320,7 @@ def airgap_friction(rho, mu, omega, r_rotor, r_bore, L, log: Optional[ValidityLo
 
 
 @jit
-def airgap_friction_power(rho, mu, w, couette_geo, re_geo, g03, bb_rho):
+def airgap_friction_power(rho, mu, w, couette_geo, re_geo, g03, bb_rho, ta_per_re2):
     """
     Return the ``(power W, regime, Re_d)`` of :func:`airgap_friction`; no checks.
 
@@ -305,8 +334,12 @@ def airgap_friction_power(rho, mu, w, couette_geo, re_geo, g03, bb_rho):
     k = _bilgen_boulos_regime_index(re)
     p_bb = (np.take(_BB_POWER_COEF, k) * g03 * np.power(re_per_w, np.take(_BB_NEG_EXPO, k))
             * np.power(w, np.take(_BB_W_EXPO, k)) * (rho * bb_rho))
-    couette = p_couette >= p_bb
-    return np.where(couette, p_couette, p_bb), np.where(couette, 0, k + 1), re
+    blend = np.minimum(np.maximum((ta_per_re2 * (re * re) / TAYLOR_ONSET - 1.0)
+                                  / (TAYLOR_BLEND_END - 1.0), 0.0), 1.0)
+    excess = np.maximum(p_bb - p_couette, 0.0)
+    couette = (blend == 0.0) | (excess == 0.0)
+    regime = np.where(couette, 0, np.where(blend < 1.0, AIRGAP_ONSET_BLEND, k + 1))
+    return p_couette + blend * excess, regime, re
 
 
 # ------------------------------------------------------ airgap heat transfer
