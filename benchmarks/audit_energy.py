@@ -13,18 +13,17 @@ from a uniform start at ambient, it compares
   both integrated from the kinetic samples the model was driven with;
 - with what the outputs show: the heat stored (every motor node's capacity
   times its temperature change, summed step by step at the mean of the
-  capacities before and after; every oil volume's mass at the end, from its
-  volume at the end and rho(T, p) there, times the integral of c_p dT from
-  the start temperature; every solid shell's capacity times its rise) plus
+  capacities before and after; every oil volume's volume at the end times
+  the integral of rho c_p dT from the start temperature, at its end
+  pressure; every solid shell's capacity times its rise) plus
   the heat to ambient (every ambient conductance times the step-mean
   temperature difference, integrated).
 
 Printed per case and step: the input energy (kJ), the residual
 (stored + to ambient - input) / input, and the model's own ledger residual
 for comparison, then the end temperatures of the hot-spot and of the pump
-case. Every oil volume starts at the same temperature, so the sum of m c dT
-over the volumes at the end is their energy change whatever oil moved
-between them (the total mass of oil is what the volumes hold).
+case. Every oil volume starts at the same temperature, so the sum over the
+volumes at the end is their energy change whatever oil moved between them.
 """
 
 import argparse
@@ -102,9 +101,15 @@ def audit(cfg, duty, seconds: float, dt_s: float) -> dict:
     n_oil = len(OIL_NODES)
     T_oil = model.T_hyd[:n_oil]
     p_end = model._last[3]
-    mass = oil.density(T_oil, p_end) * oil_volumes_at_end(model)
-    # c_p is linear in T: its integral from T0 is c_p at the midpoint times the rise
-    stored_oil = float(np.dot(mass, oil.specific_heat(0.5 * (T_oil + T0)) * (T_oil - T0)))
+
+    # the integral of rho c_p dT from T0, at the end pressure, times the end volume: rho
+    # and c_p are linear in T, so Simpson's rule is exact
+    def rho_cp(T):
+        return oil.density(T, p_end) * oil.specific_heat(T)
+
+    per_m3 = (T_oil - T0) / 6.0 * (rho_cp(np.full_like(T_oil, T0))
+                                   + 4.0 * rho_cp(0.5 * (T_oil + T0)) + rho_cp(T_oil))
+    stored_oil = float(np.dot(oil_volumes_at_end(model), per_m3))
     stored_solid = float(np.dot(ci.solid_capacity, model.T_hyd[n_oil:] - T0))
     put_in = electrical - load
     e = model.energy()

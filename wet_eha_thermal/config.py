@@ -401,6 +401,9 @@ class Hydraulics:
     actuator: Actuator
     accumulator: Accumulator
     lines: Lines
+    substep_s: float = spec(1e-4, 10.0, default=0.05, doc=(
+        'longest sub-step of the oil volumes inside a model step: their flows, volumes and '
+        'pressure work swing within a duty cycle, and a step mean misplaces that heat'))
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -80,7 +80,6 @@ import statistics
 from typing import Deque, Dict, List, Optional, Tuple
 
 import numpy as np
-from scipy.linalg.lapack import dgesv as _gesv
 
 from ..config import Config
 from ..model.eha import EHAModel, OIL_OUTPUTS
@@ -147,14 +146,6 @@ class _Guard:
     status_before_stale: str = 'waiting'
 
 
-def _solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Return a^-1 b by LAPACK's gesv, without numpy's per-call overhead (a small system)."""
-    _, _, x, info = _gesv(a, b)
-    if info != 0:
-        raise np.linalg.LinAlgError(f'singular hydraulic step matrix (gesv info {info})')
-    return x
-
-
 class ThermalCorrection:
     """Kalman filter on the coupled model, fed by timestamped thermocouple readings."""
 
@@ -209,7 +200,6 @@ class ThermalCorrection:
             ('accumulator', 'accumulator'), ('line_a', 'line_a'), ('line_b', 'line_b'),
             ('pump_shell', 'pump_shell'), ('actuator_shell', 'actuator_shell'))}
         self._i_case = ci.index('case')
-        self._i_acc = ci.index('accumulator')
         # the outputs that are weighted means of nodes: their (fixed) rows
         self._weighted = {'winding_mean': 0, 'frame': 1}
         self._H_weighted = np.zeros((2, self.n))
@@ -498,15 +488,9 @@ class ThermalCorrection:
         Phi[:m, m + self._i_case] = b_in
         if self._i_wind_d is not None:
             Phi[:m, self._i_wind_d] = b_wind
-        # hydraulics: T+ = E T + Gamma (s dt / C), Gamma = A'^-1 (E - I); the motor
-        # outlet's step mean enters the accumulator through s
-        E, M, C, motor_rate = ci.last_step
-        Eh = E[:nh, :nh]
-        cols = [self._i_acc, self._i_case]
-        rhs = Eh[:, cols].copy()
-        rhs[cols, [0, 1]] -= 1.0
-        gam = _solve(M[:nh, :nh], rhs)
-        g_acc = gam[:, 0] * (motor_rate * dt / C[self._i_acc])   # per K of outlet mean
+        # hydraulics: the circuit's transition over the step, and its responses to the
+        # motor outlet's step mean (into the accumulator) and to heat into the case
+        Eh, g_acc, g_case, C = ci.last_transition()
         Mx, Mw = disc.Mx, disc.Mw
         o = self._s_outlet
         out_x = Mx[o].copy()
@@ -515,7 +499,7 @@ class ThermalCorrection:
         Phi[m:m + nh, m:m + nh] = Eh
         Phi[m:m + nh, m + self._i_case] += g_acc * Mw[o, self._col_inlet]
         if self._i_case_d is not None:
-            Phi[m:m + nh, self._i_case_d] = gam[:, 1] * (dt / C[self._i_case])
+            Phi[m:m + nh, self._i_case_d] = g_case
         if self._i_wind_d is not None:
             Phi[m:m + nh, self._i_wind_d] = g_acc * float(Mw[o, self._col_copper]
                                                           @ self._w_copper)
@@ -559,6 +543,8 @@ class ThermalCorrection:
         mo.T = T
         dh = delta[m:m + nh]
         model.T_hyd = model.T_hyd + dh
+        if model.circuit.T_report is not None:
+            model.circuit.T_report = model.circuit.T_report + dh
         model._case_prev_K += float(dh[self._i_case])   # the inlet extrapolation's memory
         if self.nd:
             self.d = self.d + delta[m + nh:]

@@ -29,7 +29,7 @@ import numpy as np
 
 from . import fluid_power as fp
 from .compiled import jit
-from .hydraulics import HydraulicCircuit, StepFlows
+from .hydraulics import HydraulicCircuit, OIL_NODES, StepFlows, SubSteps
 from .motor import MotorInputs, WetMotor
 from .oil import density as oil_density, get_oil, kinematic_viscosity as oil_nu, Oil
 from .validity import ValidityLog
@@ -37,6 +37,8 @@ from ..config import Config
 
 #: the case oil may fall this far below its nominal volume (a fraction), never further
 CASE_BUFFER_FLOOR = 0.75
+_CHAMBER_A, _CHAMBER_B = OIL_NODES.index('chamber_a'), OIL_NODES.index('chamber_b')
+_CASE, _ACC = OIL_NODES.index('case'), OIL_NODES.index('accumulator')
 #: the oil volumes whose hottest value is the ``oil`` output, checked against the oil limit
 OIL_OUTPUTS = ('airgap_oil_outlet', 'motor_oil_outlet', 'pump_case', 'chamber_a', 'chamber_b',
                'accumulator')
@@ -101,7 +103,7 @@ class EHAModel:
                           h.pump.coulomb_torque_Nm)
         self.T_hyd: Optional[np.ndarray] = None
         self.case_buffer_m3 = 0.0      # case oil above its nominal volume
-        self.case_floor_hits = 0       # steps where the case would have emptied (a guard)
+        self.case_floor_hits = 0       # (sub-)steps where the case would have emptied (a guard)
         self._case_prev_K, self._dt_prev = 0.0, 0.0
         # slower than the two filter stages, so buffer -> filter -> flow stays damped
         self.buffer_time_s = max(3.0 * coefficient_filter_s, 1.0)
@@ -115,6 +117,7 @@ class EHAModel:
         """Set every temperature to ``T_K`` and take the first sample as the starting point."""
         self.motor.initialise(T_K)
         self.T_hyd = np.full(self.circuit.n, float(T_K))
+        self.circuit.T_report = None
         self.time_s = float(first.t_s[-1])
         raw = np.array([first.p_a_Pa[-1], first.p_b_Pa[-1], first.p_acc_Pa[-1]])
         p = self._node_pressures(raw[:, None], np.zeros(1))
@@ -154,7 +157,8 @@ class EHAModel:
         Derive the hydraulic flows, flow-pressure products and pump friction of a block.
 
         Returns (StepFlows without the motor terms, external leakage mean m^3/s,
-        step length s, interval weights). Everything is evaluated per sample
+        step length s, interval weights, the sub-steps' sums of
+        :func:`segment_sums`). Everything is evaluated per sample
         interval: the mean flow from the position difference, paired with the
         interval's mean pressures (pairing it with the end pressure would lag
         by half an interval and book spurious load work).
@@ -163,11 +167,11 @@ class EHAModel:
         h, ci = self.cfg.hydraulics, self.circuit
         i_a, i_b = self._i_lines
         (flow, work, P_end, vdp, x_mean, dx, fric_W, q_ext, dt, wgt, raw_end,
-         re) = step_flows_kernel(
+         re, seg) = step_flows_kernel(
             t0, x0, raw0, p0, b.t_s, b.position_m, b.p_a_Pa, b.p_b_Pa, b.p_acc_Pa,
             b.speed_rad_s, 0.5 * (self.T_hyd[i_a] + self.T_hyd[i_b]),
             float(self.T_hyd[self._i_case]), self._geometry, self._leak_coeffs, self._friction,
-            self.oil.laws, ci.u, ci.d, ci.oil_volumes)
+            self.oil.laws, ci.u, ci.d, ci.oil_volumes, h.substep_s)
         fp.check_line_reynolds(self.log, re)
         act = h.actuator
         chambers = (act.dead_volume_m3 + self.area * (act.half_stroke_m + x_mean),
@@ -176,7 +180,7 @@ class EHAModel:
         sf = StepFlows(flow, work, p0, P_end, vdp, chambers, (dv, -dv), 0.0, 0.0, 0.0, 0.0,
                        fric_W)
         self._pending_last = (float(b.t_s[-1]), float(b.position_m[-1]), raw_end, P_end)
-        return sf, q_ext, dt, wgt
+        return sf, q_ext, dt, wgt, seg
 
     # ------------------------------------------------------------------ step
     def step(self, b: SampleBlock, ambient_K: float,
@@ -193,7 +197,7 @@ class EHAModel:
         """
         if self._last is None:
             raise RuntimeError('initialise the model with a first sample before stepping')
-        sf, q_ext, dt, wgt = self.step_flows(b)
+        sf, q_ext, dt, wgt, seg = self.step_flows(b)
         ci = self.circuit
         # the motor's inlet over the step: the case temperature extrapolated to mid-step
         # (the case moves with the leakage heat; a start-of-step value would lag), over
@@ -219,20 +223,25 @@ class EHAModel:
         m_cp = float(m.net.coefficients_in_use()[1][m.adv[0]])
         rho_cp = float(ci.rho_cp(T_case, p_case))
         q_motor = m_cp / rho_cp
-        dv_case = (q_ext - q_motor) * dt
-        # the motor's filtered flow lags a sudden fall of the leakage (the pressures
-        # dropping with hot, thin oil): the case never gives more oil than it holds, and
-        # each time this guard acts it is counted (the books then miss that volume's heat)
-        floor = -CASE_BUFFER_FLOOR * ci.oil_volumes[2]
-        if self.case_buffer_m3 + dv_case < floor:
-            dv_case = floor - self.case_buffer_m3
-            self.case_floor_hits += 1
-        sf.case_volume_m3 = ci.oil_volumes[2] + self.case_buffer_m3 + 0.5 * dv_case
-        sf.case_dV_m3 = dv_case
-        self.case_buffer_m3 += dv_case
+        buffer0 = self.case_buffer_m3
         sf.motor_flow_m3_s = q_motor
         sf.motor_outlet_K = float(m.T_mean[m.idx_oil[-1]])
-        self.T_hyd = ci.step(self.T_hyd, dt, sf, ambient_K, rho_cp)
+        if wgt.size > 1:
+            # the oil volumes sub-step by sub-step: their flows, volumes and pressure
+            # work swing within a duty cycle
+            self.T_hyd = ci.step_substeps(self.T_hyd, self._substeps(seg, q_motor), q_motor,
+                                          sf.motor_outlet_K, ambient_K, rho_cp)
+            dv_case = self.case_buffer_m3 - buffer0
+            sf.case_volume_m3 = ci.oil_volumes[2] + buffer0 + 0.5 * dv_case
+            sf.case_dV_m3 = dv_case
+        else:
+            # one sample interval (held inputs: a silence crossed in one block): flows
+            # and volumes are constant over it, and one exact step holds for any length
+            dv_case = self._case_change(q_ext, q_motor, dt)
+            sf.case_volume_m3 = ci.oil_volumes[2] + buffer0 + 0.5 * dv_case
+            sf.case_dV_m3 = dv_case
+            self.case_buffer_m3 += dv_case
+            self.T_hyd = ci.step(self.T_hyd, dt, sf, ambient_K, rho_cp)
         self.flows = sf
         self._last = self._pending_last
         self.time_s = self._last[0]
@@ -246,11 +255,55 @@ class EHAModel:
             'leakage_to_case_L_min': q_ext * 60000.0,
         }
 
+    def _case_change(self, q_ext: float, q_motor: float, dt: float) -> float:
+        """
+        Return the change (m^3) of the case oil over ``dt``: leakage in, motor flow out.
+
+        The motor's filtered flow lags a sudden fall of the leakage (the
+        pressures dropping with hot, thin oil): the case never gives more oil
+        than CASE_BUFFER_FLOOR allows, and each time this guard acts it is
+        counted (the books then miss that volume's heat).
+        """
+        dv = (q_ext - q_motor) * dt
+        floor = -CASE_BUFFER_FLOOR * self.circuit.oil_volumes[2]
+        if self.case_buffer_m3 + dv < floor:
+            dv = floor - self.case_buffer_m3
+            self.case_floor_hits += 1
+        return dv
+
+    def _substeps(self, seg: tuple, q_motor: float) -> SubSteps:
+        """Return the circuit's sub-steps from the flows kernel's sums; move the case buffer."""
+        h, x_end, flow, work, vdp, p_mid, fric, q_ext = seg
+        act = self.cfg.hydraulics.actuator
+        ci = self.circuit
+        x = np.empty(h.size + 1)
+        x[0] = self._last[1]
+        x[1:] = x_end
+        buffer = np.empty(h.size + 1)
+        buffer[0] = self.case_buffer_m3
+        for k in range(h.size):
+            self.case_buffer_m3 += self._case_change(float(q_ext[k]), q_motor, float(h[k]))
+            buffer[k + 1] = self.case_buffer_m3
+        vol = np.empty((h.size + 1, len(OIL_NODES)))
+        vol[:] = ci.oil_volumes
+        vol[:, _CHAMBER_A] = act.dead_volume_m3 + self.area * (act.half_stroke_m + x)
+        vol[:, _CHAMBER_B] = act.dead_volume_m3 + self.area * (act.half_stroke_m - x)
+        vol[:, _CASE] += buffer          # the case holds what the accumulator gives
+        vol[:, _ACC] -= buffer
+        return SubSteps(h, flow, work, vdp, p_mid, fric, vol)
+
     # --------------------------------------------------------------- outputs
     def outputs(self) -> Dict[str, float]:
-        """Return the named temperatures (K) of the present state; ``oil`` is the hottest oil."""
+        """
+        Return the named temperatures (K); ``oil`` is the hottest oil.
+
+        The motor's are those of the present state; the hydraulic nodes' those
+        the circuit reports (:attr:`HydraulicCircuit.T_report`: the last
+        step's means when it was sub-stepped).
+        """
         out = dict(self.motor.outputs())
-        named = self.circuit.named(self.T_hyd)
+        ci = self.circuit
+        named = ci.named(self.T_hyd if ci.T_report is None else ci.T_report)
         out.update({'pump_case': named['case'], 'pump_port_a': named['port_a'],
                     'pump_port_b': named['port_b'], 'chamber_a': named['chamber_a'],
                     'chamber_b': named['chamber_b'], 'accumulator': named['accumulator'],
@@ -309,7 +362,7 @@ def node_pressures(sensed, flow_m3_s, T_line_K, length_m, bore_m, laws):
 @jit
 def step_flows_kernel(t0, x0, raw0, p0, t_s, position_m, p_a, p_b, p_acc, speed, T_line_K,
                       T_case_K, geometry, leak_coeffs, friction, laws, link_up, link_down,
-                      oil_volumes):
+                      oil_volumes, substep_s):
     """
     Return the flows of one block of samples, as :meth:`EHAModel.step_flows` uses them.
 
@@ -322,7 +375,8 @@ def step_flows_kernel(t0, x0, raw0, p0, t_s, position_m, p_a, p_b, p_acc, speed,
     flow x pressure drop W, end node pressures Pa, integral of V dp per oil
     node m^3 Pa, mean position m, position change m, pump friction W, mean
     external leakage m^3/s, step length s, interval weights, end sensed
-    pressures Pa, line Reynolds numbers).
+    pressures Pa, line Reynolds numbers, and the sub-steps: see
+    :func:`segment_sums`).
     """
     area, d_rad, line_length, line_bore, dead_volume, half_stroke = geometry
     n = t_s.size
@@ -397,11 +451,64 @@ def step_flows_kernel(t0, x0, raw0, p0, t_s, position_m, p_a, p_b, p_acc, speed,
     dP = np.empty((8, n))
     dP[:, 0] = P[:, 0] - p0
     dP[:, 1:] = P[:, 1:] - P[:, :-1]
-    vdp = oil_volumes * dP.sum(axis=1)
+    vdp_int = oil_volumes.reshape(-1, 1) * dP
     va = dead_volume + area * (half_stroke + x[:-1])
     vb = 2 * dead_volume + 2 * area * half_stroke - va
-    vdp[5] = np.dot(va, dP[5])
-    vdp[6] = np.dot(vb, dP[6])
+    vdp_int[5] = va * dP[5]
+    vdp_int[6] = vb * dP[6]
+    vdp = vdp_int.sum(axis=1)
+    fric_W = fric * np.abs(speed)
+    seg = segment_sums(t, x, dts, F, F * (P[link_up] - P[link_down]), vdp_int, P, fric_W, q_ext,
+                       substep_s)
     return (flow, work, P[:, -1].copy(), vdp, x_mean, x[-1] - x[0],
-            np.dot(fric * np.abs(speed), wgt), np.dot(q_ext, wgt), dt, wgt,
-            raw[:, -1].copy(), re)
+            np.dot(fric_W, wgt), np.dot(q_ext, wgt), dt, wgt, raw[:, -1].copy(), re, seg)
+
+
+@jit
+def segment_sums(t, x, dts, F, FdP, vdp_int, P, fric_W, q_ext, substep_s):
+    """
+    Split a step's sample intervals into sub-steps of at most ``substep_s`` (s); sum each.
+
+    An interval belongs to the sub-step its end falls in (a sub-step holds
+    at least one interval: one longer than ``substep_s`` is a sub-step of its
+    own). Returns, per sub-step: length (s), actuator position at its end (m),
+    mean flow and mean flow x pressure drop of each link, integral of V dp
+    of each oil node (m^3 Pa), mean node pressures (Pa), mean pump friction
+    (W) and mean external leakage (m^3/s).
+    """
+    n = dts.size
+    ids = np.empty(n, dtype=np.int64)
+    cut = 0
+    for k in range(n):
+        if k > 0 and t[k + 1] - t[cut] > substep_s * (1.0 + 1e-9):
+            cut = k
+        ids[k] = cut
+    starts = np.flatnonzero(np.diff(ids) != 0) + 1
+    first = np.empty(starts.size + 1, dtype=np.int64)
+    first[0] = 0
+    first[1:] = starts
+    m = first.size
+    last = np.empty(m, dtype=np.int64)
+    last[:-1] = first[1:]
+    last[-1] = n
+    h = np.empty(m)
+    x_end = np.empty(m)
+    flow = np.empty((m, F.shape[0]))
+    work = np.empty((m, F.shape[0]))
+    vdp = np.empty((m, vdp_int.shape[0]))
+    p_mid = np.empty((m, P.shape[0]))
+    fric = np.empty(m)
+    q = np.empty(m)
+    for j in range(m):
+        a, b = first[j], last[j]
+        w = dts[a:b]
+        h[j] = w.sum()
+        x_end[j] = x[b]
+        # contiguous copies: numba's matrix product wants them
+        flow[j] = np.ascontiguousarray(F[:, a:b]) @ w / h[j]
+        work[j] = np.ascontiguousarray(FdP[:, a:b]) @ w / h[j]
+        vdp[j] = vdp_int[:, a:b].sum(axis=1)
+        p_mid[j] = np.ascontiguousarray(P[:, a:b]) @ w / h[j]
+        fric[j] = np.dot(fric_W[a:b], w) / h[j]
+        q[j] = np.dot(q_ext[a:b], w) / h[j]
+    return h, x_end, flow, work, vdp, p_mid, fric, q
