@@ -15,9 +15,10 @@ pressure part of h_in - h becomes a heat source in the receiving volume:
 ``(1 - alpha_p T) dp Q`` for a throttle or a leak (isenthalpic: about
 0.45 K/MPa) and ``alpha_p T (p_d - p_u) Q`` for the pump's displacement flow
 (isentropic compression: the pump adds dp/rho of work per kg), so that all
-dissipated hydraulic power ends up as heat. With the flows and sources held
-over a step, the 13-node system is integrated exactly (one small matrix
-exponential per step, which also gives the step-mean temperatures).
+dissipated hydraulic power ends up as heat. Inside a model step the 13 nodes
+take sub-steps of at most ``hydraulics.substep_s`` (Crank-Nicolson, with the
+oil capacities following the volumes: energy is conserved exactly whatever
+the step); a step with the inputs held is one exact matrix-exponential step.
 """
 
 from dataclasses import dataclass
@@ -253,9 +254,8 @@ class HydraulicCircuit:
         in between. That scheme conserves energy exactly: summed over the
         nodes, C_mid dT + T_mid dC of a sub-step equals its heat in, minus the
         heat to ambient, plus what the motor adds to the oil it carries,
-        whatever the step and the volumes do (for capacities that follow the
-        flows, and they do: a capacity changes by the loop's rho c_p times the
-        volume that came or went).
+        whatever the step and the volumes do, since a capacity changes by the
+        loop's rho c_p times the oil that came or went, as the flows carry it.
         ``motor_flow_m3_s`` leaves the case for the motor and comes back to
         the accumulator at ``motor_outlet_K``.
         """
