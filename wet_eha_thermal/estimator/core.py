@@ -1004,6 +1004,7 @@ class Estimator:
         duty['dx_m'] = dx - dx.mean()
         model = copy.deepcopy(self.model)
         model.defer_refresh = False       # forecast steps are seconds long: no lag there
+        model.circuit.keep_transition = False     # no filter follows the forecast
         self._forecast = _Forecast(model=model, start_s=self.t_model,
                                    duty=duty, ambient_K=self.ambient_K,
                                    crossed=dict.fromkeys(self.limits_C),

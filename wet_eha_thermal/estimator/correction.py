@@ -200,6 +200,7 @@ class ThermalCorrection:
             ('accumulator', 'accumulator'), ('line_a', 'line_a'), ('line_b', 'line_b'),
             ('pump_shell', 'pump_shell'), ('actuator_shell', 'actuator_shell'))}
         self._i_case = ci.index('case')
+        ci.keep_transition = True           # _transition reads it after every step
         # the outputs that are weighted means of nodes: their (fixed) rows
         self._weighted = {'winding_mean': 0, 'frame': 1}
         self._H_weighted = np.zeros((2, self.n))

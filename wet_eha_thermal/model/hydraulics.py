@@ -187,6 +187,9 @@ class HydraulicCircuit:
         self.T_report: Optional[np.ndarray] = None
         self._last_exact: Optional[tuple] = None
         self._last_transition: Optional[tuple] = None
+        # a state estimator sets this: the sub-steps then also compose their transition
+        # (a 13 x 16 solve and a 13 x 13 product each), which nothing else needs
+        self.keep_transition = False
 
     def index(self, name: str) -> int:
         """Return the index of a node in the temperature vector."""
@@ -267,7 +270,7 @@ class HydraulicCircuit:
             sub.pump_friction_W, sub.volumes_m3, motor_rate, motor_outlet_K, ambient_K,
             rho_cp_flow, self.K_static, self._k_index, self._capacities, self.G_amb,
             self._line_geometry, self.oil.laws, self.is_pump, self.d, self.friction_to_case,
-            self.extra_loss_W)
+            self.extra_loss_W, self.keep_transition)
         self.T_mean = self.T_report = Tm
         e = self.energy_J
         e['sources'] += ledger[0]
@@ -276,7 +279,7 @@ class HydraulicCircuit:
         e['motor_loop'] += ledger[3]
         self.last_sources = heat
         self._last_exact = None
-        self._last_transition = (Phi, g_acc, g_case, C)
+        self._last_transition = (Phi, g_acc, g_case, C) if self.keep_transition else None
         return T1
 
     def last_transition(self) -> tuple:
@@ -285,9 +288,12 @@ class HydraulicCircuit:
 
         ``(Phi, g_acc, g_case, C)``: T_end = Phi T_start + g_acc * (motor
         outlet K) + g_case * (extra heat into the case, W) + the rest of the
-        inputs; ``C`` the heat capacities (J/K).
+        inputs; ``C`` the heat capacities (J/K). After sub-steps only with
+        ``keep_transition`` set.
         """
         if self._last_transition is None:
+            if self._last_exact is None:
+                raise RuntimeError('the sub-steps kept no transition: set keep_transition')
             E, M, C, motor_rate, dt = self._last_exact
             n = self.n
             # int_0^dt exp(A t) dt b = A^-1 (E - I) b for a constant input b (W / C)
@@ -419,13 +425,16 @@ def circuit_matrices(T0, dt_s, flows, p_mid, chamber_volumes, case_volume, motor
 @jit
 def cn_substeps(T0, alpha_T, dts, flows, works, vdps, p_mids, frics, volumes, motor_rate,
                 motor_outlet_K, ambient_K, rho_cp_flow, K_static, k_index, capacities, G_amb,
-                line_geometry, laws, is_pump, link_down, friction_to_case, extra_loss_W):
+                line_geometry, laws, is_pump, link_down, friction_to_case, extra_loss_W,
+                with_transition):
     """
     Crank-Nicolson sub-steps of :meth:`HydraulicCircuit.step_substeps`.
 
     Returns (end temperatures K, step-mean temperatures K, transition,
     response to the motor outlet, response to case heat, end capacities J/K,
     step-mean heat sources W, ledger: sources, stored, to ambient, motor loop J).
+    The three responses are composed only ``with_transition`` (else identity
+    and zeros).
     """
     n = T0.size
     no = volumes.shape[1]
@@ -436,7 +445,7 @@ def cn_substeps(T0, alpha_T, dts, flows, works, vdps, p_mids, frics, volumes, mo
     g_acc = np.zeros(n)
     g_case = np.zeros(n)
     ledger = np.zeros(4)
-    rhs = np.empty((n, n + 3))
+    rhs = np.empty((n, n + 2))
     C1 = capacities.copy()
     for k in range(dts.size):
         h = dts[k]
@@ -459,18 +468,20 @@ def cn_substeps(T0, alpha_T, dts, flows, works, vdps, p_mids, frics, volumes, mo
         for i in range(n):
             A[i, i] += Cm[i] / h
             B[i, i] += Cm[i] / h
-        rhs[:, 0] = B @ T + s
-        rhs[:, 1:n + 1] = B
-        rhs[:, n + 1] = 0.0
-        rhs[_ACC, n + 1] = motor_rate
-        rhs[:, n + 2] = 0.0
-        rhs[_CASE, n + 2] = 1.0
-        X = np.linalg.solve(A, rhs)
-        T1 = X[:, 0].copy()
-        step_phi = X[:, 1:n + 1].copy()
-        Phi = step_phi @ Phi
-        g_acc = step_phi @ g_acc + X[:, n + 1]
-        g_case = step_phi @ g_case + X[:, n + 2]
+        # the temperatures by a solve of their own, so that they are the same bits
+        # whether the transition is composed or not
+        T1 = np.linalg.solve(A, B @ T + s)
+        if with_transition:
+            rhs[:, :n] = B
+            rhs[:, n] = 0.0
+            rhs[_ACC, n] = motor_rate
+            rhs[:, n + 1] = 0.0
+            rhs[_CASE, n + 1] = 1.0
+            X = np.linalg.solve(A, rhs)
+            step_phi = X[:, :n].copy()
+            Phi = step_phi @ Phi
+            g_acc = step_phi @ g_acc + X[:, n]
+            g_case = step_phi @ g_case + X[:, n + 1]
         Tm = 0.5 * (T + T1)
         T_sum += Tm * h
         heat_sum += heat * h
