@@ -158,7 +158,7 @@ class EstimatorNode(Node):
         self.est = Estimator(self.cfg)
         # before any subscription or publisher: a first step that compiled would keep
         # samples waiting for half a minute
-        prepare_model_step(self, self.cfg)
+        prepare_model_step(self, self.cfg, estimator=True)
         self.clock = FastClock(self)
         # the clock read at the last tick, and the steady clock then: a system clock that
         # moves ahead of the steady one was stepped, not waited for

@@ -11,10 +11,13 @@ ready topic, the estimates, the alerts and /diagnostics and prints one status
 line about twice a second (updated in place on a terminal, one line every few
 seconds otherwise).
 
-The rig starts its duty only once the estimator and the recorder have said on
-``/eha/ready`` that they are ready (model compiled and warmed, every input
-matched), so no sample is published before they listen, however long the
-start-up takes on this machine; ``duration_s`` counts from that start. A
+First it compiles the model's and the estimator's numba kernels (or loads
+them from numba's cache: about a second), so that the children load them
+instead of compiling them side by side. The rig starts its duty only once
+the estimator and the recorder have said on ``/eha/ready`` that they are
+ready (model loaded and warmed, every input matched), so no sample is
+published before they listen, however long the start-up takes on this
+machine; ``duration_s`` counts from that start. A
 start-up longer than ``START_TIMEOUT_S`` ends the run with a message naming
 who was not ready. After ``duration_s``, or on Ctrl-C / SIGTERM, it stops the
 children (SIGINT, then SIGTERM, then SIGKILL, each after a timeout; the
@@ -56,6 +59,8 @@ from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import Temperature
 from std_msgs.msg import String
 from wet_eha_thermal.bag.reader import BagError, open_bag
+from wet_eha_thermal.config import load_config
+from wet_eha_thermal.estimator.warmup import compile_estimator
 from wet_eha_thermal.ros import topics
 from wet_eha_thermal.ros.recorder_node import default_output
 from wet_eha_thermal.ros.topics import ESTIMATOR_NODE, RECORDER_NODE, RIG_NODE
@@ -622,6 +627,12 @@ def run(opts: LiveOptions, out: TextIO = sys.stdout, err: TextIO = sys.stderr,
         if record_path.exists():
             print(f'error: {record_path} exists: a recording is never overwritten', file=err)
             return 2
+    # here, once: the rig and the estimator then load numba's cache in about a second each,
+    # instead of both compiling at once (minutes on a busy machine) after an install
+    print('loading the compiled model (after an install or a change of the model code it '
+          'compiles once, in a minute or two) ...', file=out, flush=True)
+    print(f'model ready in {compile_estimator(load_config(opts.config)):.1f} s', file=out,
+          flush=True)
     log_dir = Path(tempfile.mkdtemp(prefix='wet-eha-live-'))
     stop = {'why': None}
 

@@ -98,13 +98,19 @@ class Readiness:
         return True
 
 
-def prepare_model_step(node: Node, cfg: Config) -> None:
-    """Compile the model's kernels (or load them from numba's cache), saying so in the log."""
+def prepare_model_step(node: Node, cfg: Config, estimator: bool = False) -> None:
+    """
+    Compile the model's kernels (or load them from numba's cache), saying so in the log.
+
+    ``estimator``: also the estimator core's (the estimator node's first samples).
+    """
     # imported here: the recorder and the player use this module and need no model
+    from wet_eha_thermal.estimator.warmup import compile_estimator
     from wet_eha_thermal.simulation import compile_model
     node.get_logger().info('loading the compiled model step (after an install or a change of '
-                           'the model code it compiles once, in about half a minute)')
-    node.get_logger().info(f'model step ready in {compile_model(cfg):.1f} s')
+                           'the model code it compiles once, in about a minute)')
+    seconds = (compile_estimator if estimator else compile_model)(cfg)
+    node.get_logger().info(f'model step ready in {seconds:.1f} s')
 
 
 def make_executor(kind: str):

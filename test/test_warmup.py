@@ -1,0 +1,70 @@
+"""The live start's warm-up compiles every kernel that a realistic estimator run calls."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+from wet_eha_thermal.model import compiled
+
+# In a process of its own (a test session has compiled more by then): the warm-up, then a
+# minute of live-like work with the node's calls, noise, thermocouples, the forecast and the
+# margin, a silence and data again. Prints the kernel signatures that the warm-up missed.
+RUN = """
+import json, sys
+import numba
+import numpy as np
+from wet_eha_thermal.config import load_config
+from wet_eha_thermal.estimator.core import Estimator, sensor_signal
+from wet_eha_thermal.estimator.warmup import compile_estimator
+from wet_eha_thermal.model.kinetics import KineticModel, stage_duty, ThermalFeedback
+from wet_eha_thermal.model.oil import get_oil
+
+
+def signatures():
+    found = {}
+    for mod_name, mod in list(sys.modules.items()):
+        if not mod_name.startswith('wet_eha_thermal'):
+            continue
+        for name, obj in vars(mod).items():
+            if isinstance(obj, numba.core.dispatcher.Dispatcher):
+                found[f'{obj.py_func.__module__}.{name}'] = {str(s) for s in obj.signatures}
+    return found
+
+
+cfg = load_config()
+compile_estimator(cfg)
+before = signatures()
+est = Estimator(cfg)
+rng = np.random.default_rng(7)
+kin = KineticModel(cfg, get_oil(cfg.fluid.grade))
+for stage, (t0, t1) in ((6, (0.0, 30.0)), (3, (400.0, 430.0))):
+    t = np.arange(t0 * 1000 + 1, t1 * 1000 + 1) / 1000.0
+    s = kin.sample(stage_duty(cfg, stage), t - t0, ThermalFeedback.uniform())
+    sig = {n: sensor_signal(s, n) * (1 + 0.01 * rng.standard_normal(t.size))
+           for n in est.inputs}
+    for k, tk in enumerate(t):
+        if k % 1000 == 0:
+            for tc in est.correction.tcs:
+                est.add_measured(tc, tk, 25.0 + rng.standard_normal())
+        for n in est.inputs:
+            if est.push(n, tk, sig[n][k]) and est.due(n, tk):
+                est.advance(tk)
+                est.prepare()
+                est.background(0.002)
+    while est._forecast is not None or est._margin_job is not None:
+        est.background(0.05)
+    est.margin_current()
+    est.advance_all(t1 + 360.0 if stage == 6 else t1)
+after = signatures()
+json.dump({k: sorted(v - before.get(k, set())) for k, v in after.items()
+           if v - before.get(k, set())}, sys.stdout)
+"""
+
+
+@pytest.mark.skipif(not compiled.COMPILED, reason='numba is not installed')
+def test_warm_up_leaves_nothing_to_compile_for_a_live_run():
+    out = subprocess.run([sys.executable, '-c', RUN], capture_output=True, text=True,
+                         timeout=600, check=True)
+    missed = json.loads(out.stdout)
+    assert missed == {}, missed
