@@ -568,6 +568,9 @@ class EstimatorSettings:
     forecast_horizon_s: float = spec(60.0, 86400.0)
     forecast_step_s: float = spec(0.1, 60.0)
     forecast_period_s: float = spec(1.0, 3600.0, doc='a new forecast starts this often')
+    forecast_substep_s: float = spec(1e-4, 10.0, default=0.25, doc=(
+        "longest sub-step of the oil volumes in the forecast (the estimator's is "
+        'hydraulics.substep_s): its duty is one mean sample per model step'))
     pressure_inputs: str = spec(choices=('ports', 'differential'), doc=(
         'ports: absolute pressures of port A, port B and the accumulator; differential: '
         'one p_A - p_B sensor, the low side at the accumulator precharge pressure'))

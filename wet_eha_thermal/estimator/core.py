@@ -1005,6 +1005,7 @@ class Estimator:
         model = copy.deepcopy(self.model)
         model.defer_refresh = False       # forecast steps are seconds long: no lag there
         model.circuit.keep_transition = False     # no filter follows the forecast
+        model.oil_substep_s = self.settings.forecast_substep_s
         self._forecast = _Forecast(model=model, start_s=self.t_model,
                                    duty=duty, ambient_K=self.ambient_K,
                                    crossed=dict.fromkeys(self.limits_C),

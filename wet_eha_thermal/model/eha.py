@@ -101,6 +101,8 @@ class EHAModel:
                           h.actuator.dead_volume_m3, h.actuator.half_stroke_m)
         self._friction = (h.pump.viscous_friction_coeff, h.pump.pressure_friction_coeff,
                           h.pump.coulomb_torque_Nm)
+        #: longest sub-step of the oil volumes (s); a forecast, on smoothed duty, takes longer
+        self.oil_substep_s = h.substep_s
         self.T_hyd: Optional[np.ndarray] = None
         self.case_buffer_m3 = 0.0      # case oil above its nominal volume
         self.case_floor_hits = 0       # (sub-)steps where the case would have emptied (a guard)
@@ -171,7 +173,7 @@ class EHAModel:
             t0, x0, raw0, p0, b.t_s, b.position_m, b.p_a_Pa, b.p_b_Pa, b.p_acc_Pa,
             b.speed_rad_s, 0.5 * (self.T_hyd[i_a] + self.T_hyd[i_b]),
             float(self.T_hyd[self._i_case]), self._geometry, self._leak_coeffs, self._friction,
-            self.oil.laws, ci.u, ci.d, ci.oil_volumes, h.substep_s)
+            self.oil.laws, ci.u, ci.d, ci.oil_volumes, self.oil_substep_s)
         fp.check_line_reynolds(self.log, re)
         act = h.actuator
         chambers = (act.dead_volume_m3 + self.area * (act.half_stroke_m + x_mean),
