@@ -290,12 +290,13 @@ def channel_ranges(cfg: Config) -> Dict[str, Tuple[float, float]]:
             for f in dataclasses.fields(channels)}
 
 
-def file_digest(path: os.PathLike) -> str:
-    """Return the sha256 hex digest of a file."""
+def file_digest(paths: Sequence[os.PathLike]) -> str:
+    """Return the sha256 hex digest of files read one after another (a bag's, in order)."""
     h = hashlib.sha256()
-    with open(path, 'rb') as f:
-        for chunk in iter(lambda: f.read(1 << 20), b''):
-            h.update(chunk)
+    for path in paths:
+        with open(path, 'rb') as f:
+            for chunk in iter(lambda: f.read(1 << 20), b''):
+                h.update(chunk)
     return h.hexdigest()
 
 
@@ -356,10 +357,11 @@ def read_log(plan, calib: Calibration, path: Optional[os.PathLike] = None) -> Lo
         raise CalibrationError(str(exc)) from None
     log = builder.build(plan.cfg.estimator.pressure_inputs, plan.missing,
                         path=str(path if path is not None else info.path),
-                        size_bytes=os.path.getsize(info.path), sha256=file_digest(info.path))
+                        size_bytes=sum(os.path.getsize(f) for f in info.files),
+                        sha256=file_digest(info.files))
     if info.truncated:
-        log.warnings.append(f'{info.path.name} is truncated ({info.problem}): used up to the '
-                            'cut')
+        log.warnings.append(f'{info.path.name} is truncated ({info.problem}): used what could '
+                            'be read')
     if plan.missing:
         log.warnings.append(f'{info.path.name}: no topic for {", ".join(plan.missing)}: on '
                             'its fallback all along')

@@ -236,7 +236,7 @@ def _replay(args: argparse.Namespace) -> int:
           + f'; thermocouples: {", ".join(plan.thermocouples) or "none"}')
     if info.truncated:
         print(f'warning: {info.path} is truncated ({info.problem}); replaying the '
-              f'{info.message_count} messages recovered up to the cut', file=sys.stderr)
+              f'{info.message_count} messages that could be read', file=sys.stderr)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     progress = Progress()
@@ -423,7 +423,8 @@ def build_parser() -> argparse.ArgumentParser:
                                    'temperatures, errors against the thermocouples and alerts). '
                                    'The configuration is --config, else the one stored in the '
                                    'bag, else the reference rig.')
-    p.add_argument('bag', type=Path, help='the MCAP file')
+    p.add_argument('bag', type=Path,
+                   help='an MCAP file, or a rosbag2 bag directory (its files as one run)')
     p.add_argument('--out', default='out/replay', help='output folder (default: %(default)s)')
     p.add_argument('--config', type=Path, default=None,
                    help='YAML configuration (default: stored in the bag, else the reference rig)')
@@ -449,9 +450,11 @@ def build_parser() -> argparse.ArgumentParser:
                                    'configuration; records each value, its 95 % interval and '
                                    'the logs) and report.md with plots. Parameters the logs '
                                    'cannot identify are held at their nominal values.')
-    p.add_argument('logs', type=Path, nargs='+', metavar='LOG', help='MCAP logs to fit on')
+    p.add_argument('logs', type=Path, nargs='+', metavar='LOG',
+                   help='logs to fit on: MCAP files or rosbag2 bag directories')
     p.add_argument('--validate', type=Path, nargs='+', default=[], metavar='LOG',
-                   help='held-out MCAP logs: errors before and after, not fitted')
+                   help='held-out logs (files or bag directories): errors before and after, '
+                        'not fitted')
     p.add_argument('--fit', nargs='+', default=None, metavar='KEY',
                    help='dotted keys to fit, each with bounds in calibration.bounds (default: '
                         'calibration.fit)')

@@ -461,7 +461,7 @@ def write_report(result: ReplayResult, out_dir: Path) -> Path:
              f'{result.sample_time_s:.1f} s of sample time in {result.wall_s:.1f} s '
              f'({result.speed_x:.0f}x real time)']
     if result.truncated:
-        lines.append(f'- **the bag is truncated**: replayed up to the cut ({result.problem})')
+        lines.append(f'- **the bag is truncated**: replayed what could be read ({result.problem})')
     lines += ['', '## Temperatures at the end and at their peak (degC)', '',
               '| estimate | end | peak |', '| --- | --- | --- |']
     lines += [f'| {n} | {v[-1]:.1f} | {np.max(v):.1f} |'

@@ -1,6 +1,10 @@
 """
 Read rosbag2-style MCAP files fast, including files whose recorder was killed.
 
+A bag is one MCAP file or a rosbag2 bag directory (``metadata.yaml`` and
+the files it lists, as ``ros2 bag record -s mcap`` leaves them when it
+splits), read as one run (:func:`bag_files`).
+
 The file is walked record by record (MCAP framing: opcode u8, length u64,
 body), so a file cut anywhere is read up to its last complete chunk and
 reported as truncated instead of failing; a file that is not MCAP raises
@@ -26,6 +30,7 @@ import multiprocessing
 import os
 from pathlib import Path
 import pickle
+import re
 import struct
 from typing import Callable, Dict, Iterable, Iterator, List, Mapping, NamedTuple, Optional, Tuple
 import zlib
@@ -36,11 +41,14 @@ from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 from mcap.records import Channel, Chunk, Header, Metadata, MetadataIndex, Schema, Statistics
 import numpy as np
+import yaml
 import zstandard
 
 from . import cdr
 
 MAGIC = b'\x89MCAP0\r\n'
+#: The file of a rosbag2 bag directory that lists its files.
+ROSBAG2_METADATA = 'metadata.yaml'
 FLOAT64 = 'std_msgs/msg/Float64'
 FLUID_PRESSURE = 'sensor_msgs/msg/FluidPressure'
 TEMPERATURE = 'sensor_msgs/msg/Temperature'
@@ -96,6 +104,7 @@ class BagInfo:
     end_time_ns: int
     truncated: bool                       # reading stopped before the footer (cut, damage)
     problem: Optional[str]                # where and why reading stopped, when truncated
+    files: Tuple[Path, ...] = ()          # the MCAP files read, in order (one for a file)
 
 
 class RawMessage(NamedTuple):
@@ -425,6 +434,70 @@ class _Scanner:
             yield unit, buf, pos, channel_ids
 
 
+def _natural_key(path: Path) -> tuple:
+    """Sort key of a file name with its numbers compared as numbers (``_2`` before ``_10``)."""
+    return tuple(int(part) if part.isdigit() else part
+                 for part in re.split(r'(\d+)', path.name))
+
+
+def bag_files(path: os.PathLike) -> Tuple[Path, ...]:
+    """
+    Return the MCAP files of a bag in reading order: a file alone, or a bag directory's.
+
+    A rosbag2 bag directory (``ros2 bag record -s mcap``, our recorder) lists
+    its files in ``metadata.yaml`` (``relative_file_paths``); without that
+    file, its ``*.mcap`` files are taken by name, numbers compared as
+    numbers. A listed file that is missing stays in the list: reading it
+    reports it by name.
+    """
+    path = Path(path)
+    if not path.is_dir():
+        return (path,)
+    meta = path / ROSBAG2_METADATA
+    if meta.is_file():
+        try:
+            info = yaml.safe_load(meta.read_text())['rosbag2_bagfile_information']
+            names = info.get('relative_file_paths') or [f['path'] for f in info['files']]
+        except (OSError, yaml.YAMLError, KeyError, TypeError, AttributeError) as exc:
+            raise BagError(f'{meta}: not a rosbag2 metadata file ({type(exc).__name__}: '
+                           f'{exc})') from None
+        files = tuple(path / str(name) for name in names)
+    else:
+        files = tuple(sorted(path.glob('*.mcap'), key=_natural_key))
+    if not files:
+        raise BagError(f'{path}: a folder with neither {ROSBAG2_METADATA} nor .mcap files, '
+                       'not a bag')
+    return files
+
+
+def _scans(path: os.PathLike, problems: List[str]) -> Iterator[_Scanner]:
+    """
+    Open the files of the bag ``path`` one after another, each closed before the next.
+
+    A lone file that cannot be opened raises :class:`BagError`; in a bag
+    directory, such a file is noted in ``problems`` and skipped, and so is
+    the rest of a file that was cut (its first part is read).
+    """
+    files = bag_files(path)
+    lone = not Path(path).is_dir()
+    for name in files:
+        try:
+            scan = _Scanner(name)
+        except BagError as exc:
+            if lone:
+                raise
+            problems.append(str(exc))
+            continue
+        with scan:
+            yield scan
+        if scan.problem is not None:
+            problems.append(scan.problem if lone else f'{name.name}: {scan.problem}')
+
+
+def _problem(problems: List[str]) -> Optional[str]:
+    return '; '.join(problems) if problems else None
+
+
 def _require(ok: np.ndarray, where: str, what: str) -> None:
     if not ok.all():
         raise BagError(f'{where}: a message is too short for {what}')
@@ -532,10 +605,12 @@ class ColumnBlocks:
 
     Iterating yields dictionaries topic -> :class:`Columns` (every requested
     topic, empty when it has no message in the block), each block covering
-    consecutive chunks of the file until their messages span ``max_block_s``
-    of log time. After the iteration (already before the last block),
-    ``truncated`` and ``problem`` tell whether and why the file ended early,
-    ``message_count`` how many messages were decoded.
+    consecutive chunks until their messages span ``max_block_s`` of log time
+    (a bag directory's files follow one another). After the iteration
+    (already before the last block), ``truncated`` and ``problem`` tell
+    whether and why reading ended early (a cut file; in a directory, each
+    file missing, not MCAP or cut, by name), ``message_count`` how many
+    messages were decoded.
 
     With ``prefetch`` (where processes can fork) a child process reads and
     decodes the next block while the caller works on this one: a replay's
@@ -621,9 +696,11 @@ class ColumnBlocks:
         self.message_count = 0
         self.truncated = False
         self.problem = None
-        with _Scanner(self.path) as scan:
-            parts = {topic: [] for topic in self.specs}
-            first_ns = last_ns = None
+        problems: List[str] = []
+        total, done = _total_bytes(self.path), 0
+        parts = {topic: [] for topic in self.specs}
+        first_ns = last_ns = None
+        for scan in _scans(self.path, problems):
             for unit, decoded in _decoded_units(scan, self.specs):
                 for topic, columns in decoded.items():
                     parts[topic].append(columns)
@@ -632,15 +709,16 @@ class ColumnBlocks:
                     first_ns = lo if first_ns is None else min(first_ns, lo)
                     last_ns = hi if last_ns is None else max(last_ns, hi)
                 if self.on_progress is not None:
-                    self.on_progress(unit.file_offset, scan.size)
+                    self.on_progress(done + unit.file_offset, total)
                 if first_ns is not None and last_ns - first_ns >= max_block_ns:
                     yield self._block(parts)
                     parts = {topic: [] for topic in self.specs}
                     first_ns = last_ns = None
-            self.truncated = scan.problem is not None
-            self.problem = scan.problem
-            if first_ns is not None:
-                yield self._block(parts)
+            done += scan.size
+        self.truncated = bool(problems)
+        self.problem = _problem(problems)
+        if first_ns is not None:
+            yield self._block(parts)
 
     def _block(self, parts: Dict[str, List[Columns]]) -> Dict[str, Columns]:
         return {topic: _concatenate(self.specs[topic], p) for topic, p in parts.items()}
@@ -653,7 +731,7 @@ def iter_column_blocks(path: os.PathLike, specs: Mapping[str, str], *,
     """
     Return the blocks of columns of the topics ``specs`` (topic -> type name) of a bag.
 
-    See :class:`ColumnBlocks`; ``on_progress(bytes_read, file_bytes)`` is
+    See :class:`ColumnBlocks`; ``on_progress(bytes_read, bag_bytes)`` is
     called after each chunk (after each block with ``prefetch``).
     """
     return ColumnBlocks(path, specs, max_block_s=max_block_s, on_progress=on_progress,
@@ -669,6 +747,15 @@ class _ColumnBuilder:
         self._arrays = {name: np.empty(capacity, np.int64) for name in names}
         self._arrays.update({name: np.empty(capacity) for name in COLUMN_FIELDS[type_name]})
         self._count = 0
+
+    def reserve(self, more: int) -> None:
+        """Make room for ``more`` values past those held."""
+        need = self._count + more
+        for name, array in self._arrays.items():
+            if need > len(array):
+                grown = np.empty(need, array.dtype)
+                grown[:self._count] = array[:self._count]
+                self._arrays[name] = grown
 
     def append(self, columns: Columns) -> None:
         start, stop = self._count, self._count + len(columns)
@@ -702,32 +789,37 @@ def read_columns(path: os.PathLike, specs: Mapping[str, str],
     Types: std_msgs/msg/Float64 (field ``data``), sensor_msgs/msg/FluidPressure
     (``fluid_pressure``, ``variance``), sensor_msgs/msg/Temperature
     (``temperature``, ``variance``). A topic absent from the bag comes back
-    empty. ``on_progress(bytes_read, file_bytes)`` is called after each chunk.
-    A cut file is read up to the cut (``truncated``, ``problem``).
+    empty. ``on_progress(bytes_read, bag_bytes)`` is called after each chunk.
+    A cut file is read up to the cut (``truncated``, ``problem``); ``path``
+    may be a bag directory (:func:`bag_files`).
     """
     specs = _check_specs(specs)
-    with _Scanner(path) as scan:
+    problems: List[str] = []
+    total, done = _total_bytes(path), 0
+    builders = {topic: _ColumnBuilder(type_name, 0) for topic, type_name in specs.items()}
+    message_count = 0
+    for scan in _scans(path, problems):
         statistics = scan.read_summary()
         counts = statistics.channel_message_counts if statistics is not None else {}
-        builders = {
-            topic: _ColumnBuilder(type_name, sum(
-                counts.get(c.id, 0) for c in scan.channels.values() if c.topic == topic))
-            for topic, type_name in specs.items()}
-        message_count = 0
+        for topic, b in builders.items():     # preallocated from the summary's counts
+            b.reserve(sum(counts.get(c.id, 0) for c in scan.channels.values()
+                          if c.topic == topic))
         for unit, decoded in _decoded_units(scan, specs):
             for topic, columns in decoded.items():
                 builders[topic].append(columns)
                 message_count += len(columns)
             if on_progress is not None:
-                on_progress(unit.file_offset, scan.size)
-        return ColumnData({topic: b.columns() for topic, b in builders.items()},
-                          message_count, scan.problem is not None, scan.problem)
+                on_progress(done + unit.file_offset, total)
+        done += scan.size
+    return ColumnData({topic: b.columns() for topic, b in builders.items()},
+                      message_count, bool(problems), _problem(problems))
 
 
 def iter_raw(path: os.PathLike, topics: Optional[Iterable[str]] = None) -> Iterator[RawMessage]:
     """Yield the messages of a bag (of ``topics`` only, when given) in file order."""
+    # a bag directory's files one after another; what cannot be read is open_bag's to report
     wanted = None if topics is None else set(topics)
-    with _Scanner(path) as scan:
+    for scan in _scans(path, []):
         for unit, buf, pos, channel_ids in scan.located():
             ends = pos + _HEAD_BYTES + _take(buf, pos + _LENGTH_AT, '<u8').astype(np.int64)
             times = _take(buf, pos + _LOG_TIME_AT, '<i8')
@@ -746,9 +838,51 @@ def open_bag(path: os.PathLike) -> BagInfo:
     """
     Describe a bag: topics, types, message counts, metadata records, whether it was cut.
 
-    A complete file is described from its summary; a cut one (or one
-    without summary statistics) is scanned, and the counts are what it holds.
+    ``path``: an MCAP file or a bag directory (:func:`bag_files`). A complete
+    file is described from its summary; a cut one (or one without summary
+    statistics) is scanned, and the counts are what it holds. A directory is
+    described as one run over its files: a file that is missing, not MCAP or
+    cut is named in ``problem`` (``truncated`` set) and the others are used;
+    when none can be read, :class:`BagError` names each.
     """
+    if not Path(path).is_dir():
+        return _open_file(Path(path))
+    files = bag_files(path)
+    parts: List[BagInfo] = []
+    problems: List[str] = []
+    for name in files:
+        try:
+            part = _open_file(name)
+        except BagError as exc:
+            problems.append(str(exc))
+            continue
+        parts.append(part)
+        if part.problem is not None:
+            problems.append(f'{name.name}: {part.problem}')
+    if not parts:
+        raise BagError(f'{path}: no file of the bag can be read: {_problem(problems)}')
+    topics: Dict[str, TopicInfo] = {}
+    metadata: Dict[str, Dict[str, str]] = {}
+    for part in parts:
+        metadata.update(part.metadata)
+        for topic, t in part.topics.items():
+            before = topics.get(topic)
+            topics[topic] = t._replace(message_count=t.message_count + (
+                before.message_count if before else 0))
+    spans = [(p.start_time_ns, p.end_time_ns) for p in parts if p.message_count]
+    return BagInfo(Path(path), parts[0].profile, parts[0].library, topics, metadata,
+                   sum(p.message_count for p in parts),
+                   min((a for a, _ in spans), default=0), max((b for _, b in spans), default=0),
+                   bool(problems), _problem(problems), tuple(p.path for p in parts))
+
+
+def _total_bytes(path: os.PathLike) -> int:
+    """Return the size of the bag's files that exist (bytes), for progress."""
+    return sum(f.stat().st_size for f in bag_files(path) if f.is_file())
+
+
+def _open_file(path: Path) -> BagInfo:
+    """Describe one MCAP file (see :func:`open_bag`)."""
     with _Scanner(path) as scan:
         statistics = scan.read_summary()
         if statistics is not None:
@@ -777,4 +911,4 @@ def open_bag(path: os.PathLike) -> BagInfo:
                 channel.metadata.get('topic_type_hash', ''))
         return BagInfo(scan.path, scan.header.profile, scan.header.library, topics,
                        scan.metadata, sum(counts.values()), start_ns or 0, end_ns or 0,
-                       scan.problem is not None, scan.problem)
+                       scan.problem is not None, scan.problem, (scan.path,))

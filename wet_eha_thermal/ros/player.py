@@ -386,7 +386,8 @@ def build_parser() -> argparse.ArgumentParser:
         prog=PROG,
         description='Play a bag (MCAP) on the ROS graph with /clock, so that nodes with '
                     'use_sim_time run on its time. ROS arguments follow --ros-args.')
-    parser.add_argument('bag', help='the .mcap file')
+    parser.add_argument('bag', help='an .mcap file, or a rosbag2 bag directory (its files as '
+                        'one run)')
     parser.add_argument('--rate', type=_positive, default=1.0,
                         help='play time per wall time (default: %(default)s)')
     parser.add_argument('--loop', action='store_true',

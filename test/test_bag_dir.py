@@ -1,0 +1,155 @@
+"""
+Bag directories as ros2 bag record leaves them: several MCAP files read as one run.
+
+The directories are made by splitting one recording of the simulated rig
+into files of 1.5 s each with our writer (14 files, so that ``_10`` must come
+after ``_2``); reading the directory must give what the single file gives,
+message for message, and a replay of it the same estimates, bit for bit.
+"""
+
+import shutil
+
+import numpy as np
+import pytest
+from wet_eha_thermal import replay as rp
+from wet_eha_thermal.bag.reader import (bag_files, BagError, iter_column_blocks, iter_raw,
+                                        open_bag, read_columns, ROSBAG2_METADATA)
+from wet_eha_thermal.bag.writer import BagWriter
+from wet_eha_thermal.calibration import load_log
+from wet_eha_thermal.cli import main
+from wet_eha_thermal.config import default_config_path, load_config
+from wet_eha_thermal.model.kinetics import stage_duty
+from wet_eha_thermal.simulated_rig import SimulatedRig, write_rig_bag
+import yaml
+
+SECONDS = 20.0
+SPLIT_S = 1.5
+SPECS = {'/eha/current': 'std_msgs/msg/Float64',
+         '/eha/pressure_diff': 'sensor_msgs/msg/FluidPressure',
+         '/eha/measured/winding': 'sensor_msgs/msg/Temperature'}
+
+
+@pytest.fixture(scope='module')
+def single(tmp_path_factory):
+    """20 s of stage 6 on the simulated rig at 200 Hz, configuration stored: one file."""
+    data = yaml.safe_load(default_config_path().read_text())
+    data['estimator']['pressure_inputs'] = 'differential'
+    cfg = load_config(overrides={'estimator.pressure_inputs': 'differential'})
+    path = tmp_path_factory.mktemp('single') / 'run.mcap'
+    write_rig_bag(path, SimulatedRig(cfg, stage_duty(cfg, 6), rate_Hz=200.0, seed=3), SECONDS,
+                  metadata={rp.CONFIG_METADATA: {rp.CONFIG_METADATA_KEY: yaml.safe_dump(data)}})
+    return path
+
+
+def split(single, folder):
+    """Write the messages of ``single`` again, split every SPLIT_S s: run_0.mcap, run_1.mcap..."""
+    info = open_bag(single)
+    folder.mkdir()
+    ours = {k: v for k, v in info.metadata.items() if k != 'rosbag2'}   # the writer adds it
+    with BagWriter(folder / 'run.mcap', split_duration_s=SPLIT_S, metadata=ours) as w:
+        for topic, t in info.topics.items():
+            w.add_topic(topic, t.type_name)
+        for m in iter_raw(single):
+            w.write(m.topic, m.data, m.log_time_ns)
+        return w.paths
+
+
+@pytest.fixture(scope='module')
+def folder(single, tmp_path_factory):
+    """Return the split run, without metadata.yaml (the files are taken by name)."""
+    path = tmp_path_factory.mktemp('dirs') / 'by_name'
+    files = split(single, path)
+    assert len(files) == 14 and files[10].name == 'run_10.mcap'
+    return path
+
+
+def test_the_files_are_taken_in_number_order_and_read_as_the_single_file(single, folder):
+    assert [f.name for f in bag_files(folder)] == [f'run_{k}.mcap' for k in range(14)]
+    one, many = open_bag(single), open_bag(folder)
+    assert many.message_count == one.message_count > 0
+    assert {k: t.message_count for k, t in many.topics.items()} == \
+        {k: t.message_count for k, t in one.topics.items()}
+    assert (many.start_time_ns, many.end_time_ns) == (one.start_time_ns, one.end_time_ns)
+    assert many.metadata[rp.CONFIG_METADATA] == one.metadata[rp.CONFIG_METADATA]
+    assert not many.truncated and len(many.files) == 14
+    a, b = read_columns(single, SPECS), read_columns(folder, SPECS)
+    for topic in SPECS:
+        assert len(a.topics[topic]) > 0, topic
+        assert np.array_equal(a.topics[topic].log_time_ns, b.topics[topic].log_time_ns)
+        for name, values in a.topics[topic].values.items():
+            assert np.array_equal(values, b.topics[topic].values[name]), (topic, name)
+    assert [m.log_time_ns for m in iter_raw(folder)] == [m.log_time_ns for m in iter_raw(single)]
+    # blocks of 10 s span the files; progress runs over the bytes of all of them
+    seen = []
+    blocks = list(iter_column_blocks(folder, SPECS, on_progress=lambda d, n: seen.append((d, n))))
+    assert sum(len(b['/eha/current']) for b in blocks) == \
+        one.topics['/eha/current'].message_count
+    assert seen[-1][1] == sum(f.stat().st_size for f in bag_files(folder))
+    assert all(x[0] <= y[0] for x, y in zip(seen, seen[1:])) and seen[-1][0] <= seen[-1][1]
+
+
+def test_a_replay_of_the_directory_equals_that_of_the_file(single, folder, tmp_path, capsys):
+    a = rp.replay(rp.plan_replay(single), output_rate_Hz=50.0)
+    b = rp.replay(rp.plan_replay(folder), output_rate_Hz=50.0)
+    assert a.steps == b.steps > 0 and a.messages == b.messages
+    assert np.array_equal(a.stamp_s, b.stamp_s)
+    for name, series in a.temperatures_C.items():
+        assert np.array_equal(series, b.temperatures_C[name]), name
+    assert main(['replay', str(folder), '--out', str(tmp_path / 'out')]) == 0
+    assert (tmp_path / 'out' / 'estimates.csv').stat().st_size > 0
+    # and a calibration log: the same data, its digest over the files in order
+    config = rp.choose_config(open_bag(single), None)
+    calib = config[0].calibration
+    log_a, log_b = load_log(single, config, calib), load_log(folder, config, calib)
+    assert np.array_equal(log_a.inputs['current_A'][1], log_b.inputs['current_A'][1])
+    assert log_b.size_bytes == sum(f.stat().st_size for f in bag_files(folder))
+
+
+def test_metadata_yaml_decides_the_order(folder, tmp_path):
+    # rosbag2 lists its files in metadata.yaml: names that sort otherwise are read in its order
+    bag = tmp_path / 'listed'
+    bag.mkdir()
+    names = []
+    for k, f in enumerate(bag_files(folder)):
+        names.append(f'z{13 - k}.mcap')
+        shutil.copy(f, bag / names[-1])
+    (bag / ROSBAG2_METADATA).write_text(yaml.safe_dump({'rosbag2_bagfile_information': {
+        'version': 9, 'storage_identifier': 'mcap', 'relative_file_paths': names,
+        'files': [{'path': n} for n in names]}}))
+    assert [f.name for f in bag_files(bag)] == names
+    assert [m.log_time_ns for m in iter_raw(bag)] == [m.log_time_ns for m in iter_raw(folder)]
+
+
+def test_a_damaged_or_missing_file_is_named_and_the_rest_used(folder, tmp_path):
+    bag = tmp_path / 'damaged'
+    shutil.copytree(folder, bag)
+    (bag / 'run_3.mcap').unlink()
+    cut = bag / 'run_7.mcap'
+    cut.write_bytes(cut.read_bytes()[:cut.stat().st_size // 2])
+    (bag / 'run_11.mcap').write_bytes(b'not a bag')
+    whole, info = open_bag(folder), open_bag(bag)
+    assert info.truncated
+    assert 'run_7.mcap' in info.problem and 'run_11.mcap' in info.problem
+    assert 0.7 * whole.message_count < info.message_count < whole.message_count
+    # run_3 is gone from the folder: by name the bag simply has 13 files; listed, it is missing
+    (bag / ROSBAG2_METADATA).write_text(yaml.safe_dump({'rosbag2_bagfile_information': {
+        'relative_file_paths': [f'run_{k}.mcap' for k in range(14)]}}))
+    info = open_bag(bag)
+    assert 'run_3.mcap' in info.problem and len(info.files) == 12
+    cols = read_columns(bag, SPECS)
+    assert cols.truncated and 'run_3.mcap' in cols.problem
+    t = cols.topics['/eha/current'].log_time_ns
+    assert np.all(np.diff(t) > 0) and len(t) == info.topics['/eha/current'].message_count
+    result = rp.replay(rp.plan_replay(bag), output_rate_Hz=10.0)
+    assert result.truncated and 'run_11.mcap' in result.problem and result.steps > 0
+
+
+def test_a_folder_that_is_no_bag_is_one_clear_error(tmp_path, capsys):
+    with pytest.raises(BagError, match='neither metadata.yaml nor .mcap files'):
+        open_bag(tmp_path)
+    (tmp_path / ROSBAG2_METADATA).write_text('rosbag2_bagfile_information: [1, 2]\n')
+    with pytest.raises(BagError, match='not a rosbag2 metadata file'):
+        open_bag(tmp_path)
+    assert main(['replay', str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and 'metadata.yaml' in err[0], err
