@@ -333,7 +333,8 @@ def busy_live(seconds: float, env) -> None:
                                  cwd=folder, capture_output=True, text=True,
                                  timeout=seconds + 300)
     finally:
-        stop([busy])
+        os.killpg(busy.pid, signal.SIGKILL)    # a SIGINT would print its traceback
+        busy.wait()
     lines = res.stdout.splitlines()
     keep = ('run ', 'samples ', 'stale events ', 'rig figures ', 'estimates ')
     print(f'busy machine: `wet-eha-thermal live --duration {seconds:g}` with one core kept '
