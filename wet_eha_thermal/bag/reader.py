@@ -444,11 +444,12 @@ def bag_files(path: os.PathLike) -> Tuple[Path, ...]:
     """
     Return the MCAP files of a bag in reading order: a file alone, or a bag directory's.
 
-    A rosbag2 bag directory (``ros2 bag record -s mcap``, our recorder) lists
-    its files in ``metadata.yaml`` (``relative_file_paths``); without that
-    file, its ``*.mcap`` files are taken by name, numbers compared as
-    numbers. A listed file that is missing stays in the list: reading it
-    reports it by name.
+    A rosbag2 bag directory (``ros2 bag record -s mcap``) lists its files in
+    ``metadata.yaml`` (``relative_file_paths``); without that file (a folder
+    of our writer's ``<stem>_0.mcap``, ``<stem>_1.mcap``, ...), its
+    ``*.mcap`` files are taken by name, numbers compared as numbers. A
+    listed file that is missing stays in the list: reading it reports it
+    by name.
     """
     path = Path(path)
     if not path.is_dir():

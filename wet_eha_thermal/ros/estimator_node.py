@@ -157,7 +157,7 @@ class EstimatorNode(Node):
         self.cfg = load_config(p['config_file'] or None)
         self.est = Estimator(self.cfg)
         # before any subscription or publisher: a first step that compiled would keep
-        # samples waiting for half a minute
+        # samples waiting for a minute or more
         prepare_model_step(self, self.cfg, estimator=True)
         self.clock = FastClock(self)
         # the clock read at the last tick, and the steady clock then: a system clock that
