@@ -754,18 +754,15 @@ class _ColumnBuilder:
         need = self._count + more
         for name, array in self._arrays.items():
             if need > len(array):
-                grown = np.empty(need, array.dtype)
+                # by half at least, so that the rare regrowth (no summary) stays cheap
+                grown = np.empty(max(need, len(array) * 3 // 2), array.dtype)
                 grown[:self._count] = array[:self._count]
                 self._arrays[name] = grown
 
     def append(self, columns: Columns) -> None:
         start, stop = self._count, self._count + len(columns)
+        self.reserve(len(columns))
         for name, array in self._arrays.items():
-            if stop > len(array):
-                # grow by half so that the rare regrowth (no summary) stays cheap
-                grown = np.empty(max(stop, len(array) * 3 // 2), array.dtype)
-                grown[:start] = array[:start]
-                self._arrays[name] = array = grown
             if name == 'log_time_ns':
                 array[start:stop] = columns.log_time_ns
             elif name == 'time_ns':
@@ -846,20 +843,10 @@ def open_bag(path: os.PathLike) -> BagInfo:
     cut is named in ``problem`` (``truncated`` set) and the others are used;
     when none can be read, :class:`BagError` names each.
     """
-    if not Path(path).is_dir():
-        return _open_file(Path(path))
-    files = bag_files(path)
-    parts: List[BagInfo] = []
     problems: List[str] = []
-    for name in files:
-        try:
-            part = _open_file(name)
-        except BagError as exc:
-            problems.append(str(exc))
-            continue
-        parts.append(part)
-        if part.problem is not None:
-            problems.append(f'{name.name}: {part.problem}')
+    parts = [_describe(scan) for scan in _scans(path, problems)]
+    if not Path(path).is_dir():
+        return parts[0]
     if not parts:
         raise BagError(f'{path}: no file of the bag can be read: {_problem(problems)}')
     topics: Dict[str, TopicInfo] = {}
@@ -882,34 +869,33 @@ def _total_bytes(path: os.PathLike) -> int:
     return sum(f.stat().st_size for f in bag_files(path) if f.is_file())
 
 
-def _open_file(path: Path) -> BagInfo:
-    """Describe one MCAP file (see :func:`open_bag`)."""
-    with _Scanner(path) as scan:
-        statistics = scan.read_summary()
-        if statistics is not None:
-            counts = dict(statistics.channel_message_counts)
-            start_ns, end_ns = statistics.message_start_time, statistics.message_end_time
-        else:
-            counts = {}
-            start_ns = end_ns = None
-            for _, buf, pos, channel_ids in scan.located():
-                if not len(pos):
-                    continue
-                for c, n in enumerate(np.bincount(channel_ids).tolist()):
-                    if n:
-                        counts[c] = counts.get(c, 0) + n
-                times = _take(buf, pos + _LOG_TIME_AT, '<i8')
-                lo, hi = int(times.min()), int(times.max())
-                start_ns = lo if start_ns is None else min(start_ns, lo)
-                end_ns = hi if end_ns is None else max(end_ns, hi)
-        topics: Dict[str, TopicInfo] = {}
-        for channel in sorted(scan.channels.values(), key=lambda c: c.id):
-            before = topics.get(channel.topic)
-            topics[channel.topic] = TopicInfo(
-                scan.type_name(channel),
-                counts.get(channel.id, 0) + (before.message_count if before else 0),
-                channel.metadata.get('offered_qos_profiles', ''),
-                channel.metadata.get('topic_type_hash', ''))
-        return BagInfo(scan.path, scan.header.profile, scan.header.library, topics,
-                       scan.metadata, sum(counts.values()), start_ns or 0, end_ns or 0,
-                       scan.problem is not None, scan.problem, (scan.path,))
+def _describe(scan: _Scanner) -> BagInfo:
+    """Describe one open MCAP file (see :func:`open_bag`)."""
+    statistics = scan.read_summary()
+    if statistics is not None:
+        counts = dict(statistics.channel_message_counts)
+        start_ns, end_ns = statistics.message_start_time, statistics.message_end_time
+    else:
+        counts = {}
+        start_ns = end_ns = None
+        for _, buf, pos, channel_ids in scan.located():
+            if not len(pos):
+                continue
+            for c, n in enumerate(np.bincount(channel_ids).tolist()):
+                if n:
+                    counts[c] = counts.get(c, 0) + n
+            times = _take(buf, pos + _LOG_TIME_AT, '<i8')
+            lo, hi = int(times.min()), int(times.max())
+            start_ns = lo if start_ns is None else min(start_ns, lo)
+            end_ns = hi if end_ns is None else max(end_ns, hi)
+    topics: Dict[str, TopicInfo] = {}
+    for channel in sorted(scan.channels.values(), key=lambda c: c.id):
+        before = topics.get(channel.topic)
+        topics[channel.topic] = TopicInfo(
+            scan.type_name(channel),
+            counts.get(channel.id, 0) + (before.message_count if before else 0),
+            channel.metadata.get('offered_qos_profiles', ''),
+            channel.metadata.get('topic_type_hash', ''))
+    return BagInfo(scan.path, scan.header.profile, scan.header.library, topics,
+                   scan.metadata, sum(counts.values()), start_ns or 0, end_ns or 0,
+                   scan.problem is not None, scan.problem, (scan.path,))
