@@ -338,6 +338,45 @@ def test_churchill_chu_limits_and_published_correlations():
             0.59 * ra ** 0.25, rel=0.10)
 
 
+def test_morgan_and_mcadams_laws_by_hand():
+    """
+    The truth rig's other free-convection laws: hand values, joins, distance to Churchill-Chu.
+
+    Morgan (Incropera table 9.1): 0.480 Ra^0.25 at Ra 1e6 is 0.480 * 31.623 =
+    15.179; its five pieces meet within 0.8 %. McAdams (Incropera eq. 9.24):
+    0.59 * 1e8^0.25 = 59.0, 0.10 * 1e10^(1/3) = 215.44. The docstrings' distances
+    to Churchill-Chu (air, Pr 0.71) are checked to the percent.
+    """
+    assert c.morgan_horizontal_cylinder(1.0e6) == pytest.approx(15.179, abs=1e-3)
+    assert c.mcadams_vertical_plate(1.0e8) == pytest.approx(59.0, rel=1e-12)
+    assert c.mcadams_vertical_plate(1.0e10) == pytest.approx(215.44, abs=1e-2)
+    for edge in (1.0e-2, 1.0e2, 1.0e4, 1.0e7):
+        below = c.morgan_horizontal_cylinder(edge * (1 - 1e-9))
+        assert c.morgan_horizontal_cylinder(edge) == pytest.approx(below, rel=8e-3)
+    for ra, ratio in ((1.0e2, 1.21), (1.0e4, 1.10), (1.0e6, 1.04)):
+        got = c.morgan_horizontal_cylinder(ra) / c.churchill_chu_horizontal_cylinder(ra, 0.71)
+        assert got == pytest.approx(ratio, abs=0.01)
+    for ra, ratio in ((1.0e4, 1.09), (1.0e8, 0.97), (1.0e10, 0.85)):
+        got = c.mcadams_vertical_plate(ra) / c.churchill_chu_vertical_plate(ra, 0.71)
+        assert got == pytest.approx(ratio, abs=0.01)
+    log = ValidityLog()
+    c.mcadams_vertical_plate(1.0e3, log=log)
+    c.morgan_horizontal_cylinder(1.0e13, log=log)
+    assert len(log) == 2
+
+
+def test_natural_convection_law_is_chosen_by_name():
+    """'morgan_mcadams' gives the power laws with the same air properties; the default is CC."""
+    ts, ta, d = 333.15, 293.15, 0.104
+    ra, air = c._rayleigh_air(ts, ta, d, None)
+    assert c.natural_convection_htc_horizontal_cylinder(ts, ta, d, law='morgan_mcadams') == \
+        pytest.approx(c.morgan_horizontal_cylinder(ra) * air.k / d, rel=1e-14)
+    assert c.natural_convection_htc_vertical_plate(ts, ta, d, law='morgan_mcadams') == \
+        pytest.approx(c.mcadams_vertical_plate(ra) * air.k / d, rel=1e-14)
+    assert c.natural_convection_htc_horizontal_cylinder(ts, ta, d) == pytest.approx(
+        c.churchill_chu_horizontal_cylinder(ra, air.Pr) * air.k / d, rel=1e-14)
+
+
 @pytest.mark.filterwarnings('error')
 def test_natural_convection_equal_temperatures():
     """T_s == T_inf returns the Ra -> 0 limit, without warnings or NaN."""

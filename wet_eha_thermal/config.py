@@ -179,6 +179,10 @@ class Frame:
     forced_air_htc_W_m2K: Optional[float] = spec(
         0.0, None, low_open=True, default=None,
         doc='fan cooling; null for natural convection plus radiation')
+    natural_convection: str = spec(
+        choices=('churchill_chu', 'morgan_mcadams'), default='churchill_chu',
+        doc='free convection law of the barrel and the end caps: Churchill-Chu (1975), '
+            'or the power laws of Morgan (1975, cylinder) and McAdams (1954, plate)')
     material: Solid
 
     def check(self, key: str) -> None:

@@ -346,7 +346,8 @@ class WetMotor:
         h_rad = corr.radiation_htc(Ts_K, T_amb_K, fr.emissivity)
         if fr.forced_air_htc_W_m2K is not None:
             return fr.forced_air_htc_W_m2K + h_rad
-        return natural_convection(Ts_K, T_amb_K, 2 * fr.outer_radius_m, log=self.log) + h_rad
+        return natural_convection(Ts_K, T_amb_K, 2 * fr.outer_radius_m, log=self.log,
+                                  law=fr.natural_convection) + h_rad
 
     def _coefficient_point(self, dt_s: float, u: MotorInputs):
         """Return the (temperatures, inputs) that set the coefficients, filtered if asked."""
