@@ -10,6 +10,10 @@ parameters than the estimator's configuration (a rig that differs from
 its handbook values, for calibration tests). Seeded Gaussian noise (1 sigma):
 current 0.05 A (an RMS reading, so its magnitude is kept), speed 2 rad/s,
 pressures 20 kPa, position 10 um, thermocouples 0.2 K, ambient 0.05 K.
+By default each thermocouple reads the model output it is named after
+(``THERMOCOUPLES``); with ``point_thermocouples`` the winding and frame
+thermocouples read one point, at mid-stack, of the truth's axial profile
+instead of the means the estimator publishes, as a bonded thermocouple does.
 
 The ROS node (:mod:`wet_eha_thermal.ros.sim_rig_node`) publishes these
 blocks in real time; :func:`write_rig_bag` writes them straight to a bag,
@@ -37,6 +41,8 @@ NOISE_SIGMA = {'current_A': 0.05, 'speed_rad_s': 2.0, 'p_a_Pa': 20.0e3, 'p_b_Pa'
                'p_acc_Pa': 20.0e3, 'dp_Pa': 20.0e3, 'position_m': 10.0e-6}
 THERMOCOUPLE_SIGMA_K = 0.2
 AMBIENT_SIGMA_K = 0.05
+#: Where the point thermocouples sit, as a fraction of the stack length from the oil inlet.
+POINT_THERMOCOUPLE_Z = 0.5
 
 
 class SimulatedRig:
@@ -44,8 +50,10 @@ class SimulatedRig:
 
     def __init__(self, cfg: Config, duty: Duty, rate_Hz: float = 1000.0, noise: bool = True,
                  seed: int = 1, ambient_C: float = 20.0,
-                 thermocouple_lag_s: float = 1.0, block_s: float = BLOCK_S) -> None:
+                 thermocouple_lag_s: float = 1.0, block_s: float = BLOCK_S,
+                 point_thermocouples: bool = False) -> None:
         self.cfg = cfg
+        self.point_thermocouples = point_thermocouples
         self.block_s = block_s
         self.duty = duty
         self.inputs = sensor_inputs(cfg)      # three pressures or one differential
@@ -75,8 +83,11 @@ class SimulatedRig:
         s = self.kin.sample(self.duty, t, feedback(self.truth))
         self.truth.step(s, self.ambient_C + C_TO_K)
         out = self.truth.outputs()
-        for name, quantity in THERMOCOUPLES.items():
-            self.tc_lag_K[name] += self.tc_alpha * (out[quantity] - self.tc_lag_K[name])
+        seen = {name: out[quantity] for name, quantity in THERMOCOUPLES.items()}
+        if self.point_thermocouples:
+            seen.update(self._at_mid_stack())
+        for name, value in seen.items():
+            self.tc_lag_K[name] += self.tc_alpha * (value - self.tc_lag_K[name])
         block = {'t_s': t}
         for name in self.inputs:
             v = sensor_signal(s, name)
@@ -87,6 +98,17 @@ class SimulatedRig:
             block[name] = v
         self.blocks += 1
         return block
+
+    def _at_mid_stack(self) -> Dict[str, float]:
+        """Return the truth's slot copper and frame (K) at ``POINT_THERMOCOUPLE_Z``."""
+        motor = self.truth.motor
+        n = self.cfg.motor.slices
+        centres = (np.arange(n) + 0.5) / n          # slice centres, stack fractions
+        # the first n copper nodes are the slot slices (the end windings follow)
+        return {'winding': float(np.interp(POINT_THERMOCOUPLE_Z, centres,
+                                           motor.T[motor.idx_copper[:n]])),
+                'frame': float(np.interp(POINT_THERMOCOUPLE_Z, centres,
+                                         motor.T[motor.idx_frame]))}
 
     def thermocouples_C(self) -> Dict[str, float]:
         """Return the thermocouple readings now (degC, lagged, with noise)."""

@@ -1,0 +1,32 @@
+"""The simulated rig's thermocouples: at the named output's mean, or at a point of the truth."""
+
+import numpy as np
+import pytest
+from wet_eha_thermal.config import load_config
+from wet_eha_thermal.model.kinetics import stage_duty
+from wet_eha_thermal.model.motor import C_TO_K
+from wet_eha_thermal.simulated_rig import SimulatedRig
+
+
+@pytest.mark.parametrize('points', [False, True])
+def test_thermocouples_read_the_mean_or_the_mid_stack_point(points):
+    # two slices: the mid-stack point is their common face, halfway between their centres
+    cfg = load_config(overrides={'motor.slices': 2})
+    rig = SimulatedRig(cfg, stage_duty(cfg, 3), rate_Hz=200.0, noise=False,
+                       thermocouple_lag_s=0.0, block_s=0.5, point_thermocouples=points)
+    for _ in range(240):                      # 2 min: the axial profile has formed
+        rig.next_block()
+    tc = {k: v + C_TO_K for k, v in rig.thermocouples_C().items()}
+    motor, out = rig.truth.motor, rig.truth.outputs()
+    slot = motor.T[motor.idx_copper[:2]]
+    frame = motor.T[motor.idx_frame]
+    assert abs(slot[1] - slot[0]) > 0.01       # the two readings can tell mean from point
+    if points:
+        assert tc['winding'] == pytest.approx(np.mean(slot), abs=1e-9)
+        assert tc['frame'] == pytest.approx(np.mean(frame), abs=1e-9)
+        # the conductor mean also holds the end windings: the point reads something else
+        assert abs(tc['winding'] - out['winding_mean']) > 0.01
+    else:
+        assert tc['winding'] == pytest.approx(out['winding_mean'], abs=1e-9)
+        assert tc['frame'] == pytest.approx(out['frame'], abs=1e-9)
+    assert tc['pump_case'] == pytest.approx(out['pump_case'], abs=1e-9)
