@@ -31,10 +31,19 @@ def test_audit_closes_on_every_stage_at_the_default_step(cfg, stage):
     assert abs(f['audit']) < 1e-3, f
 
 
+def test_audit_closes_on_stage_2_at_a_tenth_of_a_second(cfg):
+    # the stage furthest from closing at 1 s (-3.6e-4 measured; -1.5e-4 at 0.1 s)
+    f = audit(cfg, stage_duty(cfg, 2), 600.0, 0.1)
+    assert abs(f['audit']) < 1e-3, f
+
+
 @pytest.mark.parametrize('dt', [1.0, 0.1])
-def test_audit_closes_on_a_5_s_periodic_duty(cfg, dt):
-    # flow and load both cos(2 pi t / 5 s): a step of a fifth of the period, or less
-    f = audit(cfg, periodic_duty(cfg, 5.0), 600.0, dt)
+@pytest.mark.parametrize('period_s', [2.0, 5.0])
+def test_audit_closes_on_periodic_duties(cfg, period_s, dt):
+    # flow and load both cos(2 pi t / period), in phase: the chambers fill at high pressure
+    # and empty at low, so the oil's energy must be kept as a function of its state (with
+    # capacities carried across the swings the 2 s duty left -2.2e-3, whatever the step)
+    f = audit(cfg, periodic_duty(cfg, period_s), 600.0, dt)
     assert abs(f['audit']) < 1e-3, f
 
 

@@ -17,8 +17,12 @@ pressure part of h_in - h becomes a heat source in the receiving volume:
 (isentropic compression: the pump adds dp/rho of work per kg), so that all
 dissipated hydraulic power ends up as heat. Inside a model step the 13 nodes
 take sub-steps of at most ``hydraulics.substep_s`` (Crank-Nicolson, with the
-oil capacities following the volumes: energy is conserved exactly whatever
-the step); a step with the inputs held is one exact matrix-exponential step.
+oil capacities following the volumes); each oil volume's energy is kept as
+V e(T), e the oil's energy per volume, and every flow carries e, so that
+energy is conserved exactly whatever the step, the volumes and the
+temperatures do. The flows are incompressible, so the capacities and e take
+the density at one pressure, the accumulator's. A step with the inputs held
+is one exact matrix-exponential step.
 """
 
 from dataclasses import dataclass
@@ -30,7 +34,8 @@ from scipy.linalg.lapack import dgesv
 
 from . import correlations as corr
 from .compiled import jit
-from .oil import conductivity, density, kinematic_viscosity, Oil, specific_heat
+from .oil import (conductivity, density, kinematic_viscosity, Oil, specific_heat,
+                  temperature_of_energy, volumetric_energy)
 from ..config import Hydraulics
 
 OIL_NODES = ('port_a', 'port_b', 'case', 'line_a', 'line_b', 'chamber_a', 'chamber_b',
@@ -154,6 +159,9 @@ class HydraulicCircuit:
         g_amb[_I['line_a_shell']] = g_amb[_I['line_b_shell']] = ln.air_htc_W_m2K * outer
         self.G = g
         self.G_amb = g_amb
+        # the pressure of the oil's density law in the heat capacities and energies: one
+        # for every volume, as the flows are incompressible (the accumulator's)
+        self.p_ref_Pa = acc.pressure_Pa
         self.K_static = np.diag(g.sum(axis=1) + g_amb) - g
         self.line_inner_area = np.pi * ln.bore_m * ln.length_m
         self.u = np.array([_I[a] for a, _ in LINKS])
@@ -218,7 +226,7 @@ class HydraulicCircuit:
             T0, dt_s, sf.flow_m3_s, 0.5 * (sf.p_start_Pa + sf.p_end_Pa), sf.chamber_volumes_m3,
             sf.case_volume_m3, motor_rate, sf.motor_outlet_K, ambient_K, rho_cp_flow, heat,
             self.K_static, self._k_index, self.oil_volumes, self._capacities, self.G_amb,
-            self._line_geometry, self.oil.laws)
+            self._line_geometry, self.oil.laws, self.p_ref_Pa)
         T0_1 = np.empty(n + 1)         # the start temperatures and the constant input's 1
         T0_1[:n] = T0
         T0_1[n] = 1.0
@@ -269,8 +277,8 @@ class HydraulicCircuit:
             T0, alpha_T, sub.dt_s, sub.flow_m3_s, sub.work_W, sub.volume_dp_m3Pa, sub.p_mid_Pa,
             sub.pump_friction_W, sub.volumes_m3, motor_rate, motor_outlet_K, ambient_K,
             rho_cp_flow, self.K_static, self._k_index, self._capacities, self.G_amb,
-            self._line_geometry, self.oil.laws, self.is_pump, self.d, self.friction_to_case,
-            self.extra_loss_W, self.keep_transition)
+            self._line_geometry, self.oil.laws, self.is_pump, self.u, self.d,
+            self.friction_to_case, self.extra_loss_W, self.keep_transition, self.p_ref_Pa)
         self.T_mean = self.T_report = Tm
         e = self.energy_J
         e['sources'] += ledger[0]
@@ -396,7 +404,7 @@ def conductances_and_input(T, p_mid, rho, cp, flows, motor_rate, motor_outlet_K,
 @jit
 def circuit_matrices(T0, dt_s, flows, p_mid, chamber_volumes, case_volume, motor_rate,
                      motor_outlet_K, ambient_K, rho_cp_flow, heat, K_static, k_index,
-                     oil_volumes, capacities, G_amb, line_geometry, laws):
+                     oil_volumes, capacities, G_amb, line_geometry, laws, p_ref):
     """
     Return (K, M, C, s) of one step of :meth:`HydraulicCircuit.step`.
 
@@ -412,7 +420,7 @@ def circuit_matrices(T0, dt_s, flows, p_mid, chamber_volumes, case_volume, motor
     vol[5], vol[6] = chamber_volumes
     vol[2] = case_volume
     C = capacities.copy()
-    C[:no] = rho * cp * vol
+    C[:no] = density(T_oil, p_ref, laws) * cp * vol
     K, s = conductances_and_input(T0, p_mid, rho, cp, flows, motor_rate, motor_outlet_K,
                                   ambient_K, rho_cp_flow, heat, K_static, k_index, G_amb,
                                   line_geometry, laws)
@@ -425,8 +433,8 @@ def circuit_matrices(T0, dt_s, flows, p_mid, chamber_volumes, case_volume, motor
 @jit
 def cn_substeps(T0, alpha_T, dts, flows, works, vdps, p_mids, frics, volumes, motor_rate,
                 motor_outlet_K, ambient_K, rho_cp_flow, K_static, k_index, capacities, G_amb,
-                line_geometry, laws, is_pump, link_down, friction_to_case, extra_loss_W,
-                with_transition):
+                line_geometry, laws, is_pump, link_up, link_down, friction_to_case,
+                extra_loss_W, with_transition, p_ref):
     """
     Crank-Nicolson sub-steps of :meth:`HydraulicCircuit.step_substeps`.
 
@@ -434,7 +442,16 @@ def cn_substeps(T0, alpha_T, dts, flows, works, vdps, p_mids, frics, volumes, mo
     response to the motor outlet, response to case heat, end capacities J/K,
     step-mean heat sources W, ledger: sources, stored, to ambient, motor loop J).
     The three responses are composed only ``with_transition`` (else identity
-    and zeros).
+    and zeros); they are those of the linear step, before the energy
+    correction below.
+
+    Each oil volume's energy is V e(T), with e the oil's energy per volume at
+    ``p_ref`` (:func:`~.oil.volumetric_energy`; the flows are incompressible,
+    so one density law keeps the oil's mass), and every flow carries e of its
+    upstream volume's mid-step temperature. The linear step carries rho c_p
+    of the loop instead; its end temperatures are then corrected so that each
+    volume's energy is exactly what came in and went: the books close in e
+    whatever the step, the volumes and the temperatures do.
     """
     n = T0.size
     no = volumes.shape[1]
@@ -447,6 +464,7 @@ def cn_substeps(T0, alpha_T, dts, flows, works, vdps, p_mids, frics, volumes, mo
     ledger = np.zeros(4)
     rhs = np.empty((n, n + 2))
     C1 = capacities.copy()
+    q_motor = motor_rate / rho_cp_flow                       # m^3/s
     for k in range(dts.size):
         h = dts[k]
         heat = node_sources(alpha_T, h, works[k], vdps[k], frics[k], is_pump, link_down, n,
@@ -455,7 +473,7 @@ def cn_substeps(T0, alpha_T, dts, flows, works, vdps, p_mids, frics, volumes, mo
         rho = density(T_oil, p_mids[k], laws)
         cp = specific_heat(T_oil, laws)
         C0 = capacities.copy()
-        C0[:no] = rho * cp * volumes[k]
+        C0[:no] = density(T_oil, p_ref, laws) * cp * volumes[k]
         # the oil that comes and goes carries the loop's rho c_p: so do the capacity changes
         C1 = C0.copy()
         C1[:no] += rho_cp_flow * (volumes[k + 1] - volumes[k])
@@ -483,10 +501,26 @@ def cn_substeps(T0, alpha_T, dts, flows, works, vdps, p_mids, frics, volumes, mo
             g_acc = step_phi @ g_acc + X[:, n]
             g_case = step_phi @ g_case + X[:, n + 1]
         Tm = 0.5 * (T + T1)
+        # what the flows carry beyond the loop's rho c_p: g = e - rho c_p T of the upstream
+        # volume, into the downstream one and out of the upstream one
+        g = volumetric_energy(Tm[:no], p_ref, laws) - rho_cp_flow * Tm[:no]
+        extra = np.zeros(no)
+        for link in range(link_up.size):
+            carried = flows[k, link] * h * g[link_up[link]]
+            extra[link_down[link]] += carried
+            extra[link_up[link]] -= carried
+        # the motor's oil leaves the case and comes back to the accumulator with the heat
+        # the motor books for it (its enthalpy rise at the loop's rho c_p, in K and s)
+        carried = q_motor * h * g[_CASE]
+        extra[_CASE] -= carried
+        extra[_ACC] += carried
+        E0 = volumes[k] * volumetric_energy(T_oil, p_ref, laws)
+        E1 = E0 + Cm[:no] * (T1[:no] - T_oil) + Tm[:no] * (C1[:no] - C0[:no]) + extra
+        T1[:no] = temperature_of_energy(E1 / volumes[k + 1], T1[:no], p_ref, laws)
         T_sum += Tm * h
         heat_sum += heat * h
         ledger[0] += heat.sum() * h
-        ledger[1] += np.dot(Cm, T1 - T) + np.dot(Tm, C1 - C0)
+        ledger[1] += (E1 - E0).sum() + np.dot(Cm[no:], T1[no:] - T[no:])
         ledger[2] += np.dot(G_amb, Tm - ambient_K) * h
         ledger[3] += motor_rate * (motor_outlet_K - Tm[_CASE]) * h
         T = T1
