@@ -405,6 +405,11 @@ def read_with_rosbags(bag_dir):
     return figures, messages
 
 
+def bag_yaml(bag_dir):
+    """Return the rosbag2_bagfile_information of a bag directory's metadata.yaml."""
+    return yaml.safe_load((bag_dir / ROSBAG2_METADATA).read_text())['rosbag2_bagfile_information']
+
+
 def test_bag_directory_is_what_rosbags_reads(tmp_path):
     messages = sample_messages(300)
     bag = write(tmp_path / 'run', messages, {'/f': QoSProfile(depth=7)}, chunk_bytes=1500,
@@ -430,17 +435,15 @@ def test_bag_directory_is_what_rosbags_reads(tmp_path):
     for (topic, _, msg, _), (_, _, jazzy, own) in zip(messages, decoded):
         assert_same(msg, jazzy, topic)
         assert_same(msg, own, topic)
+    # metadata.yaml says what the last file's rosbag2 record says
+    record = open_bag(bag.paths[-1]).metadata['rosbag2']['serialized_metadata']
+    assert bag_yaml(tmp_path / 'run') == yaml.safe_load(record)
     # and this package's reader takes the directory as one run
     info = open_bag(tmp_path / 'run')
     assert not info.truncated and info.files == tuple(bag.paths)
     assert info.message_count == len(messages) and info.metadata['estimator'] == {'config': 'x'}
     assert [(m.topic, m.log_time_ns) for m in iter_raw(tmp_path / 'run')] == [
         (m[0], m[3]) for m in messages]
-
-
-def bag_yaml(bag_dir):
-    """Return the rosbag2_bagfile_information of a bag directory's metadata.yaml."""
-    return yaml.safe_load((bag_dir / ROSBAG2_METADATA).read_text())['rosbag2_bagfile_information']
 
 
 def test_metadata_yaml_is_current_from_the_start(tmp_path):
