@@ -51,14 +51,12 @@ from rclpy.qos import QoSProfile
 from rclpy.serialization import serialize_message
 import yaml
 
-from .reader import ROSBAG2_METADATA
+from .reader import ROSBAG2_METADATA, ROSBAG2_METADATA_ROOT
 
 LIBRARY = f'wet_eha_thermal/{version("wet_eha_thermal")} ({LIBRARY_IDENTIFIER})'
 ROSBAG2_METADATA_NAME = 'rosbag2'
 ROSBAG2_METADATA_KEY = 'serialized_metadata'
 ROSBAG2_METADATA_VERSION = 9      # rosbag2 Jazzy
-#: The top-level key of a bag directory's metadata.yaml (rosbag2_storage metadata_io.cpp).
-ROSBAG2_METADATA_ROOT = 'rosbag2_bagfile_information'
 DEFAULT_CHUNK_BYTES = 768 * 1024  # rosbag2's MCAP default (mcap C++ McapWriterOptions)
 COMPRESSIONS = {'zstd': CompressionType.ZSTD, 'lz4': CompressionType.LZ4,
                 'none': CompressionType.NONE}
