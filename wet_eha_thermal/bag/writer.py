@@ -19,7 +19,8 @@ rosbag2_storage's yaml.hpp and qos.cpp of metadata version 9, Jazzy):
 - as a bag directory (``directory=True``, what ``ros2 bag record -s mcap``
   makes): the files ``<dir name>_0.mcap``, ``_1``, ... inside it and
   ``metadata.yaml``, ``rosbag2_bagfile_information`` holding the same
-  BagMetadata, which ``ros2 bag info``, rosbag2_py and Foxglove read.
+  BagMetadata: what ``ros2 bag info`` and rosbag2_py open a bag by (the
+  tests read it with rosbags, an independent rosbag2 reader).
 
 Crash safety: messages are collected in an MCAP chunk, which is useless until
 it is complete. This writer closes the chunk (mcap's public
@@ -269,11 +270,6 @@ class BagWriter:
         self._stop = threading.Event()
         self._flusher = threading.Thread(target=self._flush_idle, name='bag-flush', daemon=True)
         self._flusher.start()
-
-    @property
-    def path(self) -> Path:
-        """Return the bag: its directory, or the ``path`` it was opened with."""
-        return self._path
 
     @property
     def paths(self) -> List[Path]:
