@@ -5,7 +5,7 @@ Usage (after ``colcon build`` and sourcing the workspace)::
 
     ros2 launch wet_eha_thermal eha_twin.launch.py stage:=3
     ros2 launch wet_eha_thermal eha_twin.launch.py use_sim_time:=true
-    ros2 launch wet_eha_thermal eha_twin.launch.py record_output:=runs/test.mcap
+    ros2 launch wet_eha_thermal eha_twin.launch.py record_output:=runs/test
 
 Every node reads ``config/estimator.params.yaml`` from the package's share
 directory: its ``/**`` keys apply to every node, so the rig and the recorder
@@ -15,8 +15,8 @@ in the recording (``params_file``). Launch arguments: ``stage`` (1-6, the
 rig's duty), ``duty_file`` (a duty CSV; empty: the stage), ``use_sim_time``
 (every node follows /clock), ``executor`` (events or single; the recorder
 always uses events), ``record`` (true: start the recorder) and
-``record_output`` (its file; empty: ``runs/eha_<UTC time>.mcap`` in the
-working folder).
+``record_output`` (its bag directory, or one MCAP file for a name ending
+``.mcap``; empty: ``runs/eha_<UTC time>`` in the working folder).
 
 ``launch`` and ``launch_ros`` are not on PyPI, so they are imported inside
 :func:`generate_launch_description` only: the file stays importable (and
@@ -53,9 +53,10 @@ def generate_launch_description():
         DeclareLaunchArgument('executor', default_value='events',
                               description='rclpy executor of rig and estimator: events or single'),
         DeclareLaunchArgument('record', default_value='true',
-                              description='record every topic of the twin to an MCAP file'),
+                              description='record every topic of the twin to a rosbag2 bag'),
         DeclareLaunchArgument('record_output', default_value='',
-                              description='file of the recording (empty: runs/eha_<UTC>.mcap)'),
+                              description='bag directory of the recording, or one file for a '
+                                          'name ending .mcap (empty: runs/eha_<UTC time>)'),
         Node(package='wet_eha_thermal', executable='wet-eha-thermal-rig', name='eha_sim_rig',
              output='screen', arguments=['--executor', executor],
              parameters=[params_file,

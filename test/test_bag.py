@@ -1,8 +1,15 @@
-"""Bag writer and reader: rosbag2 layout, crash safety, splitting, damage, fast decoding."""
+"""
+Bag writer and reader: rosbag2 layout, crash safety, splitting, damage, fast decoding.
 
+The bag directories the writer makes are read back with rosbags, a rosbag2
+reader written apart from rosbag2 and from this package.
+"""
+
+from collections import Counter
 import multiprocessing
 import os
 from pathlib import Path
+import shutil
 import signal
 import struct
 import subprocess
@@ -17,10 +24,13 @@ from mcap_ros2.decoder import DecoderFactory
 import numpy as np
 import pytest
 from rclpy.qos import qos_profile_sensor_data, QoSProfile
+from rosbags.rosbag2 import Reader
+from rosbags.typesys import get_types_from_msg, get_typestore, Stores
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64, String
 from wet_eha_thermal.bag.reader import (BagError, FLOAT64, FLUID_PRESSURE, iter_column_blocks,
-                                        iter_raw, open_bag, read_columns, TEMPERATURE)
+                                        iter_raw, open_bag, read_columns, ROSBAG2_METADATA,
+                                        TEMPERATURE)
 from wet_eha_thermal.bag.writer import BagWriter, message_definition
 import yaml
 
@@ -375,6 +385,120 @@ def test_split_files_are_complete_and_cover_everything(tmp_path, split):
             'relative_file_paths'][-1] == path.name
     raw = [m for path in bag.paths for m in iter_raw(path)]
     assert [(m.topic, m.log_time_ns) for m in raw] == [(m[0], m[3]) for m in messages]
+
+
+def read_with_rosbags(bag_dir):
+    """Return rosbags' view of a bag directory: its reader's figures and decoded messages."""
+    jazzy = get_typestore(Stores.ROS2_JAZZY)
+    own = get_typestore(Stores.EMPTY)    # from the definitions stored in the bag alone
+    with Reader(bag_dir) as reader:
+        for connection in reader.connections:
+            own.register(get_types_from_msg(connection.msgdef.data, connection.msgtype))
+        messages = [(c.topic, t, jazzy.deserialize_cdr(raw, c.msgtype),
+                     own.deserialize_cdr(raw, c.msgtype)) for c, t, raw in reader.messages()]
+        figures = {
+            'count': reader.message_count, 'start_ns': reader.start_time,
+            'end_ns': reader.end_time, 'ros_distro': reader.ros_distro,
+            'topics': {t: (i.msgtype, i.msgcount) for t, i in reader.topics.items()},
+            'qos': {c.topic: c.ext.offered_qos_profiles for c in reader.connections},
+            'files': list(reader.storage.files)}   # emptied when the reader closes
+    return figures, messages
+
+
+def bag_yaml(bag_dir):
+    """Return the rosbag2_bagfile_information of a bag directory's metadata.yaml."""
+    return yaml.safe_load((bag_dir / ROSBAG2_METADATA).read_text())['rosbag2_bagfile_information']
+
+
+def test_bag_directory_is_what_rosbags_reads(tmp_path):
+    messages = sample_messages(300)
+    bag = write(tmp_path / 'run', messages, {'/f': QoSProfile(depth=7)}, chunk_bytes=1500,
+                split_duration_s=0.1, directory=True, metadata={'estimator': {'config': 'x'}})
+    names = [f'run_{k}.mcap' for k in range(3)]
+    assert bag.paths == [tmp_path / 'run' / n for n in names]
+    assert sorted(os.listdir(tmp_path / 'run')) == [ROSBAG2_METADATA, *names]
+    figures, decoded = read_with_rosbags(tmp_path / 'run')
+    assert figures['count'] == len(messages)
+    assert figures['start_ns'] == messages[0][3]
+    assert figures['end_ns'] == messages[-1][3] + 1          # rosbags: one past the last
+    assert figures['ros_distro'] == os.environ.get('ROS_DISTRO', 'jazzy')
+    counts = Counter(m[0] for m in messages)
+    assert figures['topics'] == {m[0]: (m[1], counts[m[0]]) for m in messages}
+    assert figures['qos']['/f'][0].depth == 7 and figures['qos']['/s'] == []
+    assert [f['path'] for f in figures['files']] == names
+    for entry, path in zip(figures['files'], bag.paths):
+        info = open_bag(path)
+        assert entry['message_count'] == info.message_count > 0
+        assert entry['starting_time']['nanoseconds_since_epoch'] == info.start_time_ns
+        assert entry['duration']['nanoseconds'] == info.end_time_ns - info.start_time_ns
+    assert [(topic, t) for topic, t, _, _ in decoded] == [(m[0], m[3]) for m in messages]
+    for (topic, _, msg, _), (_, _, jazzy, own) in zip(messages, decoded):
+        assert_same(msg, jazzy, topic)
+        assert_same(msg, own, topic)
+    # metadata.yaml says what the last file's rosbag2 record says
+    record = open_bag(bag.paths[-1]).metadata['rosbag2']['serialized_metadata']
+    assert bag_yaml(tmp_path / 'run') == yaml.safe_load(record)
+    # and this package's reader takes the directory as one run
+    info = open_bag(tmp_path / 'run')
+    assert not info.truncated and info.files == tuple(bag.paths)
+    assert info.message_count == len(messages) and info.metadata['estimator'] == {'config': 'x'}
+    assert [(m.topic, m.log_time_ns) for m in iter_raw(tmp_path / 'run')] == [
+        (m[0], m[3]) for m in messages]
+
+
+def test_metadata_yaml_is_current_from_the_start(tmp_path):
+    # as a recorder killed mid-run leaves it: copies of the directory while it is written
+    messages = sample_messages(300)
+    with BagWriter(tmp_path / 'run', directory=True, split_duration_s=0.1,
+                   chunk_bytes=1500) as bag:
+        opened = bag_yaml(tmp_path / 'run')
+        assert (opened['message_count'], opened['relative_file_paths']) == (0, ['run_0.mcap'])
+        assert not list((tmp_path / 'run').glob('.*'))      # the temporary file is gone
+        copies = []
+        for topic, type_name, msg, log_ns in messages:
+            if topic not in bag.topics:
+                bag.add_topic(topic, type_name)
+            files = len(bag.paths)
+            bag.write(topic, msg, log_ns)
+            if len(bag.paths) > files:                       # the write began a file
+                copy = tmp_path / f'copy_{files}'
+                shutil.copytree(tmp_path / 'run', copy)
+                copies.append((copy, files))
+    assert [files for _, files in copies] == [1, 2]
+    for copy, done in copies:
+        listed = bag_yaml(copy)
+        names = [f'run_{k}.mcap' for k in range(done + 1)]
+        assert listed['relative_file_paths'] == [f['path'] for f in listed['files']] == names
+        complete = [open_bag(copy / n).message_count for n in names[:done]]
+        assert [f['message_count'] for f in listed['files']] == complete + [0]
+        assert listed['message_count'] == sum(complete)
+        info = open_bag(copy)          # the last file is cut: the rest reads, in order
+        assert info.truncated and names[-1] in info.problem
+        assert info.message_count >= sum(complete)   # the new file's first chunk is not out yet
+        raw = [(m.topic, m.log_time_ns) for m in iter_raw(copy)]
+        assert raw == [(m[0], m[3]) for m in messages[:len(raw)]]
+    # closed: rosbags reads what the last metadata.yaml says
+    figures, decoded = read_with_rosbags(tmp_path / 'run')
+    assert figures['count'] == len(decoded) == len(messages)
+
+
+def test_a_bag_directory_never_overwrites(tmp_path):
+    empty, used, afile = tmp_path / 'empty', tmp_path / 'used', tmp_path / 'afile'
+    empty.mkdir()
+    used.mkdir()
+    (used / 'notes.txt').write_text('keep me')
+    afile.write_text('keep me too')
+    for path in (empty, used, afile):   # as ros2 bag record: not even an empty folder
+        with pytest.raises(FileExistsError) as err:
+            BagWriter(path, directory=True)
+        assert err.value.filename == str(path)
+    assert list(empty.iterdir()) == [] and [p.name for p in used.iterdir()] == ['notes.txt']
+    assert afile.read_text() == 'keep me too'
+    with BagWriter(tmp_path / 'quiet', directory=True):   # no message: still a bag rosbags opens
+        pass
+    figures, decoded = read_with_rosbags(tmp_path / 'quiet')
+    assert (figures['count'], decoded) == (0, [])
+    assert [f['path'] for f in figures['files']] == ['quiet_0.mcap']
 
 
 def test_not_mcap_files_are_refused(tmp_path):

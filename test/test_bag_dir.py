@@ -3,7 +3,8 @@ Bag directories as ros2 bag record leaves them: several MCAP files read as one r
 
 The directories are made by splitting one recording of the simulated rig
 into files of 1.5 s each with our writer (14 files, so that ``_10`` must come
-after ``_2``); reading the directory must give what the single file gives,
+after ``_2``), as a folder of files alone and as the recorder's bag directory
+(with metadata.yaml); reading either must give what the single file gives,
 message for message, and a replay of it the same estimates, bit for bit.
 """
 
@@ -41,12 +42,21 @@ def single(tmp_path_factory):
     return path
 
 
-def split(single, folder):
-    """Write the messages of ``single`` again, split every SPLIT_S s: run_0.mcap, run_1.mcap..."""
+def split(single, folder, directory=False):
+    """
+    Write the messages of ``single`` again, split every SPLIT_S s; return the files.
+
+    They are run_0.mcap, run_1.mcap, ... in ``folder``, or with ``directory``
+    in the bag directory ``folder`` that the writer makes (named run: the same names).
+    """
     info = open_bag(single)
-    folder.mkdir()
     ours = {k: v for k, v in info.metadata.items() if k != 'rosbag2'}   # the writer adds it
-    with BagWriter(folder / 'run.mcap', split_duration_s=SPLIT_S, metadata=ours) as w:
+    if directory:
+        w = BagWriter(folder, directory=True, split_duration_s=SPLIT_S, metadata=ours)
+    else:
+        folder.mkdir()
+        w = BagWriter(folder / 'run.mcap', split_duration_s=SPLIT_S, metadata=ours)
+    with w:
         for topic, t in info.topics.items():
             w.add_topic(topic, t.type_name)
         for m in iter_raw(single):
@@ -63,46 +73,61 @@ def folder(single, tmp_path_factory):
     return path
 
 
-def test_the_files_are_taken_in_number_order_and_read_as_the_single_file(single, folder):
-    assert [f.name for f in bag_files(folder)] == [f'run_{k}.mcap' for k in range(14)]
-    one, many = open_bag(single), open_bag(folder)
+@pytest.fixture(scope='module')
+def recorded(single, tmp_path_factory):
+    """Return the split run as the recorder writes it: the bag directory run/ and its listing."""
+    path = tmp_path_factory.mktemp('recorded') / 'run'
+    assert split(single, path, directory=True) == list(bag_files(path))
+    assert (path / ROSBAG2_METADATA).is_file()
+    return path
+
+
+@pytest.fixture(params=['folder', 'recorded'])
+def run_dir(request):
+    """Each kind of split run in turn."""
+    return request.getfixturevalue(request.param)
+
+
+def test_the_files_are_taken_in_number_order_and_read_as_the_single_file(single, run_dir):
+    assert [f.name for f in bag_files(run_dir)] == [f'run_{k}.mcap' for k in range(14)]
+    one, many = open_bag(single), open_bag(run_dir)
     assert many.message_count == one.message_count > 0
     assert {k: t.message_count for k, t in many.topics.items()} == \
         {k: t.message_count for k, t in one.topics.items()}
     assert (many.start_time_ns, many.end_time_ns) == (one.start_time_ns, one.end_time_ns)
     assert many.metadata[rp.CONFIG_METADATA] == one.metadata[rp.CONFIG_METADATA]
     assert not many.truncated and len(many.files) == 14
-    a, b = read_columns(single, SPECS), read_columns(folder, SPECS)
+    a, b = read_columns(single, SPECS), read_columns(run_dir, SPECS)
     for topic in SPECS:
         assert len(a.topics[topic]) > 0, topic
         assert np.array_equal(a.topics[topic].log_time_ns, b.topics[topic].log_time_ns)
         for name, values in a.topics[topic].values.items():
             assert np.array_equal(values, b.topics[topic].values[name]), (topic, name)
-    assert [m.log_time_ns for m in iter_raw(folder)] == [m.log_time_ns for m in iter_raw(single)]
+    assert [m.log_time_ns for m in iter_raw(run_dir)] == [m.log_time_ns for m in iter_raw(single)]
     # blocks of 10 s span the files; progress runs over the bytes of all of them
     seen = []
-    blocks = list(iter_column_blocks(folder, SPECS, on_progress=lambda d, n: seen.append((d, n))))
+    blocks = list(iter_column_blocks(run_dir, SPECS, on_progress=lambda d, n: seen.append((d, n))))
     assert sum(len(b['/eha/current']) for b in blocks) == \
         one.topics['/eha/current'].message_count
-    assert seen[-1][1] == sum(f.stat().st_size for f in bag_files(folder))
+    assert seen[-1][1] == sum(f.stat().st_size for f in bag_files(run_dir))
     assert all(x[0] <= y[0] for x, y in zip(seen, seen[1:])) and seen[-1][0] <= seen[-1][1]
 
 
-def test_a_replay_of_the_directory_equals_that_of_the_file(single, folder, tmp_path, capsys):
+def test_a_replay_of_the_directory_equals_that_of_the_file(single, run_dir, tmp_path, capsys):
     a = rp.replay(rp.plan_replay(single), output_rate_Hz=50.0)
-    b = rp.replay(rp.plan_replay(folder), output_rate_Hz=50.0)
+    b = rp.replay(rp.plan_replay(run_dir), output_rate_Hz=50.0)
     assert a.steps == b.steps > 0 and a.messages == b.messages
     assert np.array_equal(a.stamp_s, b.stamp_s)
     for name, series in a.temperatures_C.items():
         assert np.array_equal(series, b.temperatures_C[name]), name
-    assert main(['replay', str(folder), '--out', str(tmp_path / 'out')]) == 0
+    assert main(['replay', str(run_dir), '--out', str(tmp_path / 'out')]) == 0
     assert (tmp_path / 'out' / 'estimates.csv').stat().st_size > 0
     # and a calibration log: the same data, its digest over the files in order
     config = rp.choose_config(open_bag(single), None)
     calib = config[0].calibration
-    log_a, log_b = load_log(single, config, calib), load_log(folder, config, calib)
+    log_a, log_b = load_log(single, config, calib), load_log(run_dir, config, calib)
     assert np.array_equal(log_a.inputs['current_A'][1], log_b.inputs['current_A'][1])
-    assert log_b.size_bytes == sum(f.stat().st_size for f in bag_files(folder))
+    assert log_b.size_bytes == sum(f.stat().st_size for f in bag_files(run_dir))
 
 
 def test_metadata_yaml_decides_the_order(folder, tmp_path):

@@ -65,8 +65,9 @@ def test_live_runs_and_cleans_up(tmp_path):
     assert 'rig             exited cleanly' in out, out
     assert 'estimator       exited cleanly' in out, out
     assert 'recorder        exited cleanly' in out, out
-    recordings = list((tmp_path / 'runs').glob('live_*.mcap'))
+    recordings = list((tmp_path / 'runs').glob('live_*'))    # a bag directory
     assert len(recordings) == 1 and f'recording       {recordings[0]}: ' in out, out
+    assert (recordings[0] / f'{recordings[0].name}_0.mcap').is_file()
     bag = open_bag(recordings[0])
     assert not bag.truncated
     assert all(bag.topics[f'{topics.ESTIMATE_PREFIX}/{name}'].message_count > 100

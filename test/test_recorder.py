@@ -1,10 +1,11 @@
 """
-The recorder node: what goes in comes out of the file, field by field; a SIGKILL loses little.
+The recorder node: what goes in comes out of the bag, field by field; a SIGKILL loses little.
 
 In this process, a probe node publishes every kind of topic the twin has
-and the recorder (same EventsExecutor, timeouts everywhere) records them; the
-file is read back with mcap_ros2's decoder. The SIGKILL test runs the
-recorder as a subprocess and reads its cut file with
+and the recorder (same EventsExecutor, timeouts everywhere) records them to
+a split bag directory; it is read back with mcap_ros2's decoder, file by
+file, and with rosbags, which reads the directory as rosbag2 does. The
+SIGKILL test runs the recorder as a subprocess and reads its cut bag with
 :mod:`wet_eha_thermal.bag.reader`.
 """
 
@@ -15,20 +16,25 @@ import signal
 import subprocess
 import sys
 import time
+from types import SimpleNamespace
 
 from builtin_interfaces.msg import Time as TimeMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
+import pytest
 import rclpy
 from rclpy.experimental import EventsExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 from rclpy.task import Future
+from rosbags.rosbag2 import Reader
+from rosbags.typesys import get_typestore, Stores
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension, String
-from wet_eha_thermal.bag.reader import FLOAT64, open_bag, read_columns
+from wet_eha_thermal.bag.reader import (bag_files, FLOAT64, open_bag, read_columns,
+                                        ROSBAG2_METADATA)
 from wet_eha_thermal.config import default_config_path
 from wet_eha_thermal.ros import recorder_node, topics
 from wet_eha_thermal.ros.recorder_node import RecorderNode
@@ -109,14 +115,28 @@ def _spin(executor, seconds, until=None):
 def _read(path):
     """Return the decoded messages by topic, the channels by topic and the metadata by name."""
     by_topic, channels, metadata = {}, {}, {}
-    with open(path, 'rb') as f:
-        reader = make_reader(f, decoder_factories=[DecoderFactory()])
-        for _, channel, message, decoded in reader.iter_decoded_messages(log_time_order=False):
-            by_topic.setdefault(channel.topic, []).append((message, decoded))
-            channels[channel.topic] = channel
-        for record in reader.iter_metadata():
-            metadata[record.name] = record.metadata
+    for name in bag_files(path):
+        with open(name, 'rb') as f:
+            reader = make_reader(f, decoder_factories=[DecoderFactory()])
+            for _, channel, message, decoded in reader.iter_decoded_messages(
+                    log_time_order=False):
+                by_topic.setdefault(channel.topic, []).append((message, decoded))
+                channels[channel.topic] = channel
+            for record in reader.iter_metadata():
+                metadata[record.name] = record.metadata
     return by_topic, channels, metadata
+
+
+def _read_rosbags(path):
+    """Return the messages by topic as rosbags decodes the bag directory, as :func:`_read`."""
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    by_topic = {}
+    with Reader(path) as reader:
+        for connection, log_time, data in reader.messages():
+            by_topic.setdefault(connection.topic, []).append(
+                (SimpleNamespace(log_time=log_time),
+                 typestore.deserialize_cdr(data, connection.msgtype)))
+    return by_topic
 
 
 def _equal(ros, decoded):
@@ -136,10 +156,10 @@ def test_records_every_field_qos_and_config(context, tmp_path):
     # the alert summary is latched: published before the recorder exists, it is recorded
     alert = String(data='{"level": 1, "message": "oil WARN"}')
     probe.create_publisher(String, topics.ALERT_TOPIC, topics.latched_qos()).publish(alert)
-    output = tmp_path / 'rec' / 'run.mcap'
+    output = tmp_path / 'rec' / 'run'
     node = RecorderNode(context=context, parameter_overrides=[
         Parameter('output', value=str(output)), Parameter('params_file', value=str(PARAMS_FILE)),
-        Parameter('extra_topics', value=[EXTRA])])
+        Parameter('extra_topics', value=[EXTRA]), Parameter('split_duration_s', value=0.1)])
     executor = EventsExecutor(context=context)
     executor.add_node(node)
     executor.add_node(probe)
@@ -162,18 +182,24 @@ def test_records_every_field_qos_and_config(context, tmp_path):
         node.destroy_node()
         probe.destroy_node()
     assert summary.startswith('recorder summary: ') and str(output) in summary
+    files = bag_files(output)     # a bag directory, split every 0.1 s of log time
+    assert len(files) > 1 and files[0] == output / 'run_0.mcap'
 
     by_topic, channels, metadata = _read(output)
-    for topic, (kind, _, msgs) in sent.items():
-        got = by_topic[topic]
-        if topic == topics.DIAGNOSTICS_TOPIC:        # the recorder's own status is there too
-            assert any(d.status[0].name == recorder_node.STATUS_NAME for _, d in got)
-            got = [(m, d) for m, d in got if d.status[0].name == 'probe: status']
-        assert len(got) == N, topic
-        assert all(_equal(ros, decoded) for ros, (_, decoded) in zip(msgs, got)), topic
-        times = [m.log_time for m, _ in got]
-        assert times == sorted(times) and times[0] > 1e18, topic   # receive time, system clock
-    assert [d.data for _, d in by_topic[topics.ALERT_TOPIC]] == [alert.data]
+    for reader, decoded_by_topic in (('mcap_ros2', by_topic), ('rosbags', _read_rosbags(output))):
+        assert set(decoded_by_topic) == set(by_topic), reader
+        for topic, (kind, _, msgs) in sent.items():
+            got = decoded_by_topic[topic]
+            if topic == topics.DIAGNOSTICS_TOPIC:    # the recorder's own status is there too
+                assert any(d.status[0].name == recorder_node.STATUS_NAME for _, d in got)
+                got = [(m, d) for m, d in got if d.status[0].name == 'probe: status']
+            assert len(got) == N, (reader, topic)
+            assert all(_equal(ros, decoded) for ros, (_, decoded) in zip(msgs, got)), (
+                reader, topic)
+            times = [m.log_time for m, _ in got]
+            # receive time, system clock
+            assert times == sorted(times) and times[0] > 1e18, (reader, topic)
+        assert [d.data for _, d in decoded_by_topic[topics.ALERT_TOPIC]] == [alert.data], reader
     # topics without a message are not in the file
     assert topics.INPUT_TOPICS['p_a_Pa'] not in channels
     assert set(channels) == {*sent, topics.ALERT_TOPIC, topics.READY_TOPIC}
@@ -234,23 +260,31 @@ def test_sim_time_log_times_follow_clock(context, tmp_path):
     assert columns.values['data'].tolist() == [2.0, 3.0]
 
 
-def test_existing_output_is_one_error_line(tmp_path, capsys):
-    output = tmp_path / 'taken.mcap'
-    output.write_bytes(b'keep me')
+@pytest.mark.parametrize('name', ['taken.mcap', 'taken', 'empty'])
+def test_existing_output_is_one_error_line(tmp_path, capsys, name):
+    # a file, a bag directory, even an empty directory (as ros2 bag record): never touched
+    output = tmp_path / name
+    if name == 'taken.mcap':
+        output.write_bytes(b'keep me')
+    else:
+        output.mkdir()
+        if name == 'taken':
+            (output / 'taken_0.mcap').write_bytes(b'keep me')
+    before = sorted((p.name, p.read_bytes()) for p in tmp_path.rglob('*') if p.is_file())
     status = recorder_node.main(['wet-eha-thermal-record', '--ros-args',
                                  '-p', f'output:={output}'])
     err = capsys.readouterr().err.strip().splitlines()
     assert status == 2
-    assert len(err) == 1 and 'taken.mcap exists' in err[0], err
-    assert output.read_bytes() == b'keep me'
+    assert len(err) == 1 and f'{name} exists' in err[0], err
+    assert sorted((p.name, p.read_bytes()) for p in tmp_path.rglob('*') if p.is_file()) == before
 
 
 def test_sigkill_loses_at_most_about_one_flush_interval(context, tmp_path):
-    output = tmp_path / 'killed.mcap'
+    output = tmp_path / 'killed'
     log = open(tmp_path / 'recorder.log', 'wb')
     proc = subprocess.Popen(
         [sys.executable, '-m', 'wet_eha_thermal.ros.recorder_node', '--ros-args',
-         '-p', f'output:={output}', '-p', 'qos:=reliable'],
+         '-p', f'output:={output}', '-p', 'qos:=reliable', '-p', 'split_duration_s:=1.0'],
         stdout=log, stderr=subprocess.STDOUT, env=dict(os.environ, OPENBLAS_NUM_THREADS='1'))
     probe = rclpy.create_node('recorder_test_killer', context=context)
     topic = topics.INPUT_TOPICS['current_A']
@@ -277,9 +311,18 @@ def test_sigkill_loses_at_most_about_one_flush_interval(context, tmp_path):
             proc.kill()
         log.close()
         probe.destroy_node()
+    # metadata.yaml names every file begun, each complete one with its count; the last is cut
+    listed = yaml.safe_load((output / ROSBAG2_METADATA).read_text())[
+        'rosbag2_bagfile_information']
+    names = [f'killed_{k}.mcap' for k in range(len(listed['files']))]
+    assert listed['relative_file_paths'] == names and len(names) >= 2
+    assert sorted(p.name for p in output.glob('*.mcap')) == sorted(names)
+    for entry in listed['files'][:-1]:
+        info = open_bag(output / entry['path'])
+        assert not info.truncated and info.message_count == entry['message_count']
     data = read_columns(output, {topic: FLOAT64})
     values = data.topics[topic].values['data']
-    assert data.truncated
+    assert data.truncated and names[-1] in data.problem
     assert values.tolist() == list(range(len(values)))   # what was kept is the start, in order
     lost = sent - len(values)
     print(f'SIGKILL after {sent} messages at 1 kHz: {len(values)} kept, {lost} lost '

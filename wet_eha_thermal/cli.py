@@ -398,8 +398,9 @@ def build_parser() -> argparse.ArgumentParser:
                                    'a status line shows the estimated temperatures, margin, time '
                                    'to limit, alerts and stale inputs. Ends after --duration or '
                                    'on Ctrl-C with a summary. The recorder (eha_recorder) writes '
-                                   'the run to MCAP. The nodes run on a private ROS domain (from '
-                                   'the process id, or $WET_EHA_LIVE_DOMAIN_ID).')
+                                   'the run to a rosbag2 bag of MCAP files. The nodes run on a '
+                                   'private ROS domain (from the process id, or '
+                                   '$WET_EHA_LIVE_DOMAIN_ID).')
     _add_duty_arguments(p, required=False)
     p.add_argument('--duration', type=float, default=60.0,
                    help='how long to run, s (default: %(default)g)')
@@ -411,7 +412,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--executor', choices=('events', 'single'), default='events',
                    help='rclpy executor of both nodes (default: %(default)s)')
     p.add_argument('--record', type=Path, default=None, metavar='PATH',
-                   help='recording of the run, MCAP (default: runs/live_<UTC time>.mcap)')
+                   help='recording of the run: a rosbag2 bag directory, as ros2 bag record -o '
+                        'makes, or one MCAP file when PATH ends in .mcap; never overwritten '
+                        '(default: runs/live_<UTC time>)')
     p.add_argument('--no-record', action='store_true', help='do not record the run')
     p.set_defaults(func=_live)
 

@@ -47,8 +47,9 @@ import zstandard
 from . import cdr
 
 MAGIC = b'\x89MCAP0\r\n'
-#: The file of a rosbag2 bag directory that lists its files.
+#: The file of a rosbag2 bag directory that lists its files, and its top-level key.
 ROSBAG2_METADATA = 'metadata.yaml'
+ROSBAG2_METADATA_ROOT = 'rosbag2_bagfile_information'
 FLOAT64 = 'std_msgs/msg/Float64'
 FLUID_PRESSURE = 'sensor_msgs/msg/FluidPressure'
 TEMPERATURE = 'sensor_msgs/msg/Temperature'
@@ -457,7 +458,7 @@ def bag_files(path: os.PathLike) -> Tuple[Path, ...]:
     meta = path / ROSBAG2_METADATA
     if meta.is_file():
         try:
-            info = yaml.safe_load(meta.read_text())['rosbag2_bagfile_information']
+            info = yaml.safe_load(meta.read_text())[ROSBAG2_METADATA_ROOT]
             names = info.get('relative_file_paths') or [f['path'] for f in info['files']]
         except (OSError, yaml.YAMLError, KeyError, TypeError, AttributeError) as exc:
             raise BagError(f'{meta}: not a rosbag2 metadata file ({type(exc).__name__}: '

@@ -15,7 +15,12 @@ rosbag2_storage's yaml.hpp and qos.cpp of metadata version 9, Jazzy):
   ``topic_type_hash`` (``RIHS01_...``);
 - a Metadata record ``rosbag2`` whose ``serialized_metadata`` is the YAML of
   the bag's BagMetadata, written when a file is opened and again when it is
-  closed (readers keep the last one).
+  closed (readers keep the last one);
+- as a bag directory (``directory=True``, what ``ros2 bag record -s mcap``
+  makes): the files ``<dir name>_0.mcap``, ``_1``, ... inside it and
+  ``metadata.yaml``, ``rosbag2_bagfile_information`` holding the same
+  BagMetadata: what ``ros2 bag info`` and rosbag2_py open a bag by (the
+  tests read it with rosbags, an independent rosbag2 reader).
 
 Crash safety: messages are collected in an MCAP chunk, which is useless until
 it is complete. This writer closes the chunk (mcap's public
@@ -26,6 +31,9 @@ thread checks the last condition when no message arrives. A SIGKILL therefore
 loses at most about ``flush_interval_s`` of data (the OS keeps what was
 written; a power cut is another matter, nothing is fsync'ed). Readers recover
 every complete chunk of such a file (see :mod:`wet_eha_thermal.bag.reader`).
+A bag directory's ``metadata.yaml`` is replaced whole (written beside, then
+renamed over it) when the bag opens, at each split and at close: a killed
+recorder leaves one that lists every file it had begun, the last one cut.
 """
 
 from importlib.metadata import version
@@ -34,6 +42,7 @@ import os
 from pathlib import Path
 import re
 import sys
+import textwrap
 import threading
 import time
 from typing import Dict, List, Optional
@@ -42,6 +51,8 @@ from mcap.writer import CompressionType, LIBRARY_IDENTIFIER, Writer
 from rclpy.qos import QoSProfile
 from rclpy.serialization import serialize_message
 import yaml
+
+from .reader import ROSBAG2_METADATA, ROSBAG2_METADATA_ROOT
 
 LIBRARY = f'wet_eha_thermal/{version("wet_eha_thermal")} ({LIBRARY_IDENTIFIER})'
 ROSBAG2_METADATA_NAME = 'rosbag2'
@@ -169,6 +180,8 @@ class _Topic:
         self.definition = message_definition(self.type_name)
         self.type_hash = type_hash(self.type_name)
         self.qos = qos_profiles(qos)
+        # the channel metadata of every file: dumped once, not at each split (~0.1 ms a topic)
+        self.qos_yaml = _yaml(self.qos)
         self.message_count = 0
 
 
@@ -196,7 +209,7 @@ class _FileStats:
 
 class BagWriter:
     """
-    Write messages to a rosbag2-compatible MCAP file (or a series of files when splitting).
+    Write messages to a rosbag2-compatible MCAP file, a series of them, or a bag directory.
 
     ``metadata`` maps record names to string dictionaries, stored as MCAP
     Metadata records at the start of every file (so that a run can be
@@ -205,15 +218,21 @@ class BagWriter:
     is ``<stem>_0.mcap``, ``<stem>_1.mcap``, ... next to ``path`` (rosbag2's
     naming), each a complete MCAP file, the next begun before a message once
     the current file holds ``split_bytes`` or that message is
-    ``split_duration_s`` of log time after the file's first. Existing files
-    are never overwritten. Safe to use from several threads.
+    ``split_duration_s`` of log time after the file's first.
+
+    With ``directory`` the bag is the rosbag2 bag directory ``path``, made
+    here (its parent must exist): the files ``<name>_0.mcap``, ... inside it,
+    split or not, and ``metadata.yaml`` (see the module docstring).
+
+    Existing files and directories are never overwritten (FileExistsError).
+    Safe to use from several threads.
     """
 
     def __init__(self, path: os.PathLike, *,
                  metadata: Optional[Dict[str, Dict[str, str]]] = None,
                  chunk_bytes: int = DEFAULT_CHUNK_BYTES, flush_interval_s: float = 1.0,
                  split_bytes: Optional[int] = None, split_duration_s: Optional[float] = None,
-                 compression: str = 'zstd'):
+                 compression: str = 'zstd', directory: bool = False):
         if compression not in COMPRESSIONS:
             raise ValueError(f'compression {compression!r}: expected one of '
                              + ', '.join(COMPRESSIONS))
@@ -229,6 +248,7 @@ class BagWriter:
             if not all(isinstance(x, str) for kv in values.items() for x in kv):
                 raise ValueError(f'metadata {name!r}: keys and values must be strings')
         self._path = Path(path)
+        self._directory = directory
         self._splitting = split_bytes is not None or split_duration_s is not None
         self._split_bytes = split_bytes
         self._split_duration_ns = (None if split_duration_s is None
@@ -242,6 +262,10 @@ class BagWriter:
         self._lock = threading.Lock()
         self._closed = False
         self._error: Optional[BaseException] = None
+        if directory:
+            # one call that fails on anything already there, as ros2 bag record refuses an
+            # existing output folder, even an empty one
+            self._path.mkdir()
         self._open_file()
         self._stop = threading.Event()
         self._flusher = threading.Thread(target=self._flush_idle, name='bag-flush', daemon=True)
@@ -316,7 +340,9 @@ class BagWriter:
         self._stop.set()
         self._flusher.join()
         with self._lock:
-            self._close_file()
+            bag_yaml = self._close_file()
+            if self._directory and bag_yaml is not None:
+                self._write_metadata_yaml(bag_yaml)
         if self._error is not None:
             raise OSError(f'writing {self._files[-1].path} failed') from self._error
 
@@ -335,7 +361,9 @@ class BagWriter:
                     and log_time_ns - current.start_ns >= self._split_duration_ns))
 
     def _open_file(self) -> None:
-        if self._splitting:
+        if self._directory:
+            path = self._path / f'{self._path.name}_{len(self._files)}.mcap'
+        elif self._splitting:
             stem = self._path.name[:-5] if self._path.name.endswith('.mcap') else self._path.name
             path = self._path.with_name(f'{stem}_{len(self._files)}.mcap')
         else:
@@ -352,9 +380,11 @@ class BagWriter:
             self._register(entry)
         for name, values in self._metadata.items():
             self._mcap.add_metadata(name, values)
-        self._write_rosbag2_metadata()
+        bag_yaml = self._write_rosbag2_metadata()
         self._pending_bytes = 0
         self._close_chunk()  # header and metadata reach the disk now, before any message
+        if self._directory:  # the new file is listed before it holds a message
+            self._write_metadata_yaml(bag_yaml)
 
     def _register(self, entry: _Topic) -> None:
         schema_id = self._schema_ids.get(entry.type_name)
@@ -364,28 +394,31 @@ class BagWriter:
             self._schema_ids[entry.type_name] = schema_id
         self._channel_ids[entry.name] = self._mcap.register_channel(
             entry.name, 'cdr', schema_id,
-            {'offered_qos_profiles': _yaml(entry.qos), 'topic_type_hash': entry.type_hash})
+            {'offered_qos_profiles': entry.qos_yaml, 'topic_type_hash': entry.type_hash})
 
     def _close_chunk(self) -> None:
         self._mcap.flush()
         self._file_bytes = self._file.tell()
         self._pending_bytes = 0
 
-    def _close_file(self) -> None:
+    def _close_file(self) -> Optional[str]:
+        """Finish the current file; return the YAML of its last rosbag2 record (None: no file)."""
         if self._file.closed:  # the next file of a split could not be opened
-            return
+            return None
         try:
             self._close_chunk()
-            self._write_rosbag2_metadata()
+            bag_yaml = self._write_rosbag2_metadata()
             self._mcap.finish()
         finally:
             self._file.close()
+        return bag_yaml
 
-    def _write_rosbag2_metadata(self) -> None:
+    def _bag_metadata(self) -> dict:
+        """Return the bag's rosbag2 BagMetadata so far (rosbag2_storage yaml.hpp, version 9)."""
         files = [f for f in self._files if f.message_count]
         start_ns = min((f.start_ns for f in files), default=0)
         end_ns = max((f.end_ns for f in files), default=0)
-        bag = {
+        return {
             'version': ROSBAG2_METADATA_VERSION,
             'storage_identifier': 'mcap',
             'duration': {'nanoseconds': end_ns - start_ns},
@@ -407,7 +440,22 @@ class BagWriter:
             # the ROS wheels of requirements.txt are Jazzy's; a sourced ROS sets this
             'ros_distro': os.environ.get('ROS_DISTRO', 'jazzy'),
         }
-        self._mcap.add_metadata(ROSBAG2_METADATA_NAME, {ROSBAG2_METADATA_KEY: _yaml(bag)})
+
+    def _write_rosbag2_metadata(self) -> str:
+        """Add the bag's metadata to the current file (rosbag2's record); return its YAML."""
+        bag_yaml = _yaml(self._bag_metadata())
+        self._mcap.add_metadata(ROSBAG2_METADATA_NAME, {ROSBAG2_METADATA_KEY: bag_yaml})
+        return bag_yaml
+
+    def _write_metadata_yaml(self, bag_yaml: str) -> None:
+        """Replace the directory's metadata.yaml whole (a reader never sees half of one)."""
+        # the record's YAML, indented under the root key (a block mapping nests so): PyYAML's
+        # representer is the dear part of a split, about 10 ms for the recorder's 32 topics
+        text = f'{ROSBAG2_METADATA_ROOT}:\n' + textwrap.indent(bag_yaml, '  ') + '\n'
+        target = self._path / ROSBAG2_METADATA
+        temporary = target.with_name(f'.{ROSBAG2_METADATA}.partial')
+        temporary.write_text(text)
+        os.replace(temporary, target)
 
     def _flush_idle(self) -> None:
         """Close the chunk when its oldest message waited ``flush_interval_s`` (no new message)."""

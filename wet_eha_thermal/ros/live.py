@@ -26,8 +26,9 @@ recorder last, so that it keeps everything the others sent), prints a summary
 shutdown lines; the recording's path and message count) and returns the exit
 status: 0 when every child ran to the end, shut down cleanly and estimates
 came, 1 otherwise (with the last lines a failed child printed). The recording
-(``runs/live_<UTC time>.mcap`` by default) holds the configuration and the
-estimator's parameters file, so the run can be replayed from it alone.
+(the rosbag2 bag directory ``runs/live_<UTC time>`` by default) holds the
+configuration and the estimator's parameters file, so the run can be
+replayed from it alone.
 
 The children run in their own session, so a Ctrl-C on the terminal reaches
 this process only and the shutdown stays in order; they also get SIGKILL
@@ -100,7 +101,7 @@ class LiveOptions:
     noise: bool = True
     executor: str = 'events'
     record: bool = True
-    record_path: Optional[Path] = None      # None: runs/live_<UTC time>.mcap
+    record_path: Optional[Path] = None      # None: the bag directory runs/live_<UTC time>
 
 
 def domain_from_env() -> Optional[int]:
@@ -499,7 +500,7 @@ def recording_text(path: Path) -> str:
         bag = open_bag(path)
     except (OSError, BagError) as exc:
         return f'{path}: not readable ({exc})'
-    size_MiB = path.stat().st_size / 2 ** 20
+    size_MiB = sum(f.stat().st_size for f in bag.files) / 2 ** 20
     text = (f'{path}: {bag.message_count} messages on {len(bag.topics)} topics, '
             f'{size_MiB:.1f} MiB')
     return text + (f' (cut: {bag.problem})' if bag.truncated else '')
@@ -544,7 +545,7 @@ def summary(opts: LiveOptions, state: TwinState, children: List[Child], run_s: f
     Return the lines of the end-of-run summary.
 
     ``run_s``: the duty's length (s), after ``start_s`` of start-up; ``recording``:
-    the recorder's file.
+    the recorder's bag (directory or file).
     """
     out = ['', 'Live twin summary',
            f'  run             {run_s:.1f} s of duty after {start_s:.1f} s of start-up '
@@ -619,7 +620,7 @@ def run(opts: LiveOptions, out: TextIO = sys.stdout, err: TextIO = sys.stderr,
     Run the live twin for ``opts.duration_s`` (or until Ctrl-C); return the exit status.
 
     ``domain``: the ROS domain to use; None picks a free one (see :func:`open_domain`).
-    Returns 2 at once when the recording's file exists.
+    Returns 2 at once when the recording's path exists (file or directory).
     """
     record_path = None
     if opts.record:

@@ -1,5 +1,5 @@
 """
-The recorder: every topic of the twin to a rosbag2-compatible MCAP file.
+The recorder: every topic of the twin to a rosbag2 bag directory (MCAP files).
 
 Node ``eha_recorder``. It subscribes at start to every topic the twin uses
 (``topic_prefix`` replaces ``/eha``; see :mod:`.topics`): each estimator
@@ -22,14 +22,20 @@ Messages are taken raw (CDR bytes, never deserialised) and written with
 :class:`~wet_eha_thermal.bag.writer.BagWriter`; a topic becomes a channel at
 its first message, with the QoS of its publisher at that moment as
 ``offered_qos_profiles`` (the subscription's when no publisher is known), so
-topics that never carry a message are left out of the file. Log time is the
+topics that never carry a message are left out of the bag. Log time is the
 node's ROS clock at receipt, as ``ros2 bag record`` does: the system clock,
 or /clock under ``use_sim_time``, where messages received before the first
 /clock are dropped and counted (they would have log time 0). The publish time
 is the log time too: the EventsExecutor of the Jazzy wheels fails on
 callbacks that ask for the message info (source timestamp).
 
-So that a run can be reproduced from the file alone, it holds Metadata
+The bag is what ``ros2 bag record -s mcap -o NAME`` writes: the directory
+``output`` with ``NAME_0.mcap`` (then ``NAME_1.mcap``, ... when splitting)
+and ``metadata.yaml``, which ``ros2 bag info`` and Foxglove read. An
+``output`` ending in ``.mcap`` is one MCAP file instead (``<stem>_0.mcap``,
+... beside it when splitting), for tools that want a lone file.
+
+So that a run can be reproduced from any file of it alone, each holds Metadata
 records: ``wet_eha_thermal.config`` (``path``, ``yaml``: the text of the
 estimator configuration ``config_file``), ``wet_eha_thermal.params`` (the
 estimator's parameters file ``params_file``, when given) and
@@ -37,13 +43,15 @@ estimator's parameters file ``params_file``, when given) and
 ``started_utc`` and the recorder's ``parameters`` as YAML).
 
 The writer closes a chunk every ``flush_interval_s``, so a SIGKILL loses
-about that much. SIGINT or SIGTERM stop it cleanly: the messages already
-received are written, the file is closed (summary, rosbag2 metadata) and a
-one-line summary goes to stderr. /diagnostics at 1 Hz (status
-``wet_eha_thermal: recorder``): messages written, dropped, errors, bytes,
-files. An existing file is never overwritten (exit status 2).
+about that much; metadata.yaml is rewritten at each split, so it lists every
+file begun. SIGINT or SIGTERM stop it cleanly: the messages already
+received are written, the bag is closed (summary, rosbag2 metadata,
+metadata.yaml) and a one-line summary goes to stderr. /diagnostics at 1 Hz
+(status ``wet_eha_thermal: recorder``): messages written, dropped, errors,
+bytes, files. An existing file or directory, even an empty one (as
+``ros2 bag record`` refuses it), is never overwritten (exit status 2).
 
-Run: ``wet-eha-thermal-record --ros-args -p output:=runs/test.mcap`` or
+Run: ``wet-eha-thermal-record --ros-args -p output:=runs/test`` or
 ``python -m wet_eha_thermal.ros.recorder_node``.
 """
 
@@ -72,7 +80,7 @@ from wet_eha_thermal.ros.runtime import (accept_whole_numbers, descriptor, EXECU
 import yaml
 
 NODE_NAME = topics.RECORDER_NODE
-#: Metadata record names in the file (see the module docstring).
+#: Metadata record names in every file of the bag (see the module docstring).
 CONFIG_METADATA = 'wet_eha_thermal.config'
 PARAMS_METADATA = 'wet_eha_thermal.params'
 RECORDER_METADATA = 'wet_eha_thermal.recorder'
@@ -94,8 +102,9 @@ TEMPERATURE = 'sensor_msgs/msg/Temperature'
 # name -> (default, descriptor); every parameter is read once, at start
 PARAMETERS = {
     'output': ('', descriptor(
-        "file to write; '' = runs/eha_<UTC time>.mcap; with splitting <stem>_0.mcap, "
-        '<stem>_1.mcap, ... (never overwritten)')),
+        "bag directory to make (<name>_0.mcap, ... and metadata.yaml); '' = "
+        'runs/eha_<UTC time>; a name ending .mcap is one MCAP file instead (<stem>_0.mcap, '
+        '... with splitting); never overwritten')),
     'split_bytes': (0, descriptor('start a new file after this many bytes (0 = never)',
                                   0, 2 ** 62)),
     'split_duration_s': (0.0, descriptor(
@@ -113,10 +122,10 @@ PARAMETERS = {
         type=ParameterType.PARAMETER_STRING_ARRAY, read_only=True,
         description='further topics to record (names; type and QoS from their publishers)')),
     'config_file': ('', descriptor(
-        "estimator configuration stored in the file; '' = the shipped "
+        "estimator configuration stored in the bag; '' = the shipped "
         'config/reference_eha.yaml')),
     'params_file': ('', descriptor(
-        "estimator parameters file stored in the file ('' = none)")),
+        "estimator parameters file stored in the bag ('' = none)")),
     'hardware_id': ('wet-eha-rig', descriptor('hardware_id of the diagnostic status')),
     'executor': ('events', descriptor(
         "executor used by main(): 'events' or 'single'; the --executor option overrides it")),
@@ -146,8 +155,13 @@ def recorded_topics(prefix: str = topics.PREFIX) -> Dict[str, Tuple[str, str]]:
 
 
 def default_output(stem: str = 'eha') -> Path:
-    """Return ``runs/<stem>_<UTC time>.mcap`` (relative to the working folder)."""
-    return Path('runs') / f'{stem}_{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}.mcap'
+    """Return the bag directory ``runs/<stem>_<UTC time>`` (relative to the working folder)."""
+    return Path('runs') / f'{stem}_{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}'
+
+
+def is_single_file(output: Path) -> bool:
+    """Return whether the recorder's ``output`` names one MCAP file, not a bag directory."""
+    return output.suffix == '.mcap'
 
 
 def message_class(type_name: str):
@@ -168,7 +182,7 @@ def _mib(n_bytes: int) -> str:
 
 
 class RecorderNode(Node):
-    """Record the twin's topics raw to an MCAP bag (see the module docstring)."""
+    """Record the twin's topics raw to a rosbag2 bag (see the module docstring)."""
 
     def __init__(self, **kwargs) -> None:
         super().__init__(NODE_NAME, **kwargs)
@@ -204,8 +218,9 @@ class RecorderNode(Node):
             self.writer = BagWriter(
                 self.output, metadata=metadata, flush_interval_s=p['flush_interval_s'],
                 split_bytes=p['split_bytes'] or None,
-                split_duration_s=p['split_duration_s'] or None, compression=p['compression'])
-        except FileExistsError as exc:   # the first file (<stem>_0.mcap when splitting)
+                split_duration_s=p['split_duration_s'] or None, compression=p['compression'],
+                directory=not is_single_file(self.output))
+        except FileExistsError as exc:   # the directory, or the first file
             raise FileExistsError(f'{exc.filename} exists: a recording is never '
                                   'overwritten') from None
 
@@ -359,15 +374,18 @@ class RecorderNode(Node):
             self._failed('close', exc)
         run_s = time.monotonic() - self.started_s
         per_topic = ', '.join(f'{t} {n}' for t, n in sorted(self.counts.items()))
+        paths = self.writer.paths
+        where = (', '.join(str(p) for p in paths) if is_single_file(self.output)
+                 else f'{self.output} ({len(paths)} file{"s" if len(paths) > 1 else ""})')
         return (f'recorder summary: {self.total} messages on {len(self.counts)} topics in '
-                f'{run_s:.1f} s to {", ".join(str(p) for p in self.writer.paths)} '
-                f'({_mib(self.bytes_written())}); dropped before /clock {self.before_clock}, '
-                f'errors {self.errors}; per topic: {per_topic or "none"}')
+                f'{run_s:.1f} s to {where} ({_mib(self.bytes_written())}); dropped before '
+                f'/clock {self.before_clock}, errors {self.errors}; per topic: '
+                f'{per_topic or "none"}')
 
 
-_DESCRIPTION = ('Record the topics of the wet-EHA twin to a rosbag2-compatible MCAP file '
-                '(ROS 2 node eha_recorder). ROS arguments follow --ros-args, e.g. '
-                '--ros-args -p output:=runs/test.mcap -p qos:=reliable')
+_DESCRIPTION = ('Record the topics of the wet-EHA twin to a rosbag2 bag directory of MCAP '
+                'files (ROS 2 node eha_recorder). ROS arguments follow --ros-args, e.g. '
+                '--ros-args -p output:=runs/test -p qos:=reliable')
 
 
 def main(args: Optional[List[str]] = None) -> int:
