@@ -1176,7 +1176,7 @@ def write_plots(run: CalibrationRun, out_dir: Path) -> List[Path]:
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
-    from .replay import _save
+    from .replay import save_figure
 
     images = []
     for k, lf in enumerate(run.logs):
@@ -1210,7 +1210,7 @@ def write_plots(run: CalibrationRun, out_dir: Path) -> List[Path]:
         axes[-1, 1].set_xlabel('time [min]')
         fig.suptitle(f'{lf.log.name} ({"fit" if lf.role == "fit" else "held out"}): '
                      f'{run.base_cfg.calibration.residual_interval_s:g} s means')
-        images.append(_save(fig, out_dir / f'{_stem(run, k)}.png', plt))
+        images.append(save_figure(fig, out_dir / f'{_stem(run, k)}.png', plt))
     return images
 
 

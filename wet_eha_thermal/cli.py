@@ -13,7 +13,7 @@ import sys
 import time
 from typing import List, Optional
 
-from .config import ConfigError, load_config, with_values
+from .config import ConfigError, load_config
 from .model.kinetics import DutyError
 from .model.validity import ValidityLog
 
@@ -222,11 +222,12 @@ def _replay(args: argparse.Namespace) -> int:
     if not args.output_rate_Hz > 0.0:
         raise BadArgument(f'--output-rate-Hz {args.output_rate_Hz}: must be > 0')
     try:
-        plan = rp.plan_replay(args.bag, args.config, rp.parse_mapping(args.map))
+        options = rp.ReplayOptions(config_path=args.config, mapping=rp.parse_mapping(args.map),
+                                   output_rate_Hz=args.output_rate_Hz, report=not args.no_report,
+                                   open_loop=args.open_loop)
+        plan = options.plan(args.bag)
     except rp.ReplayError as exc:
         raise BadArgument(str(exc)) from None
-    if args.open_loop:
-        plan.cfg = with_values(plan.cfg, {'estimator.correction.enabled': False})
     info = plan.info
     print(f'{info.path}: {info.message_count} messages, '
           f'{(info.end_time_ns - info.start_time_ns) * 1e-9:.1f} s; configuration: '
@@ -247,14 +248,11 @@ def _replay(args: argparse.Namespace) -> int:
                  f'{sample_s:.0f} s of log, {speed:.0f}x real time')
 
     try:
-        result = rp.replay(plan, output_rate_Hz=args.output_rate_Hz, on_progress=on_progress)
+        result = rp.replay(plan, output_rate_Hz=options.output_rate_Hz, on_progress=on_progress)
     except (rp.ReplayError, rp.BagError) as exc:
         raise BadArgument(str(exc)) from None
     progress(1000, 1000, 'done')
-    files = [rp.write_csv(result, out / 'estimates.csv'), rp.write_mcap(result,
-                                                                        out / 'estimates.mcap')]
-    if not args.no_report:
-        files.append(rp.write_report(result, out))
+    files = rp.write_outputs(result, out, options.report)
     print(f'replayed {result.messages} messages: {result.steps} steps, '
           f'{result.sample_time_s:.1f} s of sample time in {result.wall_s:.1f} s '
           f'({result.speed_x:.0f}x real time)')
