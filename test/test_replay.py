@@ -134,6 +134,7 @@ def test_bad_inputs_give_one_error_and_no_output(bag, tmp_path, capsys):
          'no topic of the mapping is in the bag'),
         ([str(bag), '--map', 'torque=/eha/torque'], "cannot map 'torque'"),
         ([str(bag), '--map', 'current_A'], 'expected name=/topic'),
+        ([str(bag), str(bag), '--workers', '0'], '--workers 0: must be at least 1'),
     ]
     for argv, expected in cases:
         assert main(['replay'] + argv + ['--out', str(out)]) == 2, argv

@@ -6,6 +6,7 @@ exits with status 2, without a traceback; nothing runs after a bad config.
 """
 
 import argparse
+import contextlib
 import math
 from pathlib import Path
 import shlex
@@ -217,15 +218,30 @@ def _live(args: argparse.Namespace) -> int:
 
 
 def _replay(args: argparse.Namespace) -> int:
+    from . import campaign
     from . import replay as rp
 
     if not args.output_rate_Hz > 0.0:
         raise BadArgument(f'--output-rate-Hz {args.output_rate_Hz}: must be > 0')
+    _check_dask_args(args)
     try:
         options = rp.ReplayOptions(config_path=args.config, mapping=rp.parse_mapping(args.map),
                                    output_rate_Hz=args.output_rate_Hz, report=not args.no_report,
                                    open_loop=args.open_loop)
-        plan = options.plan(args.bag)
+    except rp.ReplayError as exc:
+        raise BadArgument(str(exc)) from None
+    bags = campaign.expand(args.bag)
+    if len(args.bag) == 1 and bags == args.bag:
+        return _replay_one(args.bag[0], options, Path(args.out))
+    return _replay_campaign(bags, options, args)
+
+
+def _replay_one(bag: Path, options, out: Path) -> int:
+    """Replay one bag with progress and the details on the console (the original command)."""
+    from . import replay as rp
+
+    try:
+        plan = options.plan(bag)
     except rp.ReplayError as exc:
         raise BadArgument(str(exc)) from None
     info = plan.info
@@ -238,7 +254,6 @@ def _replay(args: argparse.Namespace) -> int:
     if info.truncated:
         print(f'warning: {info.path} is truncated ({info.problem}); replaying the '
               f'{info.message_count} messages that could be read', file=sys.stderr)
-    out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     progress = Progress()
 
@@ -264,6 +279,56 @@ def _replay(args: argparse.Namespace) -> int:
               f'{result.messages} messages recovered', file=sys.stderr)
     print('wrote ' + ', '.join(str(f) for f in files))
     return 0
+
+
+def _replay_campaign(bags: List[Path], options, args: argparse.Namespace) -> int:
+    """Replay many bags on Dask, each into its own folder, and summarise them."""
+    from . import campaign
+
+    if args.config is not None:
+        load_config(args.config)         # a bad file is one error, not one per log
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise BadArgument(f'--out {out}: exists and is not a folder')
+    progress = Progress()
+
+    def on_done(done: int, total: int, row: dict) -> None:
+        what = 'failed' if row['status'] == 'failed' else f'{row["status"]} in ' \
+            f'{row["wall_s"]:.1f} s'
+        progress(done, total, f'{row["name"]}: {what}')
+
+    with _dask(args) as client:
+        print(f'replaying {len(bags)} logs on {campaign.describe(client)} into {out}',
+              flush=True)
+        rows = campaign.run(client, bags, out, options, on_done)
+    files = campaign.write_summary(rows, out)
+    failed = [r for r in rows if r['status'] == 'failed']
+    for r in rows:
+        if r['reason']:
+            print(f'{r["status"]}: {r["name"]} ({r["path"]}): {r["reason"]}', file=sys.stderr)
+    print('wrote ' + ', '.join(str(f) for f in files))
+    if failed:
+        print(f'{len(failed)} of {len(rows)} logs failed', file=sys.stderr)
+        return 1
+    return 0
+
+
+def _check_dask_args(args: argparse.Namespace) -> None:
+    """Raise :class:`BadArgument` for a --workers below 1."""
+    if args.workers is not None and args.workers < 1:
+        raise BadArgument(f'--workers {args.workers}: must be at least 1')
+
+
+@contextlib.contextmanager
+def _dask(args: argparse.Namespace):
+    """Yield the Dask client of --scheduler, else of a local cluster of --workers processes."""
+    from .campaign import ClusterError, dask_client
+
+    try:
+        with dask_client(args.scheduler, args.workers) as client:
+            yield client
+    except ClusterError as exc:
+        raise BadArgument(str(exc)) from None
 
 
 def _calibrate(args: argparse.Namespace) -> int:
@@ -345,6 +410,16 @@ def _add_duty_arguments(p: argparse.ArgumentParser, required: bool) -> None:
                        help='duty table: time_s, flow_L_min, load_MPa (repeats periodically)')
 
 
+def _add_dask_arguments(group, what: str) -> None:
+    """Add --workers N | --scheduler ADDRESS: where ``what`` run on Dask."""
+    group.add_argument('--workers', type=int, default=None, metavar='N',
+                       help=f'run the {what} on a local Dask cluster of N processes (default '
+                            'for a campaign: one per CPU)')
+    group.add_argument('--scheduler', default=None, metavar='ADDRESS',
+                       help=f'run the {what} on the Dask cluster of this scheduler, e.g. '
+                            'tcp://host:8786 (its workers must see the same paths)')
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of all commands."""
     parser = argparse.ArgumentParser(
@@ -413,16 +488,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--no-record', action='store_true', help='do not record the run')
     p.set_defaults(func=_live)
 
-    p = sub.add_parser('replay', help='run the estimator over a recorded bag, offline',
+    p = sub.add_parser('replay', help='run the estimator over recorded bags, offline',
                        description='Replay a rosbag2-style MCAP (ours, or ros2 bag record -s mcap '
                                    'with the same message types) through the estimator in sample '
                                    'time, as fast as it goes. Writes estimates.csv and '
                                    'estimates.mcap, and a report (report.md, PNG plots of inputs, '
                                    'temperatures, errors against the thermocouples and alerts). '
                                    'The configuration is --config, else the one stored in the '
-                                   'bag, else the reference rig.')
-    p.add_argument('bag', type=Path,
-                   help='an MCAP file, or a rosbag2 bag directory (its files as one run)')
+                                   'bag, else the reference rig. Several bags, or a folder of '
+                                   'them, are a campaign: replayed in parallel on Dask, each into '
+                                   'its own subfolder of --out, with a summary of all '
+                                   '(campaign.csv, campaign.md, campaign.png).')
+    p.add_argument('bag', type=Path, nargs='+',
+                   help='an MCAP file, a rosbag2 bag directory (its files as one run), or a '
+                        'folder of them')
     p.add_argument('--out', default='out/replay', help='output folder (default: %(default)s)')
     p.add_argument('--config', type=Path, default=None,
                    help='YAML configuration (default: stored in the bag, else the reference rig)')
@@ -437,6 +516,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--open-loop', action='store_true',
                    help='do not let the thermocouples correct the model (estimator.correction '
                         'off): the errors against them then validate the model itself')
+    _add_dask_arguments(p.add_mutually_exclusive_group(), 'replays of a campaign')
     p.set_defaults(func=_replay)
 
     p = sub.add_parser('calibrate', help='fit model parameters to the thermocouples of bench logs',
