@@ -312,6 +312,7 @@ def test_bad_input_is_one_error_line_and_nothing_written(bags, tmp_path, capsys)
         ([log, '--map', 'measured/frame=/rig/frame_tc'], 'no such topic'),
         ([log, '--validate', log], 'given both to fit on and to --validate'),
         ([log, '--jobs', '0'], '--jobs 0'),
+        ([log, '--workers', '0'], '--workers 0'),
     ]
     for argv, expected in cases:
         assert main(['calibrate'] + argv + ['--out', str(out)]) == 2, argv

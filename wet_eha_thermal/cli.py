@@ -338,6 +338,7 @@ def _calibrate(args: argparse.Namespace) -> int:
 
     if args.jobs < 1:
         raise BadArgument(f'--jobs {args.jobs}: must be at least 1')
+    _check_dask_args(args)
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise BadArgument(f'--out {out}: exists and is not a folder')
@@ -372,9 +373,18 @@ def _calibrate(args: argparse.Namespace) -> int:
     def say(text: str) -> None:
         print(f'[{time.perf_counter() - t_fit:6.1f} s] {text}', file=sys.stderr, flush=True)
 
+    where = f'{args.jobs} jobs'
     try:
-        run = cb.calibrate(logs[:len(args.logs)], cfg, keys, validate_logs=logs[len(args.logs):],
-                           config_source=config[1], jobs=args.jobs, on_progress=say)
+        with contextlib.ExitStack() as stack:
+            client = None
+            if args.workers is not None or args.scheduler is not None:
+                from .campaign import describe
+                client = stack.enter_context(_dask(args))
+                where = f'Dask, {describe(client)}'
+                say(f'model runs on {where}')
+            run = cb.calibrate(logs[:len(args.logs)], cfg, keys,
+                               validate_logs=logs[len(args.logs):], config_source=config[1],
+                               jobs=args.jobs, client=client, on_progress=say)
     except cb.CalibrationError as exc:
         raise BadArgument(str(exc)) from None
     run.read_s = read_s
@@ -396,7 +406,7 @@ def _calibrate(args: argparse.Namespace) -> int:
     for m in run.messages:
         print(f'warning: {m}', file=sys.stderr)
     print(f'wall time: reading {run.read_s:.1f} s, fit {run.fit_s:.1f} s ({run.evaluations} '
-          f'model runs of whole logs, {run.iterations} iterations, {args.jobs} jobs)')
+          f'model runs of whole logs, {run.iterations} iterations, {where})')
     print('wrote ' + ', '.join(str(f) for f in files))
     return 0
 
@@ -543,8 +553,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help='topic of an input, a thermocouple (measured/frame, ...) or ambient, as '
                         'for replay; repeatable')
     p.add_argument('--out', default='out/calibrate', help='output folder (default: %(default)s)')
-    p.add_argument('--jobs', type=int, default=2,
-                   help='worker processes evaluating the model (default: %(default)s)')
+    where = p.add_mutually_exclusive_group()
+    where.add_argument('--jobs', type=int, default=2,
+                       help='local worker processes evaluating the model (default: %(default)s)')
+    _add_dask_arguments(where, 'model runs')
     p.set_defaults(func=_calibrate)
 
     # parsed by the player itself (main() hands it everything after 'play')
