@@ -291,7 +291,8 @@ def plot(rows: Sequence[Dict[str, object]], path: Path) -> Path:
     import matplotlib.pyplot as plt
 
     x = np.arange(len(rows))
-    fig, axes = plt.subplots(2, 1, sharex=True, figsize=(min(4.0 + 0.3 * len(rows), 40.0), 6.5))
+    fig, axes = plt.subplots(2, 1, sharex=True,
+                             figsize=(min(max(7.0, 1.5 + 0.3 * len(rows)), 40.0), 6.5))
     for ax, key, label in ((axes[0], 'peak_winding_hotspot_C', 'peak winding hot-spot [degC]'),
                            (axes[1], 'min_margin_K', 'minimum thermal margin [K]')):
         values = np.array([r.get(key, math.nan) for r in rows], dtype=float)
@@ -306,5 +307,5 @@ def plot(rows: Sequence[Dict[str, object]], path: Path) -> Path:
         ax.grid(alpha=0.3, axis='y')
     axes[1].axhline(0.0, color='k', lw=0.6)
     axes[1].set_xticks(x, [r['name'] for r in rows], rotation=60, ha='right', fontsize=7)
-    axes[0].set_title(f'Replay campaign of {len(rows)} logs (orange: replayed up to a damage)')
+    axes[0].set_title(f'Replay campaign of {len(rows)} logs (orange: truncated)')
     return rp.save_figure(fig, path, plt)
