@@ -3,8 +3,12 @@
 import pytest
 import rclpy
 from rclpy.context import Context
-from wet_eha_thermal.config import load_config
+from wet_eha_thermal import replay as rp
+from wet_eha_thermal.config import default_config_path, load_config
+from wet_eha_thermal.model.kinetics import stage_duty
+from wet_eha_thermal.simulated_rig import SimulatedRig, write_rig_bag
 from wet_eha_thermal.simulation import compile_model
+import yaml
 
 
 @pytest.fixture(scope='session', autouse=True)
@@ -26,3 +30,26 @@ def context(request):
     rclpy.init(context=ctx, domain_id=request.module.DOMAIN_ID)
     yield ctx
     rclpy.try_shutdown(context=ctx)
+
+
+@pytest.fixture(scope='session')
+def record_rig_log():
+    """
+    Return ``record(path, seconds, stage=6, seed=1, rig_cfg=None, **rig)``: a simulated-rig log.
+
+    The log holds the topics the recorder writes (one differential pressure)
+    and stores the reference configuration with ``pressure_inputs:
+    differential``. The rig runs on ``rig_cfg`` (default: that
+    configuration), with the :class:`SimulatedRig` options ``rig``.
+    """
+    data = yaml.safe_load(default_config_path().read_text())
+    data['estimator']['pressure_inputs'] = 'differential'
+    meta = {rp.CONFIG_METADATA: {rp.CONFIG_METADATA_KEY: yaml.safe_dump(data)}}
+    nominal = load_config(overrides={'estimator.pressure_inputs': 'differential'})
+
+    def record(path, seconds, stage=6, seed=1, rig_cfg=None, **rig):
+        cfg = rig_cfg or nominal
+        write_rig_bag(path, SimulatedRig(cfg, stage_duty(cfg, stage), seed=seed, **rig),
+                      seconds, metadata=meta)
+        return path
+    return record

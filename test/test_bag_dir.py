@@ -18,9 +18,6 @@ from wet_eha_thermal.bag.reader import (bag_files, BagError, iter_column_blocks,
 from wet_eha_thermal.bag.writer import BagWriter
 from wet_eha_thermal.calibration import load_log
 from wet_eha_thermal.cli import main
-from wet_eha_thermal.config import default_config_path, load_config
-from wet_eha_thermal.model.kinetics import stage_duty
-from wet_eha_thermal.simulated_rig import SimulatedRig, write_rig_bag
 import yaml
 
 SECONDS = 20.0
@@ -31,15 +28,10 @@ SPECS = {'/eha/current': 'std_msgs/msg/Float64',
 
 
 @pytest.fixture(scope='module')
-def single(tmp_path_factory):
+def single(tmp_path_factory, record_rig_log):
     """20 s of stage 6 on the simulated rig at 200 Hz, configuration stored: one file."""
-    data = yaml.safe_load(default_config_path().read_text())
-    data['estimator']['pressure_inputs'] = 'differential'
-    cfg = load_config(overrides={'estimator.pressure_inputs': 'differential'})
-    path = tmp_path_factory.mktemp('single') / 'run.mcap'
-    write_rig_bag(path, SimulatedRig(cfg, stage_duty(cfg, 6), rate_Hz=200.0, seed=3), SECONDS,
-                  metadata={rp.CONFIG_METADATA: {rp.CONFIG_METADATA_KEY: yaml.safe_dump(data)}})
-    return path
+    return record_rig_log(tmp_path_factory.mktemp('single') / 'run.mcap', SECONDS, seed=3,
+                          rate_Hz=200.0)
 
 
 def split(single, folder, directory=False):

@@ -27,7 +27,7 @@ from wet_eha_thermal.config import (config_from_yaml, ConfigError, default_confi
                                     load_config, with_values)
 from wet_eha_thermal.estimator.core import Estimator
 from wet_eha_thermal.model.kinetics import stage_duty
-from wet_eha_thermal.simulated_rig import SimulatedRig, write_rig_bag
+from wet_eha_thermal.simulated_rig import SimulatedRig
 import yaml
 
 GAP = 'motor.stator.frame_contact_gap_m'
@@ -242,21 +242,14 @@ CLI_SECONDS = 120.0
 
 
 @pytest.fixture(scope='module')
-def bags(tmp_path_factory):
+def bags(tmp_path_factory, record_rig_log):
     """Small logs as the recorder writes them, the nominal configuration stored."""
-    data = yaml.safe_load(default_config_path().read_text())
-    data['estimator']['pressure_inputs'] = 'differential'
-    meta = {rp.CONFIG_METADATA: {rp.CONFIG_METADATA_KEY: yaml.safe_dump(data)}}
     cfg = nominal_config()
     truth = with_values(cfg, truth_values(cfg))
     folder = tmp_path_factory.mktemp('logs')
-    paths = {}
-    for stage in (3, 4, 6):
-        paths[stage] = folder / f'stage{stage}.mcap'
-        rig = SimulatedRig(truth, stage_duty(truth, stage), rate_Hz=50.0, block_s=0.1,
-                           seed=stage)
-        write_rig_bag(paths[stage], rig, CLI_SECONDS, metadata=meta)
-    return paths
+    return {stage: record_rig_log(folder / f'stage{stage}.mcap', CLI_SECONDS, stage, seed=stage,
+                                  rig_cfg=truth, rate_Hz=50.0, block_s=0.1)
+            for stage in (3, 4, 6)}
 
 
 def test_command_end_to_end(bags, tmp_path, capsys):
@@ -319,6 +312,7 @@ def test_bad_input_is_one_error_line_and_nothing_written(bags, tmp_path, capsys)
         ([log, '--map', 'measured/frame=/rig/frame_tc'], 'no such topic'),
         ([log, '--validate', log], 'given both to fit on and to --validate'),
         ([log, '--jobs', '0'], '--jobs 0'),
+        ([log, '--workers', '0'], '--workers 0'),
     ]
     for argv, expected in cases:
         assert main(['calibrate'] + argv + ['--out', str(out)]) == 2, argv

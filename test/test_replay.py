@@ -14,26 +14,16 @@ from wet_eha_thermal import replay as rp
 from wet_eha_thermal.bag.reader import iter_raw, open_bag
 from wet_eha_thermal.bag.writer import BagWriter
 from wet_eha_thermal.cli import main
-from wet_eha_thermal.config import default_config_path, load_config, with_values
+from wet_eha_thermal.config import default_config_path, with_values
 from wet_eha_thermal.estimator.core import Estimator
-from wet_eha_thermal.model.kinetics import stage_duty
-from wet_eha_thermal.simulated_rig import SimulatedRig, write_rig_bag
-import yaml
 
 SECONDS = 20.0
 
 
 @pytest.fixture(scope='module')
-def bag(tmp_path_factory):
+def bag(tmp_path_factory, record_rig_log):
     """20 s of stage 6 on the simulated rig (one differential pressure), config stored."""
-    data = yaml.safe_load(default_config_path().read_text())
-    data['estimator']['pressure_inputs'] = 'differential'
-    text = yaml.safe_dump(data)
-    cfg = load_config(overrides={'estimator.pressure_inputs': 'differential'})
-    path = tmp_path_factory.mktemp('bags') / 'stage6.mcap'
-    write_rig_bag(path, SimulatedRig(cfg, stage_duty(cfg, 6), seed=7), SECONDS,
-                  metadata={rp.CONFIG_METADATA: {rp.CONFIG_METADATA_KEY: text}})
-    return path
+    return record_rig_log(tmp_path_factory.mktemp('bags') / 'stage6.mcap', SECONDS, seed=7)
 
 
 @pytest.fixture(scope='module')
@@ -144,6 +134,7 @@ def test_bad_inputs_give_one_error_and_no_output(bag, tmp_path, capsys):
          'no topic of the mapping is in the bag'),
         ([str(bag), '--map', 'torque=/eha/torque'], "cannot map 'torque'"),
         ([str(bag), '--map', 'current_A'], 'expected name=/topic'),
+        ([str(bag), str(bag), '--workers', '0'], '--workers 0: must be at least 1'),
     ]
     for argv, expected in cases:
         assert main(['replay'] + argv + ['--out', str(out)]) == 2, argv

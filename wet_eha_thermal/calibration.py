@@ -37,7 +37,8 @@ when it is 0). ``scipy.optimize.least_squares`` (trust region reflective,
 within the bounds, ``x_scale='jac'``) fits the parameters, scaled to [0, 1]
 over their bounds, with a forward-difference Jacobian whose columns, like the
 logs, are evaluated in parallel worker processes (``jobs``; fork, each worker
-holding the pre-averaged logs).
+holding the pre-averaged logs), or on the workers of a Dask ``client`` (a
+cluster; the logs are sent to each worker once). Either way the same numbers.
 
 Identifiability, judged twice:
 
@@ -539,33 +540,55 @@ def channel_errors(log: LogData, w: Windows, t_model: np.ndarray,
 _WORKER: dict = {}
 
 
-def _evaluate(task: tuple) -> tuple:
-    """Run one log with one parameter set (in a worker, or inline)."""
+def evaluate_run(log: LogData, cfg: Config, keys: Sequence[str], task: tuple) -> tuple:
+    """
+    Run ``log`` with the parameter set of ``task`` (set index, log index, values, extra).
+
+    Returns (set index, log index, t, y, wall s), or with t None and y the
+    failure as one line. A pure function of its arguments: in a forked
+    worker, on a Dask worker or inline, the same numbers.
+    """
     vi, li, values, extra = task
-    logs, cfgs, keys = _WORKER['logs'], _WORKER['cfgs'], _WORKER['keys']
     extra = dict(extra)
     offset = extra.pop('start_offset_K', 0.0)
     changes = {**dict(zip(keys, values)), **extra}
     t0 = time.perf_counter()
     try:
-        cfg = with_values(cfgs[li], changes) if changes else cfgs[li]
-        t, y = simulate(logs[li], cfg, offset)
+        cfg = with_values(cfg, changes) if changes else cfg
+        t, y = simulate(log, cfg, offset)
     except (ArithmeticError, ValueError, RuntimeError) as exc:
         # reported by the parent as one line, with the values that failed
         return vi, li, None, f'{type(exc).__name__}: {exc}', time.perf_counter() - t0
     return vi, li, t, y, time.perf_counter() - t0
 
 
+def _evaluate(task: tuple) -> tuple:
+    """Run one task on the logs the forked workers inherited (or inline)."""
+    li = task[1]
+    return evaluate_run(_WORKER['logs'][li], _WORKER['cfgs'][li], _WORKER['keys'], task)
+
+
 class Evaluator:
-    """Run parameter sets over logs, in ``jobs`` worker processes that hold the logs."""
+    """
+    Run parameter sets over logs: inline, in ``jobs`` forked processes, or on a Dask client.
+
+    With ``client`` (a ``distributed.Client``), the logs and their
+    configurations are sent to every worker once; each task then carries
+    only its parameter values.
+    """
 
     def __init__(self, logs: Sequence[LogData], cfgs: Sequence[Config], keys: Sequence[str],
-                 jobs: int = 1) -> None:
+                 jobs: int = 1, client=None) -> None:
         self.logs, self.keys = list(logs), list(keys)
         self.cost_s = [max(log.duration_s, 1.0) for log in self.logs]   # until measured
         self.runs = 0
-        _WORKER.update(logs=self.logs, cfgs=list(cfgs), keys=self.keys)
         self.pool = None
+        self.client = client
+        if client is not None:
+            self.remote = (client.scatter(self.logs, broadcast=True),
+                           client.scatter(list(cfgs), broadcast=True))
+            return
+        _WORKER.update(logs=self.logs, cfgs=list(cfgs), keys=self.keys)
         if jobs > 1 and 'fork' in multiprocessing.get_all_start_methods():
             self.pool = multiprocessing.get_context('fork').Pool(jobs)
 
@@ -583,24 +606,40 @@ class Evaluator:
                  for i, values in enumerate(sets) for li in which[i]]
         tasks.sort(key=lambda task: -self.cost_s[task[1]])
         out: List[dict] = [{} for _ in sets]
-        results = self.pool.imap_unordered(_evaluate, tasks, chunksize=1) \
-            if self.pool is not None else map(_evaluate, tasks)
-        for i, li, t, y, seconds in results:
-            if t is None:
-                values = ', '.join(f'{k} = {v:.6g}' for k, v in zip(self.keys, sets[i]))
-                raise CalibrationError(f'{self.logs[li].name}: the model failed with {values}'
-                                       f'{" and " + str(extras[i]) if extras[i] else ""}: {y}')
-            out[i][li] = (t, y)
-            self.cost_s[li] = seconds
-            self.runs += 1
+        futures = []
+        if self.client is not None:
+            from distributed import as_completed
+            logs, cfgs = self.remote
+            futures = [self.client.submit(evaluate_run, logs[task[1]], cfgs[task[1]], self.keys,
+                                          task, pure=False) for task in tasks]
+            results = (f.result() for f in as_completed(futures))
+        elif self.pool is not None:
+            results = self.pool.imap_unordered(_evaluate, tasks, chunksize=1)
+        else:
+            results = map(_evaluate, tasks)
+        try:
+            for i, li, t, y, seconds in results:
+                if t is None:
+                    values = ', '.join(f'{k} = {v:.6g}' for k, v in zip(self.keys, sets[i]))
+                    raise CalibrationError(
+                        f'{self.logs[li].name}: the model failed with {values}'
+                        f'{" and " + str(extras[i]) if extras[i] else ""}: {y}')
+                out[i][li] = (t, y)
+                self.cost_s[li] = seconds
+                self.runs += 1
+        finally:
+            if futures:       # after a failed run, the ones still queued would run for nothing
+                self.client.cancel(futures)
         return out
 
     def close(self) -> None:
-        """Stop the workers."""
+        """Stop the workers (a Dask client's are left to its owner)."""
         if self.pool is not None:
             self.pool.terminate()
             self.pool.join()
             self.pool = None
+        if self.client is not None:
+            self.client.cancel([f for part in self.remote for f in part])
         _WORKER.clear()
 
 
@@ -893,14 +932,16 @@ def _split(r: np.ndarray, windows: Dict[int, Windows], fit_idx: Sequence[int]) -
 
 def calibrate(fit_logs: Sequence[LogData], cfg: Config, keys: Sequence[str], *,
               validate_logs: Sequence[LogData] = (), config_source: str = 'given',
-              jobs: int = 1,
+              jobs: int = 1, client=None,
               on_progress: Optional[Callable[[str], None]] = None) -> CalibrationRun:
     """
     Fit ``keys`` of ``cfg`` to the thermocouples of ``fit_logs``; check on ``validate_logs``.
 
     Returns the parameters (fitted, or held at nominal with the reason), the
     model runs and errors of every log before and after, and the calibrated
-    configuration (with its ``calibration.result`` record).
+    configuration (with its ``calibration.result`` record). The model runs
+    go to ``client`` (a ``distributed.Client``) when given, else to ``jobs``
+    forked processes.
     """
     from scipy.optimize import least_squares
 
@@ -920,7 +961,7 @@ def calibrate(fit_logs: Sequence[LogData], cfg: Config, keys: Sequence[str], *,
     fit_idx, all_idx = list(range(n_fit)), list(range(len(logs)))
     nominal = np.array([p.nominal for p in params])
     n_par = len(params)
-    ev = Evaluator(logs, [run_config(cfg, log) for log in logs], keys, jobs)
+    ev = Evaluator(logs, [run_config(cfg, log) for log in logs], keys, jobs, client)
     try:
         # one batch: nominal runs of every log (their step grid sets the windows), the
         # Jacobian at the nominal values, and the fit logs started 1 K warmer
@@ -1176,7 +1217,7 @@ def write_plots(run: CalibrationRun, out_dir: Path) -> List[Path]:
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
-    from .replay import _save
+    from .replay import save_figure
 
     images = []
     for k, lf in enumerate(run.logs):
@@ -1210,7 +1251,7 @@ def write_plots(run: CalibrationRun, out_dir: Path) -> List[Path]:
         axes[-1, 1].set_xlabel('time [min]')
         fig.suptitle(f'{lf.log.name} ({"fit" if lf.role == "fit" else "held out"}): '
                      f'{run.base_cfg.calibration.residual_interval_s:g} s means')
-        images.append(_save(fig, out_dir / f'{_stem(run, k)}.png', plt))
+        images.append(save_figure(fig, out_dir / f'{_stem(run, k)}.png', plt))
     return images
 
 

@@ -6,6 +6,7 @@ exits with status 2, without a traceback; nothing runs after a bad config.
 """
 
 import argparse
+import contextlib
 import math
 from pathlib import Path
 import shlex
@@ -13,7 +14,7 @@ import sys
 import time
 from typing import List, Optional
 
-from .config import ConfigError, load_config, with_values
+from .config import ConfigError, load_config
 from .model.kinetics import DutyError
 from .model.validity import ValidityLog
 
@@ -217,16 +218,32 @@ def _live(args: argparse.Namespace) -> int:
 
 
 def _replay(args: argparse.Namespace) -> int:
+    from . import campaign
     from . import replay as rp
 
     if not args.output_rate_Hz > 0.0:
         raise BadArgument(f'--output-rate-Hz {args.output_rate_Hz}: must be > 0')
+    _check_dask_args(args)
     try:
-        plan = rp.plan_replay(args.bag, args.config, rp.parse_mapping(args.map))
+        options = rp.ReplayOptions(config_path=args.config, mapping=rp.parse_mapping(args.map),
+                                   output_rate_Hz=args.output_rate_Hz, report=not args.no_report,
+                                   open_loop=args.open_loop)
     except rp.ReplayError as exc:
         raise BadArgument(str(exc)) from None
-    if args.open_loop:
-        plan.cfg = with_values(plan.cfg, {'estimator.correction.enabled': False})
+    bags = campaign.expand(args.bag)
+    if len(args.bag) == 1 and bags == args.bag:
+        return _replay_one(args.bag[0], options, Path(args.out))
+    return _replay_campaign(bags, options, args)
+
+
+def _replay_one(bag: Path, options, out: Path) -> int:
+    """Replay one bag with progress and the details on the console (the original command)."""
+    from . import replay as rp
+
+    try:
+        plan = options.plan(bag)
+    except rp.ReplayError as exc:
+        raise BadArgument(str(exc)) from None
     info = plan.info
     print(f'{info.path}: {info.message_count} messages, '
           f'{(info.end_time_ns - info.start_time_ns) * 1e-9:.1f} s; configuration: '
@@ -237,7 +254,6 @@ def _replay(args: argparse.Namespace) -> int:
     if info.truncated:
         print(f'warning: {info.path} is truncated ({info.problem}); replaying the '
               f'{info.message_count} messages that could be read', file=sys.stderr)
-    out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     progress = Progress()
 
@@ -247,14 +263,11 @@ def _replay(args: argparse.Namespace) -> int:
                  f'{sample_s:.0f} s of log, {speed:.0f}x real time')
 
     try:
-        result = rp.replay(plan, output_rate_Hz=args.output_rate_Hz, on_progress=on_progress)
+        result = rp.replay(plan, output_rate_Hz=options.output_rate_Hz, on_progress=on_progress)
     except (rp.ReplayError, rp.BagError) as exc:
         raise BadArgument(str(exc)) from None
     progress(1000, 1000, 'done')
-    files = [rp.write_csv(result, out / 'estimates.csv'), rp.write_mcap(result,
-                                                                        out / 'estimates.mcap')]
-    if not args.no_report:
-        files.append(rp.write_report(result, out))
+    files = rp.write_outputs(result, out, options.report)
     print(f'replayed {result.messages} messages: {result.steps} steps, '
           f'{result.sample_time_s:.1f} s of sample time in {result.wall_s:.1f} s '
           f'({result.speed_x:.0f}x real time)')
@@ -268,6 +281,56 @@ def _replay(args: argparse.Namespace) -> int:
     return 0
 
 
+def _replay_campaign(bags: List[Path], options, args: argparse.Namespace) -> int:
+    """Replay many bags on Dask, each into its own folder, and summarise them."""
+    from . import campaign
+
+    if args.config is not None:
+        load_config(args.config)         # a bad file is one error, not one per log
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise BadArgument(f'--out {out}: exists and is not a folder')
+    progress = Progress()
+
+    def on_done(done: int, total: int, row: dict) -> None:
+        what = 'failed' if row['status'] == 'failed' else f'{row["status"]} in ' \
+            f'{row["wall_s"]:.1f} s'
+        progress(done, total, f'{row["name"]}: {what}')
+
+    with _dask(args) as client:
+        print(f'replaying {len(bags)} logs on {campaign.describe(client)} into {out}',
+              flush=True)
+        rows = campaign.run(client, bags, out, options, on_done)
+    files = campaign.write_summary(rows, out)
+    failed = [r for r in rows if r['status'] == 'failed']
+    for r in rows:
+        if r['reason']:
+            print(f'{r["status"]}: {r["name"]} ({r["path"]}): {r["reason"]}', file=sys.stderr)
+    print('wrote ' + ', '.join(str(f) for f in files))
+    if failed:
+        print(f'{len(failed)} of {len(rows)} logs failed', file=sys.stderr)
+        return 1
+    return 0
+
+
+def _check_dask_args(args: argparse.Namespace) -> None:
+    """Raise :class:`BadArgument` for a --workers below 1."""
+    if args.workers is not None and args.workers < 1:
+        raise BadArgument(f'--workers {args.workers}: must be at least 1')
+
+
+@contextlib.contextmanager
+def _dask(args: argparse.Namespace):
+    """Yield the Dask client of --scheduler, else of a local cluster of --workers processes."""
+    from .campaign import ClusterError, dask_client
+
+    try:
+        with dask_client(args.scheduler, args.workers) as client:
+            yield client
+    except ClusterError as exc:
+        raise BadArgument(str(exc)) from None
+
+
 def _calibrate(args: argparse.Namespace) -> int:
     from . import calibration as cb
     from .bag.reader import BagError, open_bag
@@ -275,6 +338,7 @@ def _calibrate(args: argparse.Namespace) -> int:
 
     if args.jobs < 1:
         raise BadArgument(f'--jobs {args.jobs}: must be at least 1')
+    _check_dask_args(args)
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise BadArgument(f'--out {out}: exists and is not a folder')
@@ -309,9 +373,18 @@ def _calibrate(args: argparse.Namespace) -> int:
     def say(text: str) -> None:
         print(f'[{time.perf_counter() - t_fit:6.1f} s] {text}', file=sys.stderr, flush=True)
 
+    where = f'{args.jobs} jobs'
     try:
-        run = cb.calibrate(logs[:len(args.logs)], cfg, keys, validate_logs=logs[len(args.logs):],
-                           config_source=config[1], jobs=args.jobs, on_progress=say)
+        with contextlib.ExitStack() as stack:
+            client = None
+            if args.workers is not None or args.scheduler is not None:
+                from .campaign import describe
+                client = stack.enter_context(_dask(args))
+                where = f'Dask, {describe(client)}'
+                say(f'model runs on {where}')
+            run = cb.calibrate(logs[:len(args.logs)], cfg, keys,
+                               validate_logs=logs[len(args.logs):], config_source=config[1],
+                               jobs=args.jobs, client=client, on_progress=say)
     except cb.CalibrationError as exc:
         raise BadArgument(str(exc)) from None
     run.read_s = read_s
@@ -333,7 +406,7 @@ def _calibrate(args: argparse.Namespace) -> int:
     for m in run.messages:
         print(f'warning: {m}', file=sys.stderr)
     print(f'wall time: reading {run.read_s:.1f} s, fit {run.fit_s:.1f} s ({run.evaluations} '
-          f'model runs of whole logs, {run.iterations} iterations, {args.jobs} jobs)')
+          f'model runs of whole logs, {run.iterations} iterations, {where})')
     print('wrote ' + ', '.join(str(f) for f in files))
     return 0
 
@@ -345,6 +418,16 @@ def _add_duty_arguments(p: argparse.ArgumentParser, required: bool) -> None:
                        help='reference stage number (1-6)' + ('' if required else '; default 6'))
     which.add_argument('--duty', type=Path, metavar='FILE.csv',
                        help='duty table: time_s, flow_L_min, load_MPa (repeats periodically)')
+
+
+def _add_dask_arguments(group, what: str) -> None:
+    """Add --workers N | --scheduler ADDRESS: where ``what`` run on Dask."""
+    group.add_argument('--workers', type=int, default=None, metavar='N',
+                       help=f'run the {what} on a local Dask cluster of N processes (default '
+                            'for a campaign: one per CPU)')
+    group.add_argument('--scheduler', default=None, metavar='ADDRESS',
+                       help=f'run the {what} on the Dask cluster of this scheduler, e.g. '
+                            'tcp://host:8786 (its workers must see the same paths)')
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -418,16 +501,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--no-record', action='store_true', help='do not record the run')
     p.set_defaults(func=_live)
 
-    p = sub.add_parser('replay', help='run the estimator over a recorded bag, offline',
+    p = sub.add_parser('replay', help='run the estimator over recorded bags, offline',
                        description='Replay a rosbag2-style MCAP (ours, or ros2 bag record -s mcap '
                                    'with the same message types) through the estimator in sample '
                                    'time, as fast as it goes. Writes estimates.csv and '
                                    'estimates.mcap, and a report (report.md, PNG plots of inputs, '
                                    'temperatures, errors against the thermocouples and alerts). '
                                    'The configuration is --config, else the one stored in the '
-                                   'bag, else the reference rig.')
-    p.add_argument('bag', type=Path,
-                   help='an MCAP file, or a rosbag2 bag directory (its files as one run)')
+                                   'bag, else the reference rig. Several bags, or a folder of '
+                                   'them, are a campaign: replayed in parallel on Dask, each into '
+                                   'its own subfolder of --out, with a summary of all '
+                                   '(campaign.csv, campaign.md, campaign.png).')
+    p.add_argument('bag', type=Path, nargs='+',
+                   help='an MCAP file, a rosbag2 bag directory (its files as one run), or a '
+                        'folder of them')
     p.add_argument('--out', default='out/replay', help='output folder (default: %(default)s)')
     p.add_argument('--config', type=Path, default=None,
                    help='YAML configuration (default: stored in the bag, else the reference rig)')
@@ -442,6 +529,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--open-loop', action='store_true',
                    help='do not let the thermocouples correct the model (estimator.correction '
                         'off): the errors against them then validate the model itself')
+    _add_dask_arguments(p.add_mutually_exclusive_group(), 'replays of a campaign')
     p.set_defaults(func=_replay)
 
     p = sub.add_parser('calibrate', help='fit model parameters to the thermocouples of bench logs',
@@ -468,8 +556,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help='topic of an input, a thermocouple (measured/frame, ...) or ambient, as '
                         'for replay; repeatable')
     p.add_argument('--out', default='out/calibrate', help='output folder (default: %(default)s)')
-    p.add_argument('--jobs', type=int, default=2,
-                   help='worker processes evaluating the model (default: %(default)s)')
+    where = p.add_mutually_exclusive_group()
+    where.add_argument('--jobs', type=int, default=2,
+                       help='local worker processes evaluating the model (default: %(default)s)')
+    _add_dask_arguments(where, 'model runs')
     p.set_defaults(func=_calibrate)
 
     # parsed by the player itself (main() hands it everything after 'play')

@@ -33,7 +33,7 @@ from typing import Callable, Dict, List, Mapping, Optional, Sequence
 import numpy as np
 
 from .bag.reader import BagError, BagInfo, iter_column_blocks, open_bag, TEMPERATURE
-from .config import Config, config_from_yaml, default_config_path, load_config
+from .config import Config, config_from_yaml, default_config_path, load_config, with_values
 from .estimator.core import Estimator, INPUTS, sensor_inputs
 from .ros import topics
 
@@ -155,6 +155,24 @@ def plan_replay(path: os.PathLike, config_path: Optional[os.PathLike] = None,
 
 
 @dataclass
+class ReplayOptions:
+    """What a replay runs with besides its bag: the options of ``wet-eha-thermal replay``."""
+
+    config_path: Optional[Path] = None
+    mapping: Dict[str, str] = field(default_factory=dict)
+    output_rate_Hz: float = 10.0
+    report: bool = True
+    open_loop: bool = False       # estimator.correction off: the thermocouples only compared
+
+    def plan(self, path: os.PathLike) -> ReplayPlan:
+        """Return the :func:`plan_replay` of the bag ``path`` under these options."""
+        plan = plan_replay(path, self.config_path, self.mapping)
+        if self.open_loop:
+            plan.cfg = with_values(plan.cfg, {'estimator.correction.enabled': False})
+        return plan
+
+
+@dataclass
 class ReplayResult:
     """Estimates at the output rate, thermocouple series and the run's figures."""
 
@@ -178,6 +196,8 @@ class ReplayResult:
     # live correction (estimator.correction): None when off; else learned heats (W) and
     # every thermocouple's status and counters
     correction: Optional[dict] = None
+    # the estimator's limits (degC) of the estimates its alerts and forecast watch
+    limits_C: Dict[str, float] = field(default_factory=dict)
 
     @property
     def speed_x(self) -> float:
@@ -211,13 +231,15 @@ class _Decimator:
 
 def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
            on_progress: Optional[Callable[[float, float, float], None]] = None,
-           plot_interval_s: float = 0.1) -> ReplayResult:
+           plot_interval_s: float = 0.1, prefetch: bool = True) -> ReplayResult:
     """
     Run the estimator over the bag of ``plan`` in sample time; return the estimates.
 
     Estimates are kept at ``output_rate_Hz`` (every step when it is at least
     the step rate). ``on_progress(fraction, sample_time_s, wall_s)`` is called
-    after each block of about 10 s of log.
+    after each block of about 10 s of log. ``prefetch``: read the bag in a
+    forked child on another core (the same numbers either way; see
+    :class:`~.bag.reader.ColumnBlocks`).
     """
     est = Estimator(plan.cfg)
     step_s = plan.cfg.estimator.step_s
@@ -232,7 +254,7 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
     size = max(os.path.getsize(plan.info.path), 1)
     done_bytes = [0]
     # the next block is read and decoded on the other core while the model steps
-    blocks = iter_column_blocks(plan.info.path, plan.specs, prefetch=True,
+    blocks = iter_column_blocks(plan.info.path, plan.specs, prefetch=prefetch,
                                 on_progress=lambda done, total: done_bytes.__setitem__(0, done))
 
     def advance() -> None:
@@ -310,11 +332,13 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
             'disturbance_W': dict(zip(est.correction.disturbance_names,
                                       est.correction.d.tolist())),
             'thermocouples': {tc: dict(vars(h)) for tc, h in est.correction.tcs.items()
-                              if h.received}})
+                              if h.received}},
+        limits_C=dict(est.limits_C))
 
 
 # ------------------------------------------------------------------ outputs
-def _partial(path: Path) -> Path:
+def partial(path: Path) -> Path:
+    """Return the name ``path`` is written under until it is complete."""
     return path.with_name(path.name + '.partial')
 
 
@@ -325,7 +349,7 @@ def write_csv(result: ReplayResult, path: Path) -> Path:
     table = np.column_stack([result.stamp_s] + [result.temperatures_C[n]
                                                 for n in OUTPUT_ESTIMATES]
                             + [result.sigma_K, result.alert_level, result.stale_inputs])
-    tmp = _partial(path)
+    tmp = partial(path)
     fmt = ['%.6f'] + ['%.4f'] * len(OUTPUT_ESTIMATES) + ['%.3f', '%d', '%d']
     np.savetxt(tmp, table, fmt=fmt, delimiter=',', header=','.join(header), comments='')
     tmp.replace(path)
@@ -339,7 +363,7 @@ def write_mcap(result: ReplayResult, path: Path) -> Path:
     from std_msgs.msg import String
     from .bag.writer import BagWriter
 
-    tmp = _partial(path)
+    tmp = partial(path)
     if tmp.exists():
         tmp.unlink()
     cfg_yaml = result.plan.config_yaml
@@ -363,6 +387,16 @@ def write_mcap(result: ReplayResult, path: Path) -> Path:
             w.write(topics.ALERT_TOPIC, String(data=text), int(round(stamp * 1e9)))
     tmp.replace(path)
     return path
+
+
+def write_outputs(result: ReplayResult, out_dir: Path, report: bool = True) -> List[Path]:
+    """Write estimates.csv, estimates.mcap and (``report``) the report; return the paths."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    files = [write_csv(result, out_dir / 'estimates.csv'),
+             write_mcap(result, out_dir / 'estimates.mcap')]
+    if report:
+        files.append(write_report(result, out_dir))
+    return files
 
 
 def thermocouple_errors(result: ReplayResult) -> Dict[str, dict]:
@@ -411,7 +445,7 @@ def write_report(result: ReplayResult, out_dir: Path) -> Path:
         ax.grid(alpha=0.3)
     axes[-1, 0].set_xlabel('time since the first estimate [min]')
     fig.suptitle(f'inputs of {result.plan.info.path.name}')
-    images.append(_save(fig, out_dir / 'inputs.png', plt))
+    images.append(save_figure(fig, out_dir / 'inputs.png', plt))
 
     fig, ax = plt.subplots(figsize=(10, 5))
     for name in ('winding_hotspot', 'winding_mean', 'magnet', 'frame', 'pump_case', 'oil'):
@@ -430,7 +464,7 @@ def write_report(result: ReplayResult, out_dir: Path) -> Path:
     ax.set_ylabel('temperature [degC]')
     ax.legend(fontsize=7, ncol=2)
     ax.grid(alpha=0.3)
-    images.append(_save(fig, out_dir / 'temperatures.png', plt))
+    images.append(save_figure(fig, out_dir / 'temperatures.png', plt))
 
     errors = thermocouple_errors(result)
     if errors:
@@ -443,7 +477,7 @@ def write_report(result: ReplayResult, out_dir: Path) -> Path:
         ax.set_ylabel('estimate - thermocouple [K]')
         ax.legend(fontsize=7)
         ax.grid(alpha=0.3)
-        images.append(_save(fig, out_dir / 'errors.png', plt))
+        images.append(save_figure(fig, out_dir / 'errors.png', plt))
 
     fig, ax = plt.subplots(figsize=(10, 2.2))
     ax.step(t_min, result.alert_level, where='post')
@@ -451,7 +485,7 @@ def write_report(result: ReplayResult, out_dir: Path) -> Path:
     ax.set_xlabel('time [min]')
     ax.set_title('alert level')
     ax.grid(alpha=0.3)
-    images.append(_save(fig, out_dir / 'alerts.png', plt))
+    images.append(save_figure(fig, out_dir / 'alerts.png', plt))
 
     lines = [f'# Replay of {result.plan.info.path.name}', '',
              f'- configuration: {result.plan.config_source}',
@@ -502,13 +536,14 @@ def write_report(result: ReplayResult, out_dir: Path) -> Path:
                   for tc, h in c['thermocouples'].items()]
     lines += [''] + [f'![{p.stem}]({p.name})' for p in images]
     report = out_dir / 'report.md'
-    tmp = _partial(report)
+    tmp = partial(report)
     tmp.write_text('\n'.join(lines) + '\n')
     tmp.replace(report)
     return report
 
 
-def _save(fig, path: Path, plt) -> Path:
+def save_figure(fig, path: Path, plt) -> Path:
+    """Save a matplotlib figure as the PNG ``path`` (via a partial name) and close it."""
     fig.tight_layout()
     tmp = path.with_name(path.stem + '.partial.png')
     fig.savefig(tmp, dpi=110)
