@@ -14,6 +14,7 @@ import csv
 from dataclasses import replace
 import os
 from pathlib import Path
+import shutil
 import signal
 import socket
 import subprocess
@@ -24,7 +25,7 @@ import pytest
 from wet_eha_thermal import calibration as cb
 from wet_eha_thermal import campaign
 from wet_eha_thermal import replay as rp
-from wet_eha_thermal.bag.reader import open_bag
+from wet_eha_thermal.bag.reader import BagError, open_bag
 from wet_eha_thermal.cli import main
 from wet_eha_thermal.config import load_config, with_values
 
@@ -128,6 +129,19 @@ def test_a_folder_of_bags_expands_to_its_bag_directories(logs, tmp_path):
     assert [b.name for b in bags] == sorted(b.name for b in logs.iterdir())
     # a bag directory (here one of its .mcap files makes it one) and a file stay as given
     assert campaign.expand([bags[0], tmp_path / 'x.mcap']) == [bags[0], tmp_path / 'x.mcap']
+    # a folder of single-file logs is those logs; a folder of one split series is one bag
+    loose = tmp_path / 'loose'
+    loose.mkdir()
+    for name in ('b.mcap', 'a.mcap', 'c_0.mcap'):
+        shutil.copy(bags[0] / 'run.mcap', loose / name)
+    assert campaign.expand([loose]) == [loose / 'a.mcap', loose / 'b.mcap', loose / 'c_0.mcap']
+    with pytest.raises(BagError, match='3 separate logs'):
+        open_bag(loose)
+    series = tmp_path / 'series'
+    series.mkdir()
+    for k in (0, 1, 10):
+        shutil.copy(bags[0] / 'run.mcap', series / f'run_{k}.mcap')
+    assert campaign.expand([series]) == [series]
     assert campaign.output_names([Path('a/run.mcap'), Path('b/run'), Path('c/run_2.mcap'),
                                   Path('run.mcap')]) == ['run', 'run_2', 'run_2_2', 'run_3']
 

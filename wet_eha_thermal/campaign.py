@@ -31,7 +31,7 @@ from typing import Callable, Dict, List, Optional, Sequence
 import numpy as np
 
 from . import replay as rp
-from .bag.reader import ROSBAG2_METADATA
+from .bag.reader import is_bag
 from .estimator.alerts import Level
 from .ros import topics
 
@@ -46,26 +46,23 @@ class ClusterError(RuntimeError):
     """No Dask cluster to run on; the message says why."""
 
 
-def is_bag_dir(path: Path) -> bool:
-    """Return whether the folder ``path`` is one bag: metadata.yaml or .mcap files inside."""
-    return (path / ROSBAG2_METADATA).is_file() or any(path.glob('*.mcap'))
-
-
 def expand(paths: Sequence[Path]) -> List[Path]:
     """
     Return the bags that ``paths`` name, in order.
 
-    A folder that is no bag itself stands for the bag directories in it,
-    sorted by name, when it holds any. (A folder with ``.mcap`` files in it
-    is one bag, split into files, as everywhere else: single-file logs are
-    given one by one, e.g. ``logs/*.mcap``.) Anything else stays as given, a
-    missing path too: its replay says what is wrong.
+    A folder that is no bag itself (:func:`~.bag.reader.is_bag`: no
+    ``metadata.yaml``, and its ``.mcap`` files, if any, not one split series)
+    stands for the bags in it, sorted by name: its ``.mcap`` files and its bag
+    directories. Anything else stays as given, a missing path too: its
+    replay says what is wrong.
     """
     bags = []
     for path in map(Path, paths):
         children = []
-        if path.is_dir() and not is_bag_dir(path):
-            children = sorted((p for p in path.iterdir() if p.is_dir() and is_bag_dir(p)),
+        if not is_bag(path):
+            children = sorted((p for p in path.iterdir()
+                               if p.suffix == '.mcap' and p.is_file()
+                               or p.is_dir() and is_bag(p)),
                               key=lambda p: p.name)
         bags.extend(children or [path])
     return bags

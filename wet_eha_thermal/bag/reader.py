@@ -32,7 +32,8 @@ from pathlib import Path
 import pickle
 import re
 import struct
-from typing import Callable, Dict, Iterable, Iterator, List, Mapping, NamedTuple, Optional, Tuple
+from typing import (Callable, Dict, Iterable, Iterator, List, Mapping, NamedTuple, Optional,
+                    Sequence, Tuple)
 import zlib
 
 import lz4.frame
@@ -441,6 +442,29 @@ def _natural_key(path: Path) -> tuple:
                  for part in re.split(r'(\d+)', path.name))
 
 
+_SPLIT_MEMBER = re.compile(r'(.+)_\d+\.mcap$')
+
+
+def one_split_series(files: Sequence[Path]) -> bool:
+    """Return whether ``.mcap`` files are one bag: a single file, or ``<stem>_<N>.mcap`` all."""
+    stems = {m.group(1) if m else None for m in (_SPLIT_MEMBER.match(f.name) for f in files)}
+    return len(files) == 1 or (len(stems) == 1 and None not in stems)
+
+
+def is_bag(path: os.PathLike) -> bool:
+    """
+    Return whether ``path`` names one bag rather than a folder of separate logs.
+
+    A file (or a missing path, which reading reports) is a bag; so is a folder
+    with ``metadata.yaml``, or whose ``.mcap`` files are one split series.
+    """
+    path = Path(path)
+    if not path.is_dir() or (path / ROSBAG2_METADATA).is_file():
+        return True
+    files = list(path.glob('*.mcap'))
+    return bool(files) and one_split_series(files)
+
+
 def bag_files(path: os.PathLike) -> Tuple[Path, ...]:
     """
     Return the MCAP files of a bag in reading order: a file alone, or a bag directory's.
@@ -448,9 +472,10 @@ def bag_files(path: os.PathLike) -> Tuple[Path, ...]:
     A rosbag2 bag directory (``ros2 bag record -s mcap``) lists its files in
     ``metadata.yaml`` (``relative_file_paths``); without that file (a folder
     of our writer's ``<stem>_0.mcap``, ``<stem>_1.mcap``, ...), its
-    ``*.mcap`` files are taken by name, numbers compared as numbers. A
-    listed file that is missing stays in the list: reading it reports it
-    by name.
+    ``*.mcap`` files are taken by name, numbers compared as numbers, if they
+    are one such series (or one file): else they are separate logs, and
+    that is an error here. A listed file that is missing stays in the list:
+    reading it reports it by name.
     """
     path = Path(path)
     if not path.is_dir():
@@ -466,6 +491,10 @@ def bag_files(path: os.PathLike) -> Tuple[Path, ...]:
         files = tuple(path / str(name) for name in names)
     else:
         files = tuple(sorted(path.glob('*.mcap'), key=_natural_key))
+        if files and not one_split_series(files):
+            raise BagError(f'{path}: {len(files)} separate logs ({files[0].name}, '
+                           f'{files[1].name}, ...), not the files of one split bag: '
+                           '`replay` them as a campaign')
     if not files:
         raise BagError(f'{path}: a folder with neither {ROSBAG2_METADATA} nor .mcap files, '
                        'not a bag')
