@@ -126,17 +126,14 @@ class Client:
     def close(self):
         self.ws.__exit__(None, None, None)
 
-    def read(self, until, timeout=TIMEOUT_S):
-        """Read frames until ``until()`` is true; fail after ``timeout`` s."""
-        end = time.monotonic() + timeout
-        while not until():
-            left = end - time.monotonic()
-            assert left > 0, 'timed out waiting for the server'
+    def drain(self, wait=0.0):
+        """Take the frames that arrive within ``wait`` s, then those already there."""
+        while True:
             try:
-                # a short wait: ``until`` may also act (offer, publish) until it holds
-                frame = self.ws.recv(timeout=min(left, 0.05))
+                frame = self.ws.recv(timeout=wait)
             except TimeoutError:
-                continue
+                return
+            wait = 0.0
             if isinstance(frame, bytes):
                 assert frame[0] == 1, f'unexpected binary opcode {frame[0]}'
                 sub, log_time = struct.unpack_from('<IQ', frame, 1)
@@ -151,6 +148,14 @@ class Client:
                 self.channels.update({c['topic']: c for c in msg['channels']})
             else:
                 self.ops.append(msg)
+
+    def read(self, until, timeout=TIMEOUT_S):
+        """Read frames until ``until()`` is true; fail after ``timeout`` s."""
+        end = time.monotonic() + timeout
+        while not until():
+            assert time.monotonic() < end, 'timed out waiting for the server'
+            # a short wait: ``until`` may also act (offer, publish) until it holds
+            self.drain(0.05)
 
     def subscribe(self, names):
         subs = []
