@@ -490,7 +490,7 @@ def _monitor_node(context, state: TwinState):
                              lambda m: state.on_diagnostics(m.status), QoSProfile(depth=20))
     node.create_subscription(String, topics.READY_TOPIC,
                              lambda m: state.on_ready(m.data, time.monotonic()),
-                             topics.latched_qos())
+                             topics.latched_qos(depth=10))
     return node
 
 
