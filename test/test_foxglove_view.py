@@ -19,8 +19,8 @@ import pytest
 from websockets.sync.client import connect
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.estimator.core import Estimator
-from wet_eha_thermal.live_view import (app_url, BAND_SIGMAS, CHANNELS, LiveView, parse_address,
-                                       PENDING_ESTIMATES, view_topics)
+from wet_eha_thermal.live_view import (address_text, app_url, BAND_SIGMAS, CHANNELS, LiveView,
+                                       parse_address, PENDING_ESTIMATES, view_topics)
 from wet_eha_thermal.ros import topics
 from wet_eha_thermal.ros.estimator_node import LIMITED
 
@@ -209,6 +209,7 @@ def test_address_parsing_and_url():
             parse_address(bad)
     assert app_url('127.0.0.1', 8765) == ('https://app.foxglove.dev/?ds=foxglove-websocket'
                                           '&ds.url=ws://127.0.0.1:8765')
+    assert parse_address(address_text('::1', 8765)) == ('::1', 8765)
 
 
 def test_taken_port_is_a_clear_error(view):

@@ -94,9 +94,15 @@ def parse_address(text: str) -> Tuple[str, int]:
     return host, int(port)
 
 
+def address_text(host: str, port: int) -> str:
+    """Return ``HOST:PORT`` (``[HOST]:PORT`` for an IPv6 host), as :func:`parse_address` reads."""
+    return f'[{host}]:{port}' if ':' in host else f'{host}:{port}'
+
+
 def app_url(host: str, port: int) -> str:
     """Return the Foxglove web app's address that opens the view at ``ws://host:port``."""
-    return f'https://app.foxglove.dev/?ds=foxglove-websocket&ds.url=ws://{host}:{port}'
+    return ('https://app.foxglove.dev/?ds=foxglove-websocket&ds.url=ws://'
+            + address_text(host, port))
 
 
 def view_topics(prefix: str = '/eha') -> Dict[str, str]:
@@ -272,7 +278,7 @@ class LiveView:
     @property
     def url(self) -> str:
         """Return the WebSocket address of the server."""
-        return f'ws://{self.host}:{self.port}'
+        return f'ws://{address_text(self.host, self.port)}'
 
     def offer(self, estimate, measured: Optional[Mapping[str, Tuple[float, float]]] = None
               ) -> None:
