@@ -10,6 +10,8 @@ has a timeout; nothing sleeps to synchronise.
 
 import dataclasses
 import json
+from pathlib import Path
+import re
 import socket
 import struct
 import time
@@ -23,7 +25,9 @@ from wet_eha_thermal.live_view import (address_text, app_url, BAND_SIGMAS, CHANN
                                        parse_address, PENDING_ESTIMATES, view_topics)
 from wet_eha_thermal.ros import topics
 from wet_eha_thermal.ros.estimator_node import LIMITED
+from wet_eha_thermal.ros.recorder_node import message_class, recorded_topics
 
+ROOT = Path(__file__).resolve().parents[1]
 SUBPROTOCOL = 'foxglove.sdk.v1'    # foxglove-sdk's server refuses foxglove.websocket.v1
 TIMEOUT_S = 10.0
 RATE_HZ = 1000.0
@@ -389,3 +393,101 @@ def test_a_client_that_stops_reading_stalls_nothing(view, run):
         fresh.close()
         stalled.close()
     assert view.errors == 0, view.last_error
+
+
+# ----------------------------------------------------------------- layouts
+_PATH_KEYS = ('value', 'path', 'topicPath', 'topicToRender')
+
+
+def message_paths(node):
+    """Yield every message path a layout's panel configurations name."""
+    if isinstance(node, dict):
+        for k, v in node.items():
+            if k in _PATH_KEYS and isinstance(v, str) and v.startswith('/'):
+                yield v
+            else:
+                yield from message_paths(v)
+    elif isinstance(node, list):
+        for v in node:
+            yield from message_paths(v)
+
+
+def split_path(path):
+    """Return ``(topic, [field, ...])`` of a message path, filters and slices dropped."""
+    text = re.sub(r'\{[^}]*\}|\[[^\]]*\]', '', re.sub(r'"[^"]*"', '""', path))
+    topic, _, rest = text.partition('.')
+    return topic, [f for f in rest.split('.') if f and not f.startswith('@')]
+
+
+def _json_fields_exist(schema, fields, path):
+    for f in fields:
+        assert f in schema.get('properties', {}), f'{path}: no field {f!r}'
+        schema = schema['properties'][f]
+
+
+def _ros_fields_exist(type_name, fields, path):
+    cls = message_class(type_name)
+    for f in fields:
+        types = cls.get_fields_and_field_types()
+        assert f in types, f'{path}: {type_name} has no field {f!r}'
+        kind = re.sub(r'^sequence<(.*)>$', r'\1', types[f])
+        if '/' not in kind:
+            break
+        pkg, name = kind.split('/')
+        cls = message_class(f'{pkg}/msg/{name}')
+        type_name = f'{pkg}/msg/{name}'
+
+
+def _layout(name):
+    """Return the layout file ``name``, checked: every panel placed is configured, and back."""
+    layout = json.loads((ROOT / 'layouts' / name).read_text())
+    assert set(layout) >= {'configById', 'layout', 'globalVariables', 'userNodes',
+                           'playbackConfig'}
+    config = layout['configById']
+    placed = []
+
+    def walk(node):
+        if isinstance(node, str):
+            placed.append(node)
+            for tab in config[node]['tabs'] if node.startswith('Tab!') else ():
+                walk(tab['layout'])
+        else:
+            walk(node['first'])
+            walk(node['second'])
+
+    walk(layout['layout'])
+    assert sorted(placed) == sorted(config), 'panels placed and configured differ'
+    # the gauges' dials end at the limits of the shipped configuration
+    limits = Estimator(load_config()).limits_C
+    for panel, cfg in config.items():
+        if panel.startswith('Gauge!') and panel[6:] in limits:
+            assert cfg['maxValue'] == limits[panel[6:]], panel
+    return layout
+
+
+def test_live_layout_names_only_channels_of_the_view(view):
+    layout = _layout('live.json')
+    by_topic = {topic: view.schemas[name] for name, topic in view_topics().items()}
+    paths = list(message_paths(layout['configById']))
+    assert len(paths) > 20
+    for path in paths:
+        topic, fields = split_path(path)
+        assert topic in by_topic, f'{path}: the view has no channel {topic}'
+        _json_fields_exist(by_topic[topic], fields, path)
+    panels = {k.split('!')[0] for k in layout['configById']}
+    assert {'Plot', 'Gauge', 'Indicator', 'Table', 'StateTransitions'} <= panels
+    # every channel of the view is shown somewhere
+    assert {split_path(p)[0] for p in paths} == set(by_topic)
+
+
+def test_replay_layout_names_only_recorded_topics():
+    layout = _layout('replay.json')
+    cfg_inputs = Estimator(load_config()).inputs
+    unused = {topics.INPUT_TOPICS[n] for n in topics.INPUT_TOPICS if n not in cfg_inputs}
+    recorded = {t: spec for t, spec in recorded_topics().items() if t not in unused}
+    paths = list(message_paths(layout['configById']))
+    assert len(paths) > 15
+    for path in paths:
+        topic, fields = split_path(path)
+        assert topic in recorded, f'{path}: a live recording has no topic {topic}'
+        _ros_fields_exist(recorded[topic][0], fields, path)

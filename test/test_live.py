@@ -1,5 +1,6 @@
 """End-to-end test of ``wet-eha-thermal live``: rig, estimator and status in one command."""
 
+import json
 import os
 from pathlib import Path
 import re
@@ -10,6 +11,7 @@ import time
 import uuid
 
 import pytest
+from test_foxglove_view import message_paths, split_path
 from wet_eha_thermal.bag.reader import open_bag
 from wet_eha_thermal.config import default_config_path, load_config
 from wet_eha_thermal.estimator.warmup import compile_estimator
@@ -18,6 +20,7 @@ from wet_eha_thermal.ros.live import address_taken
 from wet_eha_thermal.ros.recorder_node import CONFIG_METADATA
 
 BIN = Path(sys.executable).parent / 'wet-eha-thermal'
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def _command(*args):
@@ -87,6 +90,9 @@ def test_live_runs_and_cleans_up(tmp_path):
                for name in topics.ESTIMATES), bag.topics
     assert bag.topics[topics.INPUT_TOPICS['current_A']].message_count > 0
     assert bag.metadata[CONFIG_METADATA]['yaml'] == default_config_path().read_text()
+    # the replay layout opens this recording: every topic it names is in it
+    replay = json.loads((ROOT / 'layouts' / 'replay.json').read_text())['configById']
+    assert {split_path(p)[0] for p in message_paths(replay)} <= set(bag.topics)
     deadline = time.monotonic() + 2.0
     while _marked_processes(mark) and time.monotonic() < deadline:
         time.sleep(0.1)

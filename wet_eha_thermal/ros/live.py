@@ -220,9 +220,11 @@ def address_taken(host: str, port: int) -> Optional[str]:
 def foxglove_lines(host: str, port: int) -> List[str]:
     """Return the lines that tell where to watch the live view in Foxglove."""
     url = f'ws://{address_text(host, port)}'
+    # an install from a wheel has no source tree: colcon puts the layouts in share/
+    layout = LIVE_LAYOUT if LIVE_LAYOUT.is_file() else 'layouts/live.json of the sources'
     return [f'Foxglove view: open {app_url(host, port)}',
             f'  (Foxglove desktop: Open connection > Foxglove WebSocket > {url}); layout: '
-            f'Import from file {LIVE_LAYOUT}']
+            f'Import from file {layout}']
 
 
 def waited_nodes(recording: bool) -> List[str]:
