@@ -165,7 +165,7 @@ def schemas(estimates: Sequence[str], limited: Sequence[str], inputs: Sequence[s
             'data_gap': {'type': 'boolean', 'description': 'every input silent now'},
             'clock_jumps': {'type': 'integer'},
             **{q: quantity for q in limited}}),
-        # the published foxglove.Log JSON schema, the fields used here
+        # the fields of foxglove.Log: Foxglove's Log panel takes a channel by this schema name
         'events': _obj(CHANNELS['events'], 'alert events and time-base notices', {
             'timestamp': _TIME, 'level': {'type': 'integer', 'description': '2 INFO, 3 WARNING, '
                                           '4 ERROR'},
