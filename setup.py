@@ -16,6 +16,7 @@ setup(
         ('share/' + PACKAGE, ['package.xml']),
         ('share/' + PACKAGE + '/config', glob('config/*.yaml')),
         ('share/' + PACKAGE + '/launch', glob('launch/*.py')),
+        ('share/' + PACKAGE + '/layouts', glob('layouts/*.json')),
     ],
     # Runtime dependencies are declared in package.xml (rosdep, colcon) and
     # requirements.txt (the pip/venv path of scripts/dev), as ROS does.

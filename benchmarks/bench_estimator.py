@@ -3,7 +3,7 @@ Load benchmark of the estimator node: CPU against a bare subscriber, lost sample
 
 Run: OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_estimator.py
      [--minutes 10] [--pressure differential|ports] [--rate-Hz 1000] [--stage 6]
-     [--depth 1000] [--executor events] [--warmup-s 5] [--busy-live-s 60]
+     [--depth 1000] [--executor events] [--warmup-s 5] [--busy-live-s 60] [--no-foxglove]
 
 The issue's setting is "four sensor topics at 1 kHz each and estimates
 published at 50 Hz": current, speed, one differential pressure and position
@@ -23,6 +23,10 @@ ROS domain (from the pid, or ``$WET_EHA_BENCH_DOMAIN_ID``):
   reliable QoS, history ``--depth``, the reference configuration with
   ``estimator.pressure_inputs`` set by ``--pressure``); the publisher starts
   once it said it is ready (``/eha/ready``);
+- then, unless ``--no-foxglove``, the estimator again with its Foxglove view
+  on (``foxglove_address``) and a Foxglove WebSocket client in this process
+  (a thread) subscribed to every channel of the view and reading all it gets:
+  the view's cost is the difference between the two estimator runs;
 - this process: follows the estimates, the first pressure topic (for the
   send times) and /diagnostics.
 
@@ -55,9 +59,11 @@ import json
 import os
 from pathlib import Path
 import signal
+import socket
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -69,6 +75,7 @@ from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64, String
 from wet_eha_thermal.config import default_config_path, load_config
 from wet_eha_thermal.estimator.core import sensor_inputs, sensor_signal
+from wet_eha_thermal.live_view import CHANNELS
 from wet_eha_thermal.model.kinetics import KineticModel, stage_duty, ThermalFeedback
 from wet_eha_thermal.model.oil import get_oil
 from wet_eha_thermal.ros import topics
@@ -80,6 +87,7 @@ PARAMS_FILE = ROOT / 'config' / 'estimator.params.yaml'
 INPUT_STATUS = 'wet_eha_thermal: input '
 ESTIMATE_STATUS = 'wet_eha_thermal: estimate'
 LATENCY_KEY = 'step latency p50/p99/max [ms]'
+VIEW_KEY = 'foxglove view'
 
 
 def bench_config(pressure: str):
@@ -212,13 +220,19 @@ class Monitor:
         self.estimates = 0
         self.counters = {}
         self.latency_text = None
+        self.view_text = None
         self.diag_count = 0
-        node.create_subscription(FluidPressure, pressure_topic, self.on_p,
-                                 reliable(1000))
-        node.create_subscription(Temperature, f'{topics.ESTIMATE_PREFIX}/winding_hotspot',
-                                 self.on_estimate, reliable(100))
-        node.create_subscription(DiagnosticArray, topics.DIAGNOSTICS_TOPIC, self.on_diag,
-                                 reliable(20))
+        self.subscriptions = [
+            node.create_subscription(FluidPressure, pressure_topic, self.on_p, reliable(1000)),
+            node.create_subscription(Temperature, f'{topics.ESTIMATE_PREFIX}/winding_hotspot',
+                                     self.on_estimate, reliable(100)),
+            node.create_subscription(DiagnosticArray, topics.DIAGNOSTICS_TOPIC, self.on_diag,
+                                     reliable(20))]
+
+    def close(self, node) -> None:
+        """Stop following (the next phase has its own monitor)."""
+        for sub in self.subscriptions:
+            node.destroy_subscription(sub)
 
     def on_p(self, msg) -> None:
         self.stamps.append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
@@ -247,8 +261,9 @@ class Monitor:
             if st.name.startswith(INPUT_STATUS):
                 self.counters[st.name[len(INPUT_STATUS):]] = {v.key: v.value for v in st.values}
             elif st.name == ESTIMATE_STATUS:
-                self.latency_text = next((v.value for v in st.values if v.key == LATENCY_KEY),
-                                         self.latency_text)
+                values = {v.key: v.value for v in st.values}
+                self.latency_text = values.get(LATENCY_KEY, self.latency_text)
+                self.view_text = values.get(VIEW_KEY, self.view_text)
 
 
 def spin_for(executor, seconds: float, until=None) -> bool:
@@ -321,6 +336,121 @@ def measure(args, executor, sub, pub, mon=None):
     return out
 
 
+class Viewer:
+    """A Foxglove client on a thread: subscribes to every channel, reads and counts it all."""
+
+    def __init__(self, port: int) -> None:
+        from websockets.sync.client import connect    # a test dependency, as this script is
+
+        self.ws = connect(f'ws://127.0.0.1:{port}', subprotocols=['foxglove.sdk.v1'],
+                          proxy=None, close_timeout=1.0).__enter__()
+        channels = {}
+        while len(channels) < len(CHANNELS):
+            msg = json.loads(self.ws.recv(timeout=10.0))
+            if msg['op'] == 'advertise':
+                channels.update({c['id']: c['topic'] for c in msg['channels']})
+        self.ws.send(json.dumps({'op': 'subscribe', 'subscriptions': [
+            {'id': k, 'channelId': k} for k in channels]}))
+        self.messages = self.bytes = 0
+        self.stopped = False
+        self.seconds = time.monotonic()      # how long it read, once closed
+        self.thread = threading.Thread(target=self.read, daemon=True)
+        self.thread.start()
+
+    def read(self) -> None:
+        while not self.stopped:
+            try:
+                frame = self.ws.recv(timeout=0.2)
+            except TimeoutError:
+                continue
+            if isinstance(frame, bytes):
+                self.messages += 1
+                self.bytes += len(frame)
+
+    def close(self) -> None:
+        self.stopped = True
+        self.thread.join()
+        self.seconds = time.monotonic() - self.seconds
+        self.ws.__exit__(None, None, None)
+
+
+def free_port() -> int:
+    """Return a TCP port free on 127.0.0.1 now."""
+    with socket.socket() as sock:
+        sock.bind(('127.0.0.1', 0))
+        return sock.getsockname()[1]
+
+
+def run_estimator(args, executor, node, ready, cmd, pub_cmd, env, log, pressure_topic,
+                  view_port=None):
+    """
+    Measure the estimator ``cmd`` under the publisher; return ``(figures, monitor)``.
+
+    With ``view_port``, a :class:`Viewer` reads the estimator's Foxglove view throughout.
+    """
+    mon = Monitor(node, pressure_topic)
+    ready.clear()
+    est = start(cmd, env, log, stdout=log)
+    pub = Publisher(pub_cmd, env, log)     # it waits for the estimator's subscriptions
+    viewer = None
+    try:
+        if not spin_for(executor, 120.0, lambda: any('"ready": true' in r for r in ready)):
+            raise SystemExit('the estimator did not say it is ready within 120 s')
+        if view_port is not None:
+            viewer = Viewer(view_port)
+        fig = measure(args, executor, est, pub, mon)
+        # two more diagnostics so that the counters include the last samples
+        d0 = mon.diag_count
+        spin_for(executor, 5.0, lambda: mon.diag_count >= d0 + 2)
+        if viewer is not None:
+            viewer.close()
+            fig['viewed'] = (viewer.messages, viewer.bytes, viewer.seconds)
+            viewer = None
+    finally:
+        if viewer is not None:
+            viewer.close()
+        stop([pub.proc, est])
+        mon.close(node)
+    return fig, mon
+
+
+def print_estimator(fig, mon, inputs, what: str) -> None:
+    """Print the figures of one estimator run."""
+    sent = fig['report']['sent']
+    print(f'{what}: CPU {fig["cpu"]:.1f} % of one core over {fig["seconds"]:.1f} s '
+          f'(utime+stime of /proc/<pid>/stat); {fig["estimates"]} estimates received, '
+          f'{fig["estimates"] / fig["seconds"]:.1f} per s')
+    lost_total = 0
+    for name in inputs:
+        c = mon.counters.get(name, {})
+        rx = int(c.get('received', 0))
+        rejected = sum(int(c.get(k, 0)) for k in ('late', 'backwards', 'out_of_range',
+                                                  'non_finite', 'future', 'overflow'))
+        lost_total += sent - rx
+        print(f'  {name:<12} sent {sent}, received {rx}, lost {sent - rx} '
+              f'({100.0 * (sent - rx) / max(sent, 1):.3f} %), rejected {rejected} '
+              f'(late {c.get("late", "?")}, backwards {c.get("backwards", "?")})')
+    print(f'  lost samples: {lost_total} of {sent * len(inputs)} '
+          f'({100.0 * lost_total / max(sent * len(inputs), 1):.4f} %) with reliable QoS over '
+          f'{fig["report"]["seconds"]:.1f} s of publishing')
+    print('  latency added by the estimator (its diagnostics: callback of the closing sample '
+          f'-> estimates published), p50/p99/max: {mon.latency_text or "not reported"}')
+    lat = fig['latency']
+    if lat.size:
+        p50, p99 = np.percentile(lat, [50, 99])
+        print(f'  end-to-end latency, closing sample sent -> its estimate received here: p50 '
+              f'{p50:.2f} ms, p99 {p99:.2f} ms, max {lat.max():.2f} ms over {lat.size} '
+              'estimates')
+    r = fig['report']
+    print(f'  publisher: CPU {r["cpu_percent"]:.1f} % of a core, tick interval p50/p99/max '
+          f'{r["tick_p50_ms"]:.3f}/{r["tick_p99_ms"]:.3f}/{r["tick_max_ms"]:.1f} ms')
+    if 'viewed' in fig:
+        n, size, seconds = fig['viewed']
+        print(f'  Foxglove client: {n} messages, {size / 1e6:.1f} MB in {seconds:.0f} s '
+              f'({n / seconds:.0f} msg/s, {size / seconds / 1e3:.0f} kB/s); the view: '
+              f'{mon.view_text}')
+
+
 def busy_live(seconds: float, env) -> None:
     """Run ``wet-eha-thermal live`` with one core kept busy; print its figures."""
     busy = subprocess.Popen([sys.executable, '-c', 'while True: pass'],
@@ -363,6 +493,8 @@ def main() -> None:
     p.add_argument('--warmup-s', type=float, default=5.0)
     p.add_argument('--busy-live-s', type=float, default=60.0,
                    help='length of the busy-machine live run (0: skip it)')
+    p.add_argument('--no-foxglove', action='store_true',
+                   help='skip the run with the Foxglove view and a client')
     p.add_argument('--role', choices=('main', 'publisher', 'bare'), default='main',
                    help=argparse.SUPPRESS)
     p.add_argument('--seconds', type=float, default=0.0, help=argparse.SUPPRESS)
@@ -418,56 +550,33 @@ def main() -> None:
         bare_fig = measure(args, executor, bare, pub)
         stop([pub.proc, bare])
         bare_rx = json.loads(bare.stdout.read().decode().strip().splitlines()[-1])['received']
-        # 2. the estimator, once it is ready (model warmed, inputs matched)
-        mon = Monitor(node, topics.INPUT_TOPICS[next(k for k in inputs
-                                                     if k in topics.PRESSURE_INPUTS)])
-        est = start(est_cmd, env, log, stdout=log)
-        pub = Publisher(pub_cmd, env, log)     # it waits for the estimator's subscriptions
-        if not spin_for(executor, 120.0, lambda: any('"ready": true' in r for r in ready)):
-            raise SystemExit('the estimator did not say it is ready within 120 s')
-        est_fig = measure(args, executor, est, pub, mon)
-        # two more diagnostics so that the counters include the last samples
-        d0 = mon.diag_count
-        spin_for(executor, 5.0, lambda: mon.diag_count >= d0 + 2)
-        stop([pub.proc, est])
+        # 2. the estimator, once it is ready (model warmed, inputs matched); 3. the same
+        # with its Foxglove view and a client reading every channel of it
+        pressure_topic = topics.INPUT_TOPICS[next(k for k in inputs
+                                                  if k in topics.PRESSURE_INPUTS)]
+        est_fig, mon = run_estimator(args, executor, node, ready, est_cmd, pub_cmd, env, log,
+                                     pressure_topic)
+        if not args.no_foxglove:
+            port = free_port()
+            view_fig, view_mon = run_estimator(
+                args, executor, node, ready,
+                est_cmd + ['-p', f'foxglove_address:=127.0.0.1:{port}'], pub_cmd, env, log,
+                pressure_topic, view_port=port)
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
         log.close()
 
-    sent = est_fig['report']['sent']
     print(f'bare subscriber CPU: {bare_fig["cpu"]:.1f} % of one core over '
           f'{bare_fig["seconds"]:.1f} s; it received {bare_rx} of '
           f'{bare_fig["report"]["sent"] * len(inputs)} samples')
-    print(f'estimator CPU: {est_fig["cpu"]:.1f} % of one core over {est_fig["seconds"]:.1f} s '
-          f'(utime+stime of /proc/<pid>/stat); {est_fig["estimates"]} estimates received, '
-          f'{est_fig["estimates"] / est_fig["seconds"]:.1f} per s')
+    print_estimator(est_fig, mon, inputs, 'estimator')
     print(f'ratio estimator / bare subscriber: {est_fig["cpu"] / bare_fig["cpu"]:.2f}')
-    lost_total = 0
-    for name in inputs:
-        c = mon.counters.get(name, {})
-        rx = int(c.get('received', 0))
-        rejected = sum(int(c.get(k, 0)) for k in ('late', 'backwards', 'out_of_range',
-                                                  'non_finite', 'future', 'overflow'))
-        lost_total += sent - rx
-        print(f'  {name:<12} sent {sent}, received {rx}, lost {sent - rx} '
-              f'({100.0 * (sent - rx) / max(sent, 1):.3f} %), rejected {rejected} '
-              f'(late {c.get("late", "?")}, backwards {c.get("backwards", "?")})')
-    print(f'lost samples: {lost_total} of {sent * len(inputs)} '
-          f'({100.0 * lost_total / max(sent * len(inputs), 1):.4f} %) with reliable QoS over '
-          f'{est_fig["report"]["seconds"]:.1f} s of publishing')
-    print('latency added by the estimator (its diagnostics: callback of the closing sample -> '
-          f'estimates published), p50/p99/max: {mon.latency_text or "not reported"}')
-    lat = est_fig['latency']
-    if lat.size:
-        p50, p99 = np.percentile(lat, [50, 99])
-        print(f'end-to-end latency, closing sample sent -> its estimate received here: p50 '
-              f'{p50:.2f} ms, p99 {p99:.2f} ms, max {lat.max():.2f} ms over {lat.size} '
-              'estimates')
-    r = est_fig['report']
-    print(f'publisher (estimator phase): CPU {r["cpu_percent"]:.1f} % of a core, tick interval '
-          f'p50/p99/max {r["tick_p50_ms"]:.3f}/{r["tick_p99_ms"]:.3f}/{r["tick_max_ms"]:.1f} ms',
-          flush=True)
+    if not args.no_foxglove:
+        print_estimator(view_fig, view_mon, inputs,
+                        'estimator with its Foxglove view, one client reading every channel')
+        print(f'cost of the Foxglove view: {view_fig["cpu"] - est_fig["cpu"]:+.1f} points of '
+              f'one core ({view_fig["cpu"]:.1f} % against {est_fig["cpu"]:.1f} %)', flush=True)
     if args.busy_live_s > 0:
         busy_live(args.busy_live_s, dict(os.environ))
 

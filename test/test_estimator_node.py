@@ -29,7 +29,9 @@ from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64, String
+from test_foxglove_view import Client
 from wet_eha_thermal.config import default_config_path
+from wet_eha_thermal.live_view import CHANNELS, view_topics
 from wet_eha_thermal.ros import topics
 from wet_eha_thermal.ros.estimator_node import EstimatorNode
 import yaml
@@ -402,3 +404,53 @@ def test_thermocouple_corrects_the_estimate_and_goes_stale(rig):
     assert feed(6.0, lambda: rig.level('thermocouple frame') == STALE, readings=False)
     assert rig.values('thermocouple frame')['stale_events'] == '1'
     assert len(frame) > n + 50
+
+
+def test_foxglove_view_shows_the_published_estimates(context):
+    rig = Rig(context, overrides=[Parameter('foxglove_address', value='127.0.0.1:0')])
+    client = None
+    try:
+        view = rig.node.view
+        assert view is not None and view.port > 0
+        client = Client(view.port)
+        client.read(lambda: len(client.channels) == len(CHANNELS))
+        names = view_topics()
+        client.subscribe([names['temperatures'], names['alerts']])
+        published = {}
+
+        def matched():
+            """Return whether a view message carries an estimate published on ROS."""
+            client.drain()
+            published.update({(m.header.stamp.sec, m.header.stamp.nanosec): m
+                              for m in rig.estimates['winding_hotspot']})
+            return any((m['timestamp']['sec'], m['timestamp']['nsec']) in published
+                       for _, m in client.messages(names['temperatures'])[-5:])
+
+        assert rig.feed(10.0, until=matched)
+        _, m = next((t, m) for t, m in reversed(client.messages(names['temperatures']))
+                    if (m['timestamp']['sec'], m['timestamp']['nsec']) in published)
+        ros = published[m['timestamp']['sec'], m['timestamp']['nsec']]
+        assert m['winding_hotspot']['estimate_C'] == ros.temperature
+        assert m['winding_hotspot']['sigma_K'] ** 2 == pytest.approx(ros.variance)
+        assert rig.feed(5.0, until=lambda: client.drain() or client.messages(names['alerts']))
+        assert client.last[names['alerts']]['oil']['reported'] == 'OK'
+        # a safe parameter set from Foxglove is set on the node (on its own thread)
+        client.ws.send(json.dumps({'op': 'setParameters', 'id': 's', 'parameters': [
+            {'name': 'publish_rate_Hz', 'value': 10.0}]}))
+        assert rig.feed(5.0, until=lambda: rig.node.get_parameter('publish_rate_Hz').value
+                        == 10.0)
+        assert rig.node.publish_timer.timer_period_ns == 100_000_000
+        assert rig.feed(5.0, until=lambda: rig.level('estimate') is not None
+                        and 'ws://127.0.0.1:' in rig.values('estimate')['foxglove view'])
+        # a second estimator on the same address runs without the view, and says why
+        other = EstimatorNode(context=context, parameter_overrides=[
+            Parameter('foxglove_address', value=f'127.0.0.1:{view.port}'),
+            Parameter('topic_prefix', value='/eha_taken_port')])
+        try:
+            assert other.view is None and 'in use' in other.view_error
+        finally:
+            other.destroy_node()
+    finally:
+        if client is not None:
+            client.close()
+        rig.close()

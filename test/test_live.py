@@ -1,21 +1,26 @@
 """End-to-end test of ``wet-eha-thermal live``: rig, estimator and status in one command."""
 
+import json
 import os
 from pathlib import Path
 import re
+import socket
 import subprocess
 import sys
 import time
 import uuid
 
 import pytest
+from test_foxglove_view import message_paths, split_path
 from wet_eha_thermal.bag.reader import open_bag
 from wet_eha_thermal.config import default_config_path, load_config
 from wet_eha_thermal.estimator.warmup import compile_estimator
 from wet_eha_thermal.ros import topics
+from wet_eha_thermal.ros.live import address_taken
 from wet_eha_thermal.ros.recorder_node import CONFIG_METADATA
 
 BIN = Path(sys.executable).parent / 'wet-eha-thermal'
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def _command(*args):
@@ -29,6 +34,12 @@ def _env(mark: str):
                ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
     env.pop('WET_EHA_LIVE_DOMAIN_ID', None)     # a private domain from the pid
     return env
+
+
+def _free_port():
+    with socket.socket() as sock:
+        sock.bind(('127.0.0.1', 0))
+        return sock.getsockname()[1]
 
 
 def _marked_processes(mark: str):
@@ -54,8 +65,10 @@ def test_live_runs_and_cleans_up(tmp_path):
     compile_estimator(load_config())
     mark = uuid.uuid4().hex
     # in tmp_path: the recording goes to runs/ of the working folder
-    res = subprocess.run(_command('live', '--duration', '8'), env=_env(mark), cwd=tmp_path,
-                         capture_output=True, text=True, timeout=60)
+    port = _free_port()        # not 8765: another run on this machine may hold it
+    res = subprocess.run(_command('live', '--duration', '8', '--foxglove', f'127.0.0.1:{port}'),
+                         env=_env(mark), cwd=tmp_path, capture_output=True, text=True,
+                         timeout=60)
     assert res.returncode == 0, res.stdout + res.stderr
     out = res.stdout
     assert 'winding hot-spot' in out and 'margin' in out and 'alerts' in out, out
@@ -65,6 +78,9 @@ def test_live_runs_and_cleans_up(tmp_path):
     assert 'rig             exited cleanly' in out, out
     assert 'estimator       exited cleanly' in out, out
     assert 'recorder        exited cleanly' in out, out
+    assert ('Foxglove view: open https://app.foxglove.dev/?ds=foxglove-websocket&ds.url='
+            f'ws://127.0.0.1:{port}') in out, out
+    assert f'foxglove view   ws://127.0.0.1:{port}, served by the estimator' in out, out
     recordings = list((tmp_path / 'runs').glob('live_*'))    # a bag directory
     assert len(recordings) == 1 and f'recording       {recordings[0]}: ' in out, out
     assert (recordings[0] / f'{recordings[0].name}_0.mcap').is_file()
@@ -74,6 +90,9 @@ def test_live_runs_and_cleans_up(tmp_path):
                for name in topics.ESTIMATES), bag.topics
     assert bag.topics[topics.INPUT_TOPICS['current_A']].message_count > 0
     assert bag.metadata[CONFIG_METADATA]['yaml'] == default_config_path().read_text()
+    # the replay layout opens this recording: every topic it names is in it
+    replay = json.loads((ROOT / 'layouts' / 'replay.json').read_text())['configById']
+    assert {split_path(p)[0] for p in message_paths(replay)} <= set(bag.topics)
     deadline = time.monotonic() + 2.0
     while _marked_processes(mark) and time.monotonic() < deadline:
         time.sleep(0.1)
@@ -87,3 +106,18 @@ def test_live_bad_stage_is_one_error_line():
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith('error: --stage 9'), res.stderr
     assert res.stdout == ''
+
+
+def test_a_taken_foxglove_address_is_seen_before_the_run():
+    with socket.socket() as sock:
+        sock.bind(('127.0.0.1', 0))
+        sock.listen()
+        assert 'in use' in address_taken('127.0.0.1', sock.getsockname()[1])
+    assert address_taken('127.0.0.1', _free_port()) is None
+
+
+def test_live_bad_foxglove_address_is_one_error_line():
+    res = subprocess.run(_command('live', '--foxglove', '8765'), capture_output=True, text=True,
+                         timeout=60)
+    assert res.returncode == 2 and res.stdout == ''
+    assert res.stderr.strip().count('\n') == 0 and 'HOST:PORT' in res.stderr, res.stderr

@@ -12,7 +12,7 @@ from pathlib import Path
 import shlex
 import sys
 import time
-from typing import List, Optional
+from typing import List, Optional, Tuple
 
 from .config import ConfigError, load_config
 from .model.kinetics import DutyError
@@ -191,10 +191,24 @@ def _check_live_args(args: argparse.Namespace) -> None:
         raise BadArgument(f'--rate-Hz {args.rate_Hz:g}: must be 50..10000 Hz')
 
 
+def _foxglove_address(text: str) -> Tuple[str, int]:
+    """Return ``(host, port)`` of ``--foxglove``; :class:`BadArgument` if it is not one."""
+    from .live_view import parse_address
+
+    try:
+        host, port = parse_address(text)
+    except ValueError as exc:
+        raise BadArgument(f'--foxglove {exc}') from None
+    if port == 0:       # live prints the address to open: it must know it
+        raise BadArgument(f'--foxglove {text}: give a port, 1..65535')
+    return host, port
+
+
 def _live(args: argparse.Namespace) -> int:
     from .model.kinetics import load_duty_csv, stage_duty
 
     _check_live_args(args)
+    foxglove = None if args.no_foxglove else _foxglove_address(args.foxglove)
     # check the configuration and the duty here, so that a mistake is one line, not two
     # children failing
     cfg = load_config(args.config)
@@ -213,7 +227,7 @@ def _live(args: argparse.Namespace) -> int:
     opts = live.LiveOptions(stage=stage, duty=args.duty, duration_s=args.duration,
                             rate_Hz=args.rate_Hz, config=args.config, noise=not args.no_noise,
                             executor=args.executor, record=not args.no_record,
-                            record_path=args.record)
+                            record_path=args.record, foxglove=foxglove)
     return live.run(opts, domain=domain)
 
 
@@ -499,6 +513,12 @@ def build_parser() -> argparse.ArgumentParser:
                         'makes, or one MCAP file when PATH ends in .mcap; never overwritten '
                         '(default: runs/live_<UTC time>)')
     p.add_argument('--no-record', action='store_true', help='do not record the run')
+    p.add_argument('--foxglove', default='127.0.0.1:8765', metavar='HOST:PORT',
+                   help='where the estimator serves the Foxglove view (estimates with their '
+                        'bands, margins, alerts, inputs, thermocouples; open it with '
+                        'layouts/live.json); live prints the address to open; one taken is '
+                        'one warning and the run goes on without it (default: %(default)s)')
+    p.add_argument('--no-foxglove', action='store_true', help='no Foxglove view')
     p.set_defaults(func=_live)
 
     p = sub.add_parser('replay', help='run the estimator over recorded bags, offline',

@@ -171,6 +171,10 @@ class Estimate:
     correction: Optional[Dict[str, Any]] = None
     # what happened to the time base since the last estimate: data gaps, clock jumps
     notices: List[str] = field(default_factory=list)
+    # each sensor input on the step's grid as the model took it (SI; the current as the
+    # root of the mean square per grid interval; one value for a held block): arrays the
+    # estimator never writes again, so a display can average them on another thread
+    inputs: Dict[str, np.ndarray] = field(default_factory=dict)
 
 
 @dataclass
@@ -807,6 +811,7 @@ class Estimator:
         its end, and one exact step of the motor over the whole block.
         """
         frac = self._frac if m == 1 else np.ones(1)
+        sensors = dict(grid_values)      # the model's inputs below limit the position in place
         values = self._model_inputs(grid_values)
         values['position_m'] = self._limit_position(values['position_m'], (t1 - t0) / frac.size)
         since_start = (self.steps + m * frac) * self.settings.step_s
@@ -847,7 +852,7 @@ class Estimator:
             margin_current_A=self._margin, alert_level=int(self.alerts.worst()),
             alert_events=events, stale=list(stale), implausible=implausible, step=self.steps,
             correction=self.correction.summary() if self.correction is not None else None,
-            notices=notices)
+            notices=notices, inputs=sensors)
         self.latest = est
         return est
 

@@ -35,6 +35,15 @@ callback ever raises: a failure is logged, counted and shown in the
 diagnostics. At shutdown one summary line (samples received and rejected per
 input, gaps, clock jumps) goes to stderr.
 
+With ``foxglove_address`` (HOST:PORT) the node also serves the Foxglove view
+(:mod:`wet_eha_thermal.live_view`): each estimate, alert summary and count of
+the inputs goes to it after everything ROS gets, through a bounded hand-off
+where the newest wins; the view's thread and the Foxglove SDK do the rest. An
+address in use is one error line, and the node estimates without the view.
+Foxglove may set the publication rates (``FOXGLOVE_SETTABLE``), applied here
+on the node's thread as a ROS parameter change; thresholds and limits are
+shown read-only.
+
 Run it with ``wet-eha-thermal-estimator --ros-args --params-file
 config/estimator.params.yaml`` or ``python -m wet_eha_thermal.ros.estimator_node``.
 """
@@ -54,6 +63,7 @@ from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescr
                                 ParameterType, SetParametersResult)
 from rclpy.exceptions import NameValidationException, ParameterException
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import FluidPressure, Temperature
@@ -61,6 +71,7 @@ from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension, String
 from wet_eha_thermal.bag import cdr
 from wet_eha_thermal.config import ConfigError, load_config
 from wet_eha_thermal.estimator.core import Estimate, Estimator
+from wet_eha_thermal.live_view import app_url, LiveView, parse_address
 from wet_eha_thermal.ros import topics
 from wet_eha_thermal.ros.runtime import (accept_whole_numbers, EXECUTORS, FastClock,
                                          prepare_model_step, Readiness, run_node)
@@ -110,7 +121,16 @@ PARAMETERS = {
     'executor': ('events', _str_param(
         "executor used by main(): 'events' (rclpy.experimental.EventsExecutor) or 'single' "
         '(SingleThreadedExecutor); the --executor option overrides it')),
+    'foxglove_address': ('', _str_param(
+        'Foxglove WebSocket server of the live view (wet_eha_thermal/live_view.py), HOST:PORT, '
+        "e.g. 127.0.0.1:8765 (port 0: any free one); '' = no server")),
+    'foxglove_inputs_rate_Hz': (20.0, _float_param(
+        'rate of the inputs, input health and thermocouples in the Foxglove view (averaged '
+        'over windows of sample time)', 1.0, 50.0)),
 }
+#: Parameters Foxglove may set: rates of publication only, which change what is shown,
+#: never what is estimated or when an alert is raised (those stay read-only there).
+FOXGLOVE_SETTABLE = ('publish_rate_Hz', 'diagnostics_rate_Hz', 'foxglove_inputs_rate_Hz')
 
 
 def _stamp_msg(ns: int) -> TimeMsg:
@@ -154,6 +174,12 @@ class EstimatorNode(Node):
         if p['executor'] not in EXECUTORS:
             raise ValueError(f"parameter executor = {p['executor']!r}: expected one of "
                              f'{", ".join(EXECUTORS)}')
+        view_at = None         # checked before the model's slow start
+        if p['foxglove_address']:
+            try:
+                view_at = parse_address(p['foxglove_address'])
+            except ValueError as exc:
+                raise ValueError(f'parameter foxglove_address = {exc}') from None
         self.cfg = load_config(p['config_file'] or None)
         self.est = Estimator(self.cfg)
         # before any subscription or publisher: a first step that compiled would keep
@@ -227,9 +253,13 @@ class EstimatorNode(Node):
         self.publish_timer = self.create_timer(1.0 / p['publish_rate_Hz'], self._on_tick)
         self.diag_timer = self.create_timer(1.0 / p['diagnostics_rate_Hz'], self._on_diagnostics)
         self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.view_error = ''
+        self.view = self._start_view(view_at, p) if view_at is not None else None
         self._publish_alerts(force=True)
         self.readiness = Readiness(self, self._topic(topics.READY_TOPIC), input_subs,
-                                   self.hardware_id, require_all=True)
+                                   self.hardware_id, require_all=True,
+                                   extra={'foxglove': self.view.url if self.view else None,
+                                          'foxglove_error': self.view_error})
         self.get_logger().info(
             f"estimating {len(topics.ESTIMATES)} temperatures at {p['publish_rate_Hz']:g} Hz "
             f"from {self.prefix or '/'}/* ({p['qos']} QoS, depth {p['qos_depth']}); config "
@@ -249,6 +279,39 @@ class EstimatorNode(Node):
         if stamp.sec == 0 and stamp.nanosec == 0:
             return self._now_s()
         return _stamp_s(stamp)
+
+    def _start_view(self, address: tuple, p: Dict[str, object]) -> Optional[LiveView]:
+        """
+        Start the Foxglove view at ``address`` (host, port) with parameters ``p`` shown.
+
+        An address in use is one error line and None: the node estimates without it.
+        """
+        host, port = address
+        limits = {f'limits.{q}_C': v for q, v in self.est.limits_C.items()}
+        alerts = {f'alerts.{r.quantity}.{k}': getattr(r, k) for r in self.est.alerts.rules
+                  for k in ('warn_C', 'critical_C', 'hysteresis_K', 'min_duration_s', 'latch')}
+        settable = {n: (PARAMETERS[n][1].floating_point_range[0].from_value,
+                        PARAMETERS[n][1].floating_point_range[0].to_value)
+                    for n in FOXGLOVE_SETTABLE}
+        try:
+            view = LiveView(host, port, estimates=topics.ESTIMATES, limited=LIMITED,
+                            inputs=self.est.inputs, thermocouples=topics.THERMOCOUPLES,
+                            inputs_rate_Hz=p['foxglove_inputs_rate_Hz'], prefix=self.prefix,
+                            parameters={**p, **alerts, **limits}, settable=settable)
+        except RuntimeError as exc:
+            self.view_error = f'{host}:{port}: {exc}'
+            self.get_logger().error(f'Foxglove view not started on {self.view_error}; '
+                                    'estimating without it')
+            return None
+        self.get_logger().info(f'Foxglove view on {view.url}: open '
+                               f'{app_url(host, view.port)}')
+        return view
+
+    def destroy_node(self) -> None:
+        """Stop the Foxglove view, then destroy the node."""
+        if self.view is not None:
+            self.view.close()
+        super().destroy_node()
 
     def _failed(self, where: str, exc: BaseException) -> None:
         self.callback_errors[where] = self.callback_errors.get(where, 0) + 1
@@ -332,14 +395,30 @@ class EstimatorNode(Node):
                     self.diag_timer.timer_period_ns = int(1e9 / param.value)
                 elif param.name == 'background_budget_ms':
                     self.budget_s = param.value * 1e-3
+                elif param.name == 'foxglove_inputs_rate_Hz' and self.view is not None:
+                    self.view.inputs_rate_Hz = param.value
+            if self.view is not None:
+                self.view.show_parameters({q.name: q.value for q in params
+                                           if q.name in PARAMETERS})
         except Exception as exc:  # noqa: B902
             return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)
+
+    def _apply_view_requests(self) -> None:
+        """Set the parameters Foxglove asked for, here on the node's thread, as ROS would."""
+        for name, value in self.view.take_requests().items():
+            result = self.set_parameters([Parameter(name, value=value)])[0]
+            if not result.successful:
+                self.get_logger().warning(f'Foxglove set {name} = {value:g}: refused: '
+                                          f'{result.reason}')
+                self.view.show_parameters({name: self.get_parameter(name).value})
 
     # ---------------------------------------------------------- publishing
     def _on_tick(self) -> None:
         """Step to the ROS clock (silent inputs go stale) and publish."""
         try:
+            if self.view is not None:
+                self._apply_view_requests()
             now = self._now_s()
             if now is None:
                 return
@@ -419,6 +498,9 @@ class EstimatorNode(Node):
                     self._publish_state()
             if estimates or now is not None:
                 self._publish_alerts()
+            if estimates and self.view is not None:
+                # after everything ROS gets: the view never delays an estimate
+                self.view.offer(estimates[-1], dict(self.est.measured_C))
         except Exception as exc:  # noqa: B902
             self._failed('publish', exc)
         if estimates:
@@ -471,7 +553,10 @@ class EstimatorNode(Node):
         summary['clock_jumps'] = self.est.clock_jumps
         summary['events'] = self._pending_events
         self._pending_events = []
-        self.alert_pub.publish(String(data=json.dumps(_json_safe(summary))))
+        data = _json_safe(summary)
+        self.alert_pub.publish(String(data=json.dumps(data)))
+        if self.view is not None:
+            self.view.offer_alerts(data)
 
     # --------------------------------------------------------- diagnostics
     def _status(self, name: str, level: int, message: str, values) -> DiagnosticStatus:
@@ -490,6 +575,9 @@ class EstimatorNode(Node):
             if self.est.correction is not None:
                 arr.status += [self._thermocouple_status(tc) for tc in topics.THERMOCOUPLES]
             self.diag_pub.publish(arr)
+            if self.view is not None:
+                self.view.offer_health({n: (h.received, h.rejected)
+                                        for n, h in self.est.health.items()})
         except Exception as exc:  # noqa: B902
             self._failed('diagnostics', exc)
 
@@ -555,8 +643,18 @@ class EstimatorNode(Node):
                    ('forecast failures', self.est.forecast_failures),
                    ('background errors', self.background_errors),
                    ('callback errors', sum(self.callback_errors.values())),
-                   ('samples before the clock', self.waiting_for_clock)]
+                   ('samples before the clock', self.waiting_for_clock),
+                   ('foxglove view', self._view_text())]
         return self._status('estimate', level, message, values)
+
+    def _view_text(self) -> str:
+        """Return the Foxglove view's state in words, for the diagnostics."""
+        v = self.view
+        if v is None:
+            return f'not started: {self.view_error}' if self.view_error else 'off'
+        text = (f'{v.url}, {len(v.watched())} channels watched; {v.shown} of {v.offered} '
+                'estimates shown')
+        return text + (f'; {v.errors} errors (last: {v.last_error})' if v.errors else '')
 
     def _correction_values(self) -> list:
         """Return the estimate status's key-values of the live correction."""

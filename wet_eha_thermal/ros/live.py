@@ -9,7 +9,11 @@ ROS node on this machine from one picked by the process id; discovery
 limited to this machine), and a small node in this process that follows the
 ready topic, the estimates, the alerts and /diagnostics and prints one status
 line about twice a second (updated in place on a terminal, one line every few
-seconds otherwise).
+seconds otherwise). The estimator also serves the Foxglove view
+(:mod:`wet_eha_thermal.live_view`) at ``foxglove`` (127.0.0.1:8765 by
+default); :func:`run` prints the address to open. An address already in use
+is one line on stderr, and the run goes on without the view: the twin
+matters more than its display.
 
 First it compiles the model's and the estimator's numba kernels (or loads
 them from numba's cache: about a second), so that the children load them
@@ -37,7 +41,7 @@ outlives it.
 """
 
 import ctypes
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import json
 import math
 import os
@@ -45,11 +49,12 @@ from pathlib import Path
 import re
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import tempfile
 import time
-from typing import Dict, List, Optional, TextIO
+from typing import Dict, List, Optional, TextIO, Tuple
 
 from diagnostic_msgs.msg import DiagnosticArray
 import rclpy
@@ -62,6 +67,7 @@ from std_msgs.msg import String
 from wet_eha_thermal.bag.reader import BagError, open_bag
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.estimator.warmup import compile_estimator
+from wet_eha_thermal.live_view import address_text, app_url
 from wet_eha_thermal.ros import topics
 from wet_eha_thermal.ros.recorder_node import default_output
 from wet_eha_thermal.ros.topics import ESTIMATOR_NODE, RECORDER_NODE, RIG_NODE
@@ -87,6 +93,7 @@ ESTIMATE_STATUS = 'wet_eha_thermal: estimate'
 INPUT_STATUS = 'wet_eha_thermal: input '
 RIG_STATUS = 'eha_sim_rig: rig'
 PARAMS_FILE = Path(__file__).resolve().parents[2] / 'config' / 'estimator.params.yaml'
+LIVE_LAYOUT = Path(__file__).resolve().parents[2] / 'layouts' / 'live.json'
 
 
 @dataclass
@@ -102,6 +109,7 @@ class LiveOptions:
     executor: str = 'events'
     record: bool = True
     record_path: Optional[Path] = None      # None: the bag directory runs/live_<UTC time>
+    foxglove: Optional[Tuple[str, int]] = ('127.0.0.1', 8765)    # None: no Foxglove view
 
 
 def domain_from_env() -> Optional[int]:
@@ -177,6 +185,8 @@ def child_commands(opts: LiveOptions, hardware_id: str,
     if PARAMS_FILE.is_file():
         est += ['--params-file', str(PARAMS_FILE)]
     est += ['-p', 'qos:=reliable', '-p', f'hardware_id:={hardware_id}']
+    if opts.foxglove is not None:
+        est += ['-p', f'foxglove_address:={address_text(*opts.foxglove)}']
     rec = [py, '-m', 'wet_eha_thermal.ros.recorder_node', '--executor', 'events', '--ros-args']
     if PARAMS_FILE.is_file():
         rec += ['--params-file', str(PARAMS_FILE), '-p', f'params_file:={PARAMS_FILE}']
@@ -192,6 +202,29 @@ def child_commands(opts: LiveOptions, hardware_id: str,
     if record_path is not None:
         commands['recorder'] = rec
     return commands
+
+
+def address_taken(host: str, port: int) -> Optional[str]:
+    """Return why ``host:port`` cannot be listened on now, or None when it can."""
+    family = socket.AF_INET6 if ':' in host else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as sock:
+        # as the server binds: a port a finished run left in TIME_WAIT is free
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            sock.bind((host, port))
+        except OSError as exc:
+            return exc.strerror or str(exc)
+    return None
+
+
+def foxglove_lines(host: str, port: int) -> List[str]:
+    """Return the lines that tell where to watch the live view in Foxglove."""
+    url = f'ws://{address_text(host, port)}'
+    # an install from a wheel has no source tree: colcon puts the layouts in share/
+    layout = LIVE_LAYOUT if LIVE_LAYOUT.is_file() else 'layouts/live.json of the sources'
+    return [f'Foxglove view: open {app_url(host, port)}',
+            f'  (Foxglove desktop: Open connection > Foxglove WebSocket > {url}); layout: '
+            f'Import from file {layout}']
 
 
 def waited_nodes(recording: bool) -> List[str]:
@@ -490,7 +523,7 @@ def _monitor_node(context, state: TwinState):
                              lambda m: state.on_diagnostics(m.status), QoSProfile(depth=20))
     node.create_subscription(String, topics.READY_TOPIC,
                              lambda m: state.on_ready(m.data, time.monotonic()),
-                             topics.latched_qos())
+                             topics.latched_qos(depth=10))
     return node
 
 
@@ -611,6 +644,15 @@ def summary(opts: LiveOptions, state: TwinState, children: List[Child], run_s: f
     if recording is not None:
         text = recording_text(recording) if recording.exists() else f'{recording}: not written'
         out.append(f'  recording       {text}')
+    if opts.foxglove is not None:
+        said = state.ready.get(ESTIMATOR_NODE, {})
+        if said.get('foxglove'):
+            text = f'{said["foxglove"]}, served by the estimator'
+        elif said.get('foxglove_error'):
+            text = f'not started: {said["foxglove_error"]}'
+        else:
+            text = 'unknown: the estimator never said it was ready'
+        out.append(f'  foxglove view   {text}')
     return out
 
 
@@ -622,6 +664,12 @@ def run(opts: LiveOptions, out: TextIO = sys.stdout, err: TextIO = sys.stderr,
     ``domain``: the ROS domain to use; None picks a free one (see :func:`open_domain`).
     Returns 2 at once when the recording's path exists (file or directory).
     """
+    if opts.foxglove is not None:
+        taken = address_taken(*opts.foxglove)
+        if taken:
+            print(f'Foxglove view: {address_text(*opts.foxglove)}: {taken}; the twin runs '
+                  'without it (--foxglove HOST:PORT for another address)', file=err, flush=True)
+            opts = replace(opts, foxglove=None)
     record_path = None
     if opts.record:
         record_path = Path(opts.record_path or default_output('live')).resolve()
@@ -652,6 +700,8 @@ def run(opts: LiveOptions, out: TextIO = sys.stdout, err: TextIO = sys.stderr,
         context, domain = open_domain(domain)
         print(f'Live digital twin: {_what(opts)} on the simulated rig for {opts.duration_s:g} s '
               f'(Ctrl-C stops it earlier), ROS domain {domain}', file=out, flush=True)
+        if opts.foxglove is not None:
+            print('\n'.join(foxglove_lines(*opts.foxglove)), file=out, flush=True)
         env = dict(os.environ)
         env.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
                    PYTHONUNBUFFERED='1', RCUTILS_COLORIZED_OUTPUT='0')

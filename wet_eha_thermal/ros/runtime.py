@@ -67,14 +67,16 @@ class Readiness:
     every one whose topic has a publisher in the graph (at least one). The
     simulated rig starts its duty only after the nodes it waits for said so
     (``wait_for``), so that no sample is published before anyone listens.
+    ``extra``: more keys of the ready message (what the node serves, say).
     """
 
     def __init__(self, node: Node, topic: str, subscriptions: Sequence,
-                 hardware_id: str, require_all: bool) -> None:
+                 hardware_id: str, require_all: bool, extra: Optional[dict] = None) -> None:
         self.node = node
         self.subscriptions = list(subscriptions)
         self.require_all = require_all
         self.hardware_id = hardware_id
+        self.extra = dict(extra or {})
         self.ready = False
         self.publisher = node.create_publisher(String, topic, topics.latched_qos())
         self._timer = node.create_timer(0.1, self.check,
@@ -92,7 +94,8 @@ class Readiness:
         self.ready = True
         self._timer.cancel()
         self.publisher.publish(String(data=json.dumps({
-            'node': self.node.get_name(), 'ready': True, 'hardware_id': self.hardware_id,
+            **self.extra, 'node': self.node.get_name(), 'ready': True,
+            'hardware_id': self.hardware_id,
             'matched_topics': sorted(s.topic_name for s in subs)})))
         self.node.get_logger().info(f'ready: {len(subs)} input topics matched')
         return True

@@ -98,9 +98,15 @@ def input_qos(kind: str, depth: int = 100):
     raise ValueError(f'qos {kind!r}: expected sensor_data or reliable')
 
 
-def latched_qos():
-    """Return the QoS of the alert topic: reliable, transient local, last message kept."""
+def latched_qos(depth: int = 1):
+    """
+    Return the QoS of the alert and ready topics: reliable, transient local, last kept.
+
+    A subscriber to a topic several nodes latch on (the ready topic) takes a
+    ``depth`` of one per node: with 1, messages that arrive together replace
+    each other before its callback runs.
+    """
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
                       reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.TRANSIENT_LOCAL)

@@ -1,0 +1,493 @@
+"""
+The Foxglove view (:mod:`wet_eha_thermal.live_view`) seen by a WebSocket client, and the layouts.
+
+The client speaks the Foxglove WebSocket protocol with the ``websockets``
+package: it reads ``serverInfo`` and ``advertise``, subscribes, and decodes
+the binary message frames (opcode 1, subscription id, log time, JSON). Real
+estimates of the estimator core are fed to a view on a free port. Every wait
+has a timeout; nothing sleeps to synchronise.
+"""
+
+import dataclasses
+import json
+from pathlib import Path
+import re
+import socket
+import struct
+import time
+
+import numpy as np
+import pytest
+from websockets.sync.client import connect
+from wet_eha_thermal.config import load_config
+from wet_eha_thermal.estimator.core import Estimator
+from wet_eha_thermal.live_view import (address_text, app_url, BAND_SIGMAS, CHANNELS, LiveView,
+                                       parse_address, PENDING_ESTIMATES, view_topics)
+from wet_eha_thermal.ros import topics
+from wet_eha_thermal.ros.estimator_node import LIMITED
+from wet_eha_thermal.ros.recorder_node import message_class, recorded_topics
+
+ROOT = Path(__file__).resolve().parents[1]
+SUBPROTOCOL = 'foxglove.sdk.v1'    # foxglove-sdk's server refuses foxglove.websocket.v1
+TIMEOUT_S = 10.0
+RATE_HZ = 1000.0
+# the oil crosses this early on: a WARN event and an alert timeline to check
+ALERTS = {'estimator.alerts.oil.warn_C': 21.0, 'estimator.alerts.oil.critical_C': 60.0,
+          'estimator.alerts.oil.min_duration_s': 0.5}
+
+
+def _summary(est, events):
+    """Return the alert summary as the estimator node publishes it (JSON-ready)."""
+    s = est.alerts.summary()
+    s['level'] = int(s['level'])
+    s.update(events=list(events), clock_jumps=est.clock_jumps,
+             data_gaps={'open_since_s': est.gaps.open_since_s})
+    return s
+
+
+def _feed(est, t0, seconds, items):
+    """
+    Feed every input at 1 kHz over (t0, t0 + seconds] and a frame reading; return the end.
+
+    As live: 20 ms of samples at a time, then the model steps, one step per
+    call, with the clock at the last sample. Each estimate goes to ``items``
+    as ``(estimate, thermocouple readings, alert summary or None)``, the
+    summary as the node publishes it: when the level changed or events came.
+    """
+    est.add_measured('frame', t0, 21.5)
+    for k in range(int(round(seconds / 0.02))):
+        t = t0 + 0.02 * k + np.arange(1, 21) / RATE_HZ
+        signals = {'current_A': 25.0 + 5.0 * np.sin(2 * np.pi * 3.0 * t),
+                   'speed_rad_s': 800.0 + 50.0 * np.sin(t), 'p_a_Pa': np.full_like(t, 3e6),
+                   'p_b_Pa': np.full_like(t, 1e6), 'p_acc_Pa': np.full_like(t, 1e6),
+                   'position_m': 0.002 * np.sin(t)}
+        for name in est.inputs:
+            est.add_many(name, t, signals[name], now_s=float(t[-1]))
+        for e in est.advance(float(t[-1]), max_steps=1):
+            summary = None
+            if e.alert_events or not items or e.alert_level != items[-1][0].alert_level:
+                summary = _summary(est, [ev.message for ev in e.alert_events])
+            items.append((e, dict(est.measured_C), summary))
+    return float(t[-1])
+
+
+@pytest.fixture(scope='module')
+def run():
+    """
+    Return ``[(estimate, measured, summary or None)]``: 4 s of a real estimator.
+
+    The forecast and the margin are completed after 3 s, so the later
+    estimates carry a time to limit and a margin current.
+    """
+    est = Estimator(load_config(overrides=ALERTS))
+    items = []
+    t = _feed(est, 0.0, 3.0, items)
+    deadline = time.monotonic() + 60.0
+    while items[-1][0].margin_current_A is None or items[-1][0].forecast_stamp_s is None:
+        assert time.monotonic() < deadline, 'no forecast and margin within 60 s'
+        est.background(0.5)
+        t = _feed(est, t, 0.02, items)
+    _feed(est, t, 1.0, items)
+    assert any(e.time_to_limit_s.get(q) is not None for e, _, _ in items for q in LIMITED)
+    assert any(s and s['events'] for _, _, s in items), 'no alert event'
+    return items
+
+
+def _wait(condition, timeout=TIMEOUT_S):
+    """Poll ``condition()`` until it is true; fail after ``timeout`` s."""
+    end = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < end, 'timed out'
+        time.sleep(0.005)
+
+
+@pytest.fixture
+def view():
+    v = LiveView('127.0.0.1', 0, estimates=topics.ESTIMATES, limited=LIMITED,
+                 inputs=('current_A', 'speed_rad_s', 'p_a_Pa', 'p_b_Pa', 'p_acc_Pa',
+                         'position_m'),
+                 thermocouples=topics.THERMOCOUPLES, inputs_rate_Hz=20.0,
+                 parameters={'publish_rate_Hz': 50.0, 'alerts.oil.warn_C': 21.0,
+                             'topic_prefix': '/eha'},
+                 settable={'publish_rate_Hz': (1.0, 500.0)})
+    yield v
+    v.close()
+
+
+class Client:
+    """A Foxglove WebSocket client: the advertised channels, subscriptions, decoded messages."""
+
+    def __init__(self, port, **kwargs):
+        self.ws = connect(f'ws://127.0.0.1:{port}', subprotocols=[SUBPROTOCOL], proxy=None,
+                          open_timeout=TIMEOUT_S, close_timeout=1.0, **kwargs).__enter__()
+        self.info = None
+        self.channels = {}       # topic -> advertised channel
+        self.ops = []            # other text messages (status, parameterValues)
+        self.subscribed = {}     # subscription id -> topic
+        self.received = []       # (topic, log time ns, message)
+        self.last = {}           # topic -> its last message
+
+    def close(self):
+        self.ws.__exit__(None, None, None)
+
+    def drain(self, wait=0.0):
+        """Take the frames that arrive within ``wait`` s, then those already there."""
+        while True:
+            try:
+                frame = self.ws.recv(timeout=wait)
+            except TimeoutError:
+                return
+            wait = 0.0
+            if isinstance(frame, bytes):
+                assert frame[0] == 1, f'unexpected binary opcode {frame[0]}'
+                sub, log_time = struct.unpack_from('<IQ', frame, 1)
+                topic, msg = self.subscribed[sub], json.loads(frame[13:].decode())
+                self.received.append((topic, log_time, msg))
+                self.last[topic] = msg
+                continue
+            msg = json.loads(frame)
+            if msg['op'] == 'serverInfo':
+                self.info = msg
+            elif msg['op'] == 'advertise':
+                self.channels.update({c['topic']: c for c in msg['channels']})
+            else:
+                self.ops.append(msg)
+
+    def read(self, until, timeout=TIMEOUT_S):
+        """Read frames until ``until()`` is true; fail after ``timeout`` s."""
+        end = time.monotonic() + timeout
+        while not until():
+            assert time.monotonic() < end, 'timed out waiting for the server'
+            # a short wait: ``until`` may also act (offer, publish) until it holds
+            self.drain(0.05)
+
+    def subscribe(self, names):
+        subs = []
+        for name in names:
+            sub = len(self.subscribed) + 1
+            self.subscribed[sub] = name
+            subs.append({'id': sub, 'channelId': self.channels[name]['id']})
+        self.ws.send(json.dumps({'op': 'subscribe', 'subscriptions': subs}))
+
+    def messages(self, topic):
+        return [(t, m) for name, t, m in self.received if name == topic]
+
+
+def _advertised(view):
+    client = Client(view.port)
+    client.read(lambda: len(client.channels) == len(CHANNELS))
+    return client
+
+
+def _offer(view, items):
+    """Offer ``items`` as the node does, each once the worker took the one before."""
+    for e, measured, summary in items:
+        if summary is not None:
+            view.offer_alerts(summary)
+        view.offer(e, measured)
+        _wait(lambda: view.shown == view.offered)
+
+
+def _conforms(value, schema, where):
+    """Assert that ``value`` has exactly the schema's properties, with their types."""
+    kinds = schema.get('type')
+    kinds = kinds if isinstance(kinds, list) else [kinds]
+    python = {'object': dict, 'number': (int, float), 'integer': int, 'string': str,
+              'boolean': bool, 'null': type(None)}
+    assert any(isinstance(value, python[k]) and not (k in ('number', 'integer')
+                                                     and isinstance(value, bool))
+               for k in kinds), f'{where}: {value!r} is not {kinds}'
+    if 'enum' in schema:
+        assert value in schema['enum'], f'{where}: {value!r} not in {schema["enum"]}'
+    if isinstance(value, dict):
+        assert set(value) == set(schema['properties']), where
+        for k, v in value.items():
+            _conforms(v, schema['properties'][k], f'{where}.{k}')
+
+
+def test_address_parsing_and_url():
+    assert parse_address('127.0.0.1:8765') == ('127.0.0.1', 8765)
+    assert parse_address('[::1]:9000') == ('::1', 9000)
+    for bad in ('8765', 'localhost', 'host:port', ':80', 'h:70000'):
+        with pytest.raises(ValueError, match='HOST:PORT'):
+            parse_address(bad)
+    assert app_url('127.0.0.1', 8765) == ('https://app.foxglove.dev/?ds=foxglove-websocket'
+                                          '&ds.url=ws://127.0.0.1:8765')
+    assert parse_address(address_text('::1', 8765)) == ('::1', 8765)
+
+
+def test_taken_port_is_a_clear_error(view):
+    with pytest.raises(RuntimeError, match='in use'):
+        LiveView('127.0.0.1', view.port, estimates=(), limited=(), inputs=(),
+                 thermocouples={})
+
+
+def test_channels_and_schemas_are_advertised(view):
+    client = _advertised(view)
+    try:
+        assert 'parameters' in client.info['capabilities']
+        for name, topic in view_topics().items():
+            c = client.channels[topic]
+            assert c['encoding'] == 'json' and c['schemaEncoding'] == 'jsonschema'
+            assert c['schemaName'] == CHANNELS[name]
+            assert json.loads(c['schema']) == view.schemas[name]
+        limits = view.schemas['limits']['properties']
+        assert set(LIMITED) <= set(limits) and 'margin_current_A' in limits
+        assert set(view.schemas['thermocouples']['properties']) >= set(topics.THERMOCOUPLES)
+    finally:
+        client.close()
+
+
+def test_messages_match_the_estimates(view, run):
+    items = run
+    client = _advertised(view)
+    try:
+        names = view_topics()
+        client.subscribe(names.values())
+        _wait(lambda: len(view.watched()) == len(CHANNELS))
+        _offer(view, items)
+        last = items[-1][0].step
+        client.read(lambda: client.last.get(names['thermocouples'], {}).get('step') == last)
+    finally:
+        client.close()
+    by_step = {e.step: (e, measured) for e, measured, _ in items}
+    for name, topic in names.items():
+        got = client.messages(topic)
+        assert got, f'nothing on {topic}'
+        for log_time, m in got:
+            _conforms(m, view.schemas[name], topic)
+            if name != 'events':      # sample time, the estimate's stamp
+                e = by_step[m['step']][0]
+                assert log_time == round(e.stamp_s * 1e9)
+                assert m['timestamp'] == {'sec': log_time // 10**9, 'nsec': log_time % 10**9}
+    assert view.errors == 0, view.last_error
+    temps = client.messages(names['temperatures'])
+    assert len(temps) == len(items)             # nothing dropped at this pace
+    for _, m in temps:
+        e = by_step[m['step']][0]
+        for n in topics.ESTIMATES:
+            sigma = e.uncertainty_K[n]
+            assert m[n]['estimate_C'] == e.temperatures_C[n] and m[n]['sigma_K'] == sigma
+            assert m[n]['band_high_C'] == pytest.approx(e.temperatures_C[n]
+                                                        + BAND_SIGMAS * sigma)
+    for _, m in client.messages(names['limits']):
+        e = by_step[m['step']][0]
+        assert m['margin_current_A'] == e.margin_current_A
+        for q in LIMITED:
+            assert m[q]['margin_K'] == pytest.approx(e.limits_C[q] - e.temperatures_C[q])
+            ttl = e.time_to_limit_s.get(q)
+            if ttl is None:
+                assert m[q]['time_to_limit_s'] is None
+            else:
+                assert m[q]['time_to_limit_s'] == pytest.approx(
+                    max(ttl - (e.stamp_s - e.forecast_stamp_s), 0.0))
+    assert client.messages(names['limits'])[-1][1]['margin_current_A'] is not None
+    # the alert timeline: the oil's WARN is raised when the estimator raised it
+    raised = next(e for e, _, _ in items if any(ev.kind == 'raised' for ev in e.alert_events))
+    levels = {m['step']: m['oil']['reported'] for _, m in client.messages(names['alerts'])}
+    assert levels[raised.step] == 'WARN' and levels[raised.step - 1] == 'OK'
+    events = [m for _, m in client.messages(names['events'])]
+    assert any('oil' in m['message'] and m['level'] == 3 for m in events), events
+    # inputs: the mean of each window of 50 ms of sample time (the current: RMS)
+    inputs = client.messages(names['inputs'])
+    span_s = items[-1][0].stamp_s - items[0][0].stamp_s
+    assert abs(len(inputs) - 20.0 * span_s) <= 2     # at 20 Hz of sample time
+    steps = [m['step'] for _, m in inputs]
+    for prev, (_, m) in zip(steps, inputs[1:]):
+        window = [by_step[k][0].inputs for k in range(prev + 1, m['step'] + 1)]
+        current = np.concatenate([w['current_A'] for w in window])
+        assert m['current_A'] == pytest.approx(np.sqrt(np.mean(current ** 2)), rel=1e-12)
+        speed = np.concatenate([w['speed_rad_s'] for w in window])
+        assert m['speed_rad_s'] == pytest.approx(speed.mean(), rel=1e-12)
+    # the thermocouples beside their estimates
+    _, m = client.messages(names['thermocouples'])[-1]
+    e, measured = by_step[m['step']]
+    assert m['frame']['measured_C'] == measured['frame'][1] == 21.5
+    assert m['frame']['error_K'] == pytest.approx(e.temperatures_C['frame'] - 21.5)
+    assert m['winding']['measured_C'] is None
+    health = client.messages(names['input_health'])[-1][1]
+    assert health['current_A']['state'] == 'OK' and health['stale_count'] == 0
+
+
+def test_parameters_are_shown_and_the_safe_ones_settable(view):
+    client = _advertised(view)
+    try:
+        client.ws.send(json.dumps({'op': 'getParameters', 'parameterNames': [], 'id': 'g'}))
+        client.read(lambda: any(o.get('id') == 'g' for o in client.ops))
+        shown = {p['name']: p['value'] for p in client.ops[-1]['parameters']}
+        assert shown == {'publish_rate_Hz': 50.0, 'alerts.oil.warn_C': 21.0,
+                         'topic_prefix': '/eha'}
+        client.ws.send(json.dumps({'op': 'setParameters', 'id': 's', 'parameters': [
+            {'name': 'publish_rate_Hz', 'value': 20}, {'name': 'alerts.oil.warn_C',
+                                                       'value': 200.0}]}))
+        client.read(lambda: any(o.get('id') == 's' for o in client.ops)
+                    and any(o['op'] == 'status' for o in client.ops))
+        answer = {p['name']: p['value'] for p in next(o for o in client.ops
+                                                      if o.get('id') == 's')['parameters']}
+        assert answer == {'publish_rate_Hz': 20.0, 'alerts.oil.warn_C': 21.0}
+        status = next(o for o in client.ops if o['op'] == 'status')
+        assert 'alerts.oil.warn_C is read-only' in status['message']
+        assert view.take_requests() == {'publish_rate_Hz': 20.0}
+        assert view.take_requests() == {}
+        # out of range: refused, the value kept
+        client.ws.send(json.dumps({'op': 'setParameters', 'id': 'r', 'parameters': [
+            {'name': 'publish_rate_Hz', 'value': 1e6}]}))
+        client.read(lambda: any(o.get('id') == 'r' for o in client.ops))
+        assert view.take_requests() == {}
+        # the owner confirms a value: subscribed clients hear it
+        client.ws.send(json.dumps({'op': 'subscribeParameterUpdates',
+                                   'parameterNames': ['publish_rate_Hz']}))
+        # the subscription is in place once a confirmation reaches the client
+        client.read(lambda: (view.show_parameters({'publish_rate_Hz': 25.0})
+                             or any(o['op'] == 'parameterValues' and 'id' not in o
+                                    for o in client.ops)), timeout=TIMEOUT_S)
+    finally:
+        client.close()
+
+
+def test_a_client_that_stops_reading_stalls_nothing(view, run):
+    e0, measured, _ = run[-1]
+    names = view_topics()
+    # max_queue=1: the client's reading thread stops at the first frame not taken, and
+    # TCP, with a small receive buffer, soon pushes back on the server
+    sock = socket.socket()
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    sock.connect(('127.0.0.1', view.port))
+    stalled = Client(view.port, max_queue=1, sock=sock)
+    stalled.read(lambda: len(stalled.channels) == len(CHANNELS))
+    stalled.subscribe(names.values())
+    _wait(lambda: len(view.watched()) == len(CHANNELS))
+    n = 3000      # about 10 MB of messages: more than the socket buffers and the backlog hold
+    worst = 0.0
+    start = time.monotonic()
+    for k in range(1, n + 1):
+        e = dataclasses.replace(e0, step=e0.step + k, stamp_s=e0.stamp_s + 0.02 * k)
+        t = time.perf_counter()
+        view.offer(e, measured)
+        worst = max(worst, time.perf_counter() - t)
+        if k % (PENDING_ESTIMATES // 2) == 0:
+            # at the worker's pace, so that every estimate goes out to the stalled client
+            _wait(lambda: view.shown == view.offered)
+    # a 50 Hz estimator has 20 ms per estimate: the hand-off takes a tiny part of it, and
+    # the worker went on although the client read nothing
+    assert worst < 0.01, worst
+    assert time.monotonic() - start < 40.0
+    fresh = _advertised(view)
+    later = [e0.step + n]
+
+    def offer_next():
+        """Offer one more estimate (the fresh subscription takes effect at some point)."""
+        later.append(later[-1] + 1)
+        k = later[-1] - e0.step
+        view.offer(dataclasses.replace(e0, step=later[-1], stamp_s=e0.stamp_s + 0.02 * k),
+                   measured)
+
+    try:
+        fresh.subscribe([names['temperatures']])
+        fresh.read(lambda: offer_next() or names['temperatures'] in fresh.last)
+        # the stalled client, reading again, gets the newest; the oldest were dropped for it
+        stalled.read(lambda: stalled.last.get(names['temperatures'], {}).get('step')
+                     == later[-1])
+        assert len(stalled.messages(names['temperatures'])) < n
+    finally:
+        fresh.close()
+        stalled.close()
+    assert view.errors == 0, view.last_error
+
+
+# ----------------------------------------------------------------- layouts
+_PATH_KEYS = ('value', 'path', 'topicPath', 'topicToRender')
+
+
+def message_paths(node):
+    """Yield every message path a layout's panel configurations name."""
+    if isinstance(node, dict):
+        for k, v in node.items():
+            if k in _PATH_KEYS and isinstance(v, str) and v.startswith('/'):
+                yield v
+            else:
+                yield from message_paths(v)
+    elif isinstance(node, list):
+        for v in node:
+            yield from message_paths(v)
+
+
+def split_path(path):
+    """Return ``(topic, [field, ...])`` of a message path, filters and slices dropped."""
+    text = re.sub(r'\{[^}]*\}|\[[^\]]*\]', '', re.sub(r'"[^"]*"', '""', path))
+    topic, _, rest = text.partition('.')
+    return topic, [f for f in rest.split('.') if f and not f.startswith('@')]
+
+
+def _json_fields_exist(schema, fields, path):
+    for f in fields:
+        assert f in schema.get('properties', {}), f'{path}: no field {f!r}'
+        schema = schema['properties'][f]
+
+
+def _ros_fields_exist(type_name, fields, path):
+    cls = message_class(type_name)
+    for f in fields:
+        types = cls.get_fields_and_field_types()
+        assert f in types, f'{path}: {type_name} has no field {f!r}'
+        kind = re.sub(r'^sequence<(.*)>$', r'\1', types[f])
+        if '/' not in kind:
+            break
+        pkg, name = kind.split('/')
+        cls = message_class(f'{pkg}/msg/{name}')
+        type_name = f'{pkg}/msg/{name}'
+
+
+def _layout(name):
+    """Return the layout file ``name``, checked: every panel placed is configured, and back."""
+    layout = json.loads((ROOT / 'layouts' / name).read_text())
+    assert set(layout) >= {'configById', 'layout', 'globalVariables', 'userNodes',
+                           'playbackConfig'}
+    config = layout['configById']
+    placed = []
+
+    def walk(node):
+        if isinstance(node, str):
+            placed.append(node)
+            for tab in config[node]['tabs'] if node.startswith('Tab!') else ():
+                walk(tab['layout'])
+        else:
+            walk(node['first'])
+            walk(node['second'])
+
+    walk(layout['layout'])
+    assert sorted(placed) == sorted(config), 'panels placed and configured differ'
+    # the gauges' dials end at the limits of the shipped configuration
+    limits = Estimator(load_config()).limits_C
+    for panel, cfg in config.items():
+        if panel.startswith('Gauge!') and panel[6:] in limits:
+            assert cfg['maxValue'] == limits[panel[6:]], panel
+    return layout
+
+
+def test_live_layout_names_only_channels_of_the_view(view):
+    layout = _layout('live.json')
+    by_topic = {topic: view.schemas[name] for name, topic in view_topics().items()}
+    paths = list(message_paths(layout['configById']))
+    assert len(paths) > 20
+    for path in paths:
+        topic, fields = split_path(path)
+        assert topic in by_topic, f'{path}: the view has no channel {topic}'
+        _json_fields_exist(by_topic[topic], fields, path)
+    panels = {k.split('!')[0] for k in layout['configById']}
+    assert {'Plot', 'Gauge', 'Indicator', 'Table', 'StateTransitions'} <= panels
+    # every channel of the view is shown somewhere
+    assert {split_path(p)[0] for p in paths} == set(by_topic)
+
+
+def test_replay_layout_names_only_recorded_topics():
+    layout = _layout('replay.json')
+    cfg_inputs = Estimator(load_config()).inputs
+    unused = {topics.INPUT_TOPICS[n] for n in topics.INPUT_TOPICS if n not in cfg_inputs}
+    recorded = {t: spec for t, spec in recorded_topics().items() if t not in unused}
+    paths = list(message_paths(layout['configById']))
+    assert len(paths) > 15
+    for path in paths:
+        topic, fields = split_path(path)
+        assert topic in recorded, f'{path}: a live recording has no topic {topic}'
+        _ros_fields_exist(recorded[topic][0], fields, path)
