@@ -1,5 +1,8 @@
 """Fixtures shared by the tests."""
 
+import importlib.util
+from pathlib import Path
+
 import pytest
 import rclpy
 from rclpy.context import Context
@@ -9,6 +12,25 @@ from wet_eha_thermal.model.kinetics import stage_duty
 from wet_eha_thermal.simulated_rig import SimulatedRig, write_rig_bag
 from wet_eha_thermal.simulation import compile_model
 import yaml
+
+
+# These start ROS nodes that find each other by discovery and time them; at import they set
+# ROS_DOMAIN_ID for their subprocesses. One xdist worker runs them one after another, as a
+# serial run does, so two of them never share a domain or the cores' slack at once.
+ROS_GRAPH_MODULES = ('test_estimator_node.py', 'test_live.py', 'test_player.py',
+                     'test_recorder.py')
+
+if importlib.util.find_spec('xdist'):
+    def pytest_xdist_make_scheduler(config, log):
+        """Send a test module whole to one worker (module fixtures run once), ROS ones together."""
+        from xdist.scheduler import LoadScopeScheduling
+
+        class ModuleScheduling(LoadScopeScheduling):
+            def _split_scope(self, nodeid):
+                module = nodeid.split('::', 1)[0]
+                return 'ros graph' if Path(module).name in ROS_GRAPH_MODULES else module
+
+        return ModuleScheduling(config, log)
 
 
 @pytest.fixture(scope='session', autouse=True)
