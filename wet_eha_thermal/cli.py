@@ -45,6 +45,44 @@ class Progress:
         self.stream.flush()
 
 
+def _add_duty_arguments(p: argparse.ArgumentParser, required: bool) -> None:
+    """Add the --stage | --duty choice (one of them; stage 6 when neither is required)."""
+    which = p.add_mutually_exclusive_group(required=required)
+    which.add_argument('--stage', type=int, default=None,
+                       help='reference stage number (1-6)' + ('' if required else '; default 6'))
+    which.add_argument('--duty', type=Path, metavar='FILE.csv',
+                       help='duty table: time_s, flow_L_min, load_MPa (repeats periodically)')
+
+
+def _add_dask_arguments(group, what: str) -> None:
+    """Add --workers N | --scheduler ADDRESS: where ``what`` run on Dask."""
+    group.add_argument('--workers', type=int, default=None, metavar='N',
+                       help=f'run the {what} on a local Dask cluster of N processes (default '
+                            'for a campaign: one per CPU)')
+    group.add_argument('--scheduler', default=None, metavar='ADDRESS',
+                       help=f'run the {what} on the Dask cluster of this scheduler, e.g. '
+                            'tcp://host:8786 (its workers must see the same paths)')
+
+
+def _add_maps_parser(sub) -> None:
+    """Add the ``maps`` command: steady-state maps."""
+    p = sub.add_parser('maps', help='steady-state motor temperatures versus speed and current',
+                       description='Steady-state winding, frame, magnet and oil temperatures of '
+                                   'the wet motor versus speed and versus current; prints two '
+                                   'tables, writes a CSV and a PNG plot.')
+    p.add_argument('--config', type=Path, default=None,
+                   help='YAML configuration (default: the reference rig)')
+    p.add_argument('--out', default='out/maps', help='output folder (default: %(default)s)')
+    p.add_argument('--oil-inlet-C', type=float, default=None,
+                   help='oil inlet temperature, degC (default: from config)')
+    p.add_argument('--oil-flow-L-min', type=float, default=None,
+                   help='oil flow through the motor, L/min (default: from config)')
+    p.add_argument('--ambient-C', type=float, default=None, help='ambient temperature, degC')
+    p.add_argument('--slices', type=int, default=None, help='axial slices of the stack')
+    p.add_argument('--fluid', default=None, help='oil grade (MIL-PRF-5606 or MIL-PRF-83282)')
+    p.set_defaults(func=_maps)
+
+
 def _maps(args: argparse.Namespace) -> int:
     from . import maps
 
@@ -80,6 +118,31 @@ def _maps(args: argparse.Namespace) -> int:
             print(f'  - {flag}')
     print(f'\nwrote {csv_path} and {png_path}')
     return 0
+
+
+def _add_simulate_parser(sub) -> None:
+    """Add the ``simulate`` command: a duty cycle run offline."""
+    p = sub.add_parser('simulate', help='temperatures over a duty cycle (a stage or a duty file)',
+                       description='Run the coupled thermal model over a duty cycle: a reference '
+                                   'stage or a duty CSV (columns time_s, flow_L_min, load_MPa). '
+                                   'Prints end and peak temperatures and when each limit is or '
+                                   'would be reached; writes a CSV and a PNG plot.')
+    _add_duty_arguments(p, required=True)
+    p.add_argument('--duration', type=float, default=3600.0,
+                   help='simulated time, s (default: %(default)g)')
+    p.add_argument('--ambient-C', type=float, default=20.0,
+                   help='ambient temperature, degC (default: %(default)g)')
+    p.add_argument('--initial-C', type=float, default=None,
+                   help='starting temperature of every node, degC (default: ambient)')
+    p.add_argument('--dt', type=float, default=1.0,
+                   help='thermal model step, s (default: %(default)g)')
+    p.add_argument('--sample-rate-Hz', type=float, default=200.0,
+                   help='sensor sample rate, Hz (default: %(default)g)')
+    p.add_argument('--config', type=Path, default=None,
+                   help='YAML configuration (default: the reference rig)')
+    p.add_argument('--out', default='out/simulate', help='output folder (default: %(default)s)')
+    p.add_argument('--fluid', default=None, help='oil grade (MIL-PRF-5606 or MIL-PRF-83282)')
+    p.set_defaults(func=_simulate)
 
 
 def _check_simulate_args(args: argparse.Namespace) -> None:
@@ -178,6 +241,42 @@ def _simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_live_parser(sub) -> None:
+    """Add the ``live`` command: the live twin."""
+    p = sub.add_parser('live', help='the live digital twin: estimator on the simulated rig',
+                       description='Run the live digital twin: the simulated rig (ROS 2 node '
+                                   'eha_sim_rig) publishes the sensor topics of a stage or a duty '
+                                   'file, the estimator (eha_thermal_estimator) follows them, and '
+                                   'a status line shows the estimated temperatures, margin, time '
+                                   'to limit, alerts and stale inputs. Ends after --duration or '
+                                   'on Ctrl-C with a summary. The recorder (eha_recorder) writes '
+                                   'the run to a rosbag2 bag of MCAP files. The nodes run on a '
+                                   'private ROS domain (from the process id, or '
+                                   '$WET_EHA_LIVE_DOMAIN_ID).')
+    _add_duty_arguments(p, required=False)
+    p.add_argument('--duration', type=float, default=60.0,
+                   help='how long to run, s (default: %(default)g)')
+    p.add_argument('--rate-Hz', type=float, default=1000.0,
+                   help='sensor sample rate of the rig, Hz (default: %(default)g)')
+    p.add_argument('--config', type=Path, default=None,
+                   help='YAML configuration of rig and estimator (default: the reference rig)')
+    p.add_argument('--no-noise', action='store_true', help='publish noise-free sensor values')
+    p.add_argument('--executor', choices=('events', 'single'), default='events',
+                   help='rclpy executor of both nodes (default: %(default)s)')
+    p.add_argument('--record', type=Path, default=None, metavar='PATH',
+                   help='recording of the run: a rosbag2 bag directory, as ros2 bag record -o '
+                        'makes, or one MCAP file when PATH ends in .mcap; never overwritten '
+                        '(default: runs/live_<UTC time>)')
+    p.add_argument('--no-record', action='store_true', help='do not record the run')
+    p.add_argument('--foxglove', default='127.0.0.1:8765', metavar='HOST:PORT',
+                   help='where the estimator serves the Foxglove view (estimates with their '
+                        'bands, margins, alerts, inputs, thermocouples; open it with '
+                        'layouts/live.json); live prints the address to open; one taken is '
+                        'one warning and the run goes on without it (default: %(default)s)')
+    p.add_argument('--no-foxglove', action='store_true', help='no Foxglove view')
+    p.set_defaults(func=_live)
+
+
 def _check_live_args(args: argparse.Namespace) -> None:
     """Raise :class:`BadArgument` for the first out-of-range option of ``live``."""
     from .model.kinetics import STAGES
@@ -229,6 +328,40 @@ def _live(args: argparse.Namespace) -> int:
                             executor=args.executor, record=not args.no_record,
                             record_path=args.record, foxglove=foxglove)
     return live.run(opts, domain=domain)
+
+
+def _add_replay_parser(sub) -> None:
+    """Add the ``replay`` command: replay of recorded bags."""
+    p = sub.add_parser('replay', help='run the estimator over recorded bags, offline',
+                       description='Replay a rosbag2-style MCAP (ours, or ros2 bag record -s mcap '
+                                   'with the same message types) through the estimator in sample '
+                                   'time, as fast as it goes. Writes estimates.csv and '
+                                   'estimates.mcap, and a report (report.md, PNG plots of inputs, '
+                                   'temperatures, errors against the thermocouples and alerts). '
+                                   'The configuration is --config, else the one stored in the '
+                                   'bag, else the reference rig. Several bags, or a folder of '
+                                   'them, are a campaign: replayed in parallel on Dask, each into '
+                                   'its own subfolder of --out, with a summary of all '
+                                   '(campaign.csv, campaign.md, campaign.png).')
+    p.add_argument('bag', type=Path, nargs='+',
+                   help='an MCAP file, a rosbag2 bag directory (its files as one run), or a '
+                        'folder of them')
+    p.add_argument('--out', default='out/replay', help='output folder (default: %(default)s)')
+    p.add_argument('--config', type=Path, default=None,
+                   help='YAML configuration (default: stored in the bag, else the reference rig)')
+    p.add_argument('--map', action='append', default=[], metavar='NAME=/TOPIC',
+                   help='topic of an input (current_A, speed_rad_s, p_a_Pa, p_b_Pa, p_acc_Pa, '
+                        'dp_Pa, position_m), a thermocouple (measured/frame, ...) or ambient; '
+                        'repeatable')
+    p.add_argument('--output-rate-Hz', type=float, default=10.0,
+                   help='rate of the estimates written (default: %(default)g; the model steps '
+                        'at 50 Hz)')
+    p.add_argument('--no-report', action='store_true', help='skip the plots and report.md')
+    p.add_argument('--open-loop', action='store_true',
+                   help='do not let the thermocouples correct the model (estimator.correction '
+                        'off): the errors against them then validate the model itself')
+    _add_dask_arguments(p.add_mutually_exclusive_group(), 'replays of a campaign')
+    p.set_defaults(func=_replay)
 
 
 def _replay(args: argparse.Namespace) -> int:
@@ -345,6 +478,39 @@ def _dask(args: argparse.Namespace):
         raise BadArgument(str(exc)) from None
 
 
+def _add_calibrate_parser(sub) -> None:
+    """Add the ``calibrate`` command: calibration on bench logs."""
+    p = sub.add_parser('calibrate', help='fit model parameters to the thermocouples of bench logs',
+                       description='Fit parameters of the thermal model (contact gaps, '
+                                   'convection, loss and leakage coefficients, heat capacities: '
+                                   'the keys with bounds in calibration.bounds) to the '
+                                   'thermocouples of one or more MCAP logs, check the result on '
+                                   'held-out logs, and write calibrated.yaml (loads as any '
+                                   'configuration; records each value, its 95 % interval and '
+                                   'the logs) and report.md with plots. Parameters the logs '
+                                   'cannot identify are held at their nominal values.')
+    p.add_argument('logs', type=Path, nargs='+', metavar='LOG',
+                   help='logs to fit on: MCAP files or rosbag2 bag directories')
+    p.add_argument('--validate', type=Path, nargs='+', default=[], metavar='LOG',
+                   help='held-out logs (files or bag directories): errors before and after, '
+                        'not fitted')
+    p.add_argument('--fit', nargs='+', default=None, metavar='KEY',
+                   help='dotted keys to fit, each with bounds in calibration.bounds (default: '
+                        'calibration.fit)')
+    p.add_argument('--config', type=Path, default=None,
+                   help='YAML configuration (default: stored in the first log, else the '
+                        'reference rig)')
+    p.add_argument('--map', action='append', default=[], metavar='NAME=/TOPIC',
+                   help='topic of an input, a thermocouple (measured/frame, ...) or ambient, as '
+                        'for replay; repeatable')
+    p.add_argument('--out', default='out/calibrate', help='output folder (default: %(default)s)')
+    where = p.add_mutually_exclusive_group()
+    where.add_argument('--jobs', type=int, default=2,
+                       help='local worker processes evaluating the model (default: %(default)s)')
+    _add_dask_arguments(where, 'model runs')
+    p.set_defaults(func=_calibrate)
+
+
 def _calibrate(args: argparse.Namespace) -> int:
     from . import calibration as cb
     from .bag.reader import BagError, open_bag
@@ -425,23 +591,12 @@ def _calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
-def _add_duty_arguments(p: argparse.ArgumentParser, required: bool) -> None:
-    """Add the --stage | --duty choice (one of them; stage 6 when neither is required)."""
-    which = p.add_mutually_exclusive_group(required=required)
-    which.add_argument('--stage', type=int, default=None,
-                       help='reference stage number (1-6)' + ('' if required else '; default 6'))
-    which.add_argument('--duty', type=Path, metavar='FILE.csv',
-                       help='duty table: time_s, flow_L_min, load_MPa (repeats periodically)')
-
-
-def _add_dask_arguments(group, what: str) -> None:
-    """Add --workers N | --scheduler ADDRESS: where ``what`` run on Dask."""
-    group.add_argument('--workers', type=int, default=None, metavar='N',
-                       help=f'run the {what} on a local Dask cluster of N processes (default '
-                            'for a campaign: one per CPU)')
-    group.add_argument('--scheduler', default=None, metavar='ADDRESS',
-                       help=f'run the {what} on the Dask cluster of this scheduler, e.g. '
-                            'tcp://host:8786 (its workers must see the same paths)')
+def _add_play_parser(sub) -> None:
+    """Add the ``play`` command: the bag player."""
+    # parsed by the player itself (main() hands it everything after 'play')
+    sub.add_parser('play', add_help=False,
+                   help='publish a bag on the ROS graph with /clock (wet-eha-thermal play BAG '
+                        '[--rate R] [--loop] ...; play --help for all options)')
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -450,142 +605,9 @@ def build_parser() -> argparse.ArgumentParser:
         prog='wet-eha-thermal',
         description='Thermal digital twin of a wet electro-hydrostatic actuator.')
     sub = parser.add_subparsers(dest='command', required=True)
-    p = sub.add_parser('maps', help='steady-state motor temperatures versus speed and current',
-                       description='Steady-state winding, frame, magnet and oil temperatures of '
-                                   'the wet motor versus speed and versus current; prints two '
-                                   'tables, writes a CSV and a PNG plot.')
-    p.add_argument('--config', type=Path, default=None,
-                   help='YAML configuration (default: the reference rig)')
-    p.add_argument('--out', default='out/maps', help='output folder (default: %(default)s)')
-    p.add_argument('--oil-inlet-C', type=float, default=None,
-                   help='oil inlet temperature, degC (default: from config)')
-    p.add_argument('--oil-flow-L-min', type=float, default=None,
-                   help='oil flow through the motor, L/min (default: from config)')
-    p.add_argument('--ambient-C', type=float, default=None, help='ambient temperature, degC')
-    p.add_argument('--slices', type=int, default=None, help='axial slices of the stack')
-    p.add_argument('--fluid', default=None, help='oil grade (MIL-PRF-5606 or MIL-PRF-83282)')
-    p.set_defaults(func=_maps)
-
-    p = sub.add_parser('simulate', help='temperatures over a duty cycle (a stage or a duty file)',
-                       description='Run the coupled thermal model over a duty cycle: a reference '
-                                   'stage or a duty CSV (columns time_s, flow_L_min, load_MPa). '
-                                   'Prints end and peak temperatures and when each limit is or '
-                                   'would be reached; writes a CSV and a PNG plot.')
-    _add_duty_arguments(p, required=True)
-    p.add_argument('--duration', type=float, default=3600.0,
-                   help='simulated time, s (default: %(default)g)')
-    p.add_argument('--ambient-C', type=float, default=20.0,
-                   help='ambient temperature, degC (default: %(default)g)')
-    p.add_argument('--initial-C', type=float, default=None,
-                   help='starting temperature of every node, degC (default: ambient)')
-    p.add_argument('--dt', type=float, default=1.0,
-                   help='thermal model step, s (default: %(default)g)')
-    p.add_argument('--sample-rate-Hz', type=float, default=200.0,
-                   help='sensor sample rate, Hz (default: %(default)g)')
-    p.add_argument('--config', type=Path, default=None,
-                   help='YAML configuration (default: the reference rig)')
-    p.add_argument('--out', default='out/simulate', help='output folder (default: %(default)s)')
-    p.add_argument('--fluid', default=None, help='oil grade (MIL-PRF-5606 or MIL-PRF-83282)')
-    p.set_defaults(func=_simulate)
-
-    p = sub.add_parser('live', help='the live digital twin: estimator on the simulated rig',
-                       description='Run the live digital twin: the simulated rig (ROS 2 node '
-                                   'eha_sim_rig) publishes the sensor topics of a stage or a duty '
-                                   'file, the estimator (eha_thermal_estimator) follows them, and '
-                                   'a status line shows the estimated temperatures, margin, time '
-                                   'to limit, alerts and stale inputs. Ends after --duration or '
-                                   'on Ctrl-C with a summary. The recorder (eha_recorder) writes '
-                                   'the run to a rosbag2 bag of MCAP files. The nodes run on a '
-                                   'private ROS domain (from the process id, or '
-                                   '$WET_EHA_LIVE_DOMAIN_ID).')
-    _add_duty_arguments(p, required=False)
-    p.add_argument('--duration', type=float, default=60.0,
-                   help='how long to run, s (default: %(default)g)')
-    p.add_argument('--rate-Hz', type=float, default=1000.0,
-                   help='sensor sample rate of the rig, Hz (default: %(default)g)')
-    p.add_argument('--config', type=Path, default=None,
-                   help='YAML configuration of rig and estimator (default: the reference rig)')
-    p.add_argument('--no-noise', action='store_true', help='publish noise-free sensor values')
-    p.add_argument('--executor', choices=('events', 'single'), default='events',
-                   help='rclpy executor of both nodes (default: %(default)s)')
-    p.add_argument('--record', type=Path, default=None, metavar='PATH',
-                   help='recording of the run: a rosbag2 bag directory, as ros2 bag record -o '
-                        'makes, or one MCAP file when PATH ends in .mcap; never overwritten '
-                        '(default: runs/live_<UTC time>)')
-    p.add_argument('--no-record', action='store_true', help='do not record the run')
-    p.add_argument('--foxglove', default='127.0.0.1:8765', metavar='HOST:PORT',
-                   help='where the estimator serves the Foxglove view (estimates with their '
-                        'bands, margins, alerts, inputs, thermocouples; open it with '
-                        'layouts/live.json); live prints the address to open; one taken is '
-                        'one warning and the run goes on without it (default: %(default)s)')
-    p.add_argument('--no-foxglove', action='store_true', help='no Foxglove view')
-    p.set_defaults(func=_live)
-
-    p = sub.add_parser('replay', help='run the estimator over recorded bags, offline',
-                       description='Replay a rosbag2-style MCAP (ours, or ros2 bag record -s mcap '
-                                   'with the same message types) through the estimator in sample '
-                                   'time, as fast as it goes. Writes estimates.csv and '
-                                   'estimates.mcap, and a report (report.md, PNG plots of inputs, '
-                                   'temperatures, errors against the thermocouples and alerts). '
-                                   'The configuration is --config, else the one stored in the '
-                                   'bag, else the reference rig. Several bags, or a folder of '
-                                   'them, are a campaign: replayed in parallel on Dask, each into '
-                                   'its own subfolder of --out, with a summary of all '
-                                   '(campaign.csv, campaign.md, campaign.png).')
-    p.add_argument('bag', type=Path, nargs='+',
-                   help='an MCAP file, a rosbag2 bag directory (its files as one run), or a '
-                        'folder of them')
-    p.add_argument('--out', default='out/replay', help='output folder (default: %(default)s)')
-    p.add_argument('--config', type=Path, default=None,
-                   help='YAML configuration (default: stored in the bag, else the reference rig)')
-    p.add_argument('--map', action='append', default=[], metavar='NAME=/TOPIC',
-                   help='topic of an input (current_A, speed_rad_s, p_a_Pa, p_b_Pa, p_acc_Pa, '
-                        'dp_Pa, position_m), a thermocouple (measured/frame, ...) or ambient; '
-                        'repeatable')
-    p.add_argument('--output-rate-Hz', type=float, default=10.0,
-                   help='rate of the estimates written (default: %(default)g; the model steps '
-                        'at 50 Hz)')
-    p.add_argument('--no-report', action='store_true', help='skip the plots and report.md')
-    p.add_argument('--open-loop', action='store_true',
-                   help='do not let the thermocouples correct the model (estimator.correction '
-                        'off): the errors against them then validate the model itself')
-    _add_dask_arguments(p.add_mutually_exclusive_group(), 'replays of a campaign')
-    p.set_defaults(func=_replay)
-
-    p = sub.add_parser('calibrate', help='fit model parameters to the thermocouples of bench logs',
-                       description='Fit parameters of the thermal model (contact gaps, '
-                                   'convection, loss and leakage coefficients, heat capacities: '
-                                   'the keys with bounds in calibration.bounds) to the '
-                                   'thermocouples of one or more MCAP logs, check the result on '
-                                   'held-out logs, and write calibrated.yaml (loads as any '
-                                   'configuration; records each value, its 95 % interval and '
-                                   'the logs) and report.md with plots. Parameters the logs '
-                                   'cannot identify are held at their nominal values.')
-    p.add_argument('logs', type=Path, nargs='+', metavar='LOG',
-                   help='logs to fit on: MCAP files or rosbag2 bag directories')
-    p.add_argument('--validate', type=Path, nargs='+', default=[], metavar='LOG',
-                   help='held-out logs (files or bag directories): errors before and after, '
-                        'not fitted')
-    p.add_argument('--fit', nargs='+', default=None, metavar='KEY',
-                   help='dotted keys to fit, each with bounds in calibration.bounds (default: '
-                        'calibration.fit)')
-    p.add_argument('--config', type=Path, default=None,
-                   help='YAML configuration (default: stored in the first log, else the '
-                        'reference rig)')
-    p.add_argument('--map', action='append', default=[], metavar='NAME=/TOPIC',
-                   help='topic of an input, a thermocouple (measured/frame, ...) or ambient, as '
-                        'for replay; repeatable')
-    p.add_argument('--out', default='out/calibrate', help='output folder (default: %(default)s)')
-    where = p.add_mutually_exclusive_group()
-    where.add_argument('--jobs', type=int, default=2,
-                       help='local worker processes evaluating the model (default: %(default)s)')
-    _add_dask_arguments(where, 'model runs')
-    p.set_defaults(func=_calibrate)
-
-    # parsed by the player itself (main() hands it everything after 'play')
-    sub.add_parser('play', add_help=False,
-                   help='publish a bag on the ROS graph with /clock (wet-eha-thermal play BAG '
-                        '[--rate R] [--loop] ...; play --help for all options)')
+    for add in (_add_maps_parser, _add_simulate_parser, _add_live_parser, _add_replay_parser,
+                _add_calibrate_parser, _add_play_parser):
+        add(sub)
     return parser
 
 
