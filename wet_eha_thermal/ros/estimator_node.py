@@ -58,7 +58,6 @@ from typing import Deque, Dict, List, Optional
 
 from builtin_interfaces.msg import Time as TimeMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-import numpy as np
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 ParameterType, SetParametersResult)
 from rclpy.exceptions import NameValidationException, ParameterException
@@ -72,13 +71,12 @@ from wet_eha_thermal.bag import cdr
 from wet_eha_thermal.config import ConfigError, load_config
 from wet_eha_thermal.estimator.core import Estimate, Estimator
 from wet_eha_thermal.live_view import app_url, LiveView, parse_address
-from wet_eha_thermal.ros import topics
+from wet_eha_thermal.ros import diagnostics, topics
+from wet_eha_thermal.ros.diagnostics import LIMITED
 from wet_eha_thermal.ros.runtime import (accept_whole_numbers, EXECUTORS, FastClock,
                                          prepare_model_step, Readiness, run_node)
 
 NODE_NAME = topics.ESTIMATOR_NODE
-LIMITED = ('winding_hotspot', 'magnet', 'oil')   # quantities with limits and a forecast
-_LEVEL_NAMES = {0: 'OK', 1: 'WARN', 2: 'ERROR', 3: 'STALE'}
 
 
 def _float_param(description: str, low: float, high: float,
@@ -139,12 +137,6 @@ def _stamp_msg(ns: int) -> TimeMsg:
 
 def _stamp_s(stamp: TimeMsg) -> float:
     return stamp.sec + 1e-9 * stamp.nanosec
-
-
-def _fmt(value: Optional[float], spec: str = '.2f', none: str = 'pending') -> str:
-    if value is None:
-        return none
-    return format(value, spec)
 
 
 def _json_safe(value):
@@ -559,93 +551,41 @@ class EstimatorNode(Node):
             self.view.offer_alerts(data)
 
     # --------------------------------------------------------- diagnostics
-    def _status(self, name: str, level: int, message: str, values) -> DiagnosticStatus:
-        return DiagnosticStatus(level=bytes([level]), name=f'wet_eha_thermal: {name}',
-                                message=message, hardware_id=self.hardware_id,
-                                values=[KeyValue(key=k, value=str(v)) for k, v in values])
-
     def _on_diagnostics(self) -> None:
         try:
             now_ns = self.get_clock().now().nanoseconds
+            est = self.est
+            new_rejected = {n: est.health[n].rejected - self._diag_prev[n] for n in est.inputs}
+            self._diag_prev = {n: est.health[n].rejected for n in est.inputs}
+            implausible = sum(est.implausible_counts.values())
+            new_implausible = implausible - self._implausible_prev
+            self._implausible_prev = implausible
+            topic_of = dict(self.topic_names)
+            topic_of.update({f'{topics.MEASURED_PREFIX}/{tc}':
+                             self._topic(f'{topics.MEASURED_PREFIX}/{tc}')
+                             for tc in topics.THERMOCOUPLES})
+            counters = diagnostics.NodeCounters(
+                hardware_id=self.hardware_id, published=self.published,
+                model_errors=self.model_errors,
+                model_error=self.model_error if self.model_failing else None,
+                background_errors=self.background_errors,
+                callback_errors=dict(self.callback_errors),
+                waiting_for_clock=self.waiting_for_clock, latency_ms=self.latency_ms,
+                view=self._view_text())
             arr = DiagnosticArray()
             arr.header.stamp = _stamp_msg(now_ns)
-            arr.status = [self._estimate_status()] + [
-                self._input_status(n, now_ns * 1e-9) for n in self.est.inputs] + [
-                self._plausibility_status()]
-            if self.est.correction is not None:
-                arr.status += [self._thermocouple_status(tc) for tc in topics.THERMOCOUPLES]
+            arr.status = [
+                DiagnosticStatus(level=bytes([s.level]), name=f'wet_eha_thermal: {s.name}',
+                                 message=s.message, hardware_id=self.hardware_id,
+                                 values=[KeyValue(key=k, value=str(v)) for k, v in s.values])
+                for s in diagnostics.statuses(est, counters, now_ns * 1e-9, topic_of,
+                                              new_rejected, new_implausible)]
             self.diag_pub.publish(arr)
             if self.view is not None:
                 self.view.offer_health({n: (h.received, h.rejected)
-                                        for n, h in self.est.health.items()})
+                                        for n, h in est.health.items()})
         except Exception as exc:  # noqa: B902
             self._failed('diagnostics', exc)
-
-    def _estimate_status(self) -> DiagnosticStatus:
-        est = self.est.latest
-        stale = [n for n in self.est.inputs if self.est.health[n].stale]
-        values = [('hardware_id', self.hardware_id)]
-        if est is None:
-            return self._status('estimate', DiagnosticStatus.STALE[0],
-                                'no estimate yet: waiting for the clock or the first step',
-                                values + [('inputs on fallback', ', '.join(stale) or 'none')])
-        level = int(self.est.alerts.worst())       # OK/WARN/CRITICAL = OK/WARN/ERROR
-        message = self.est.alerts.summary()['message']
-        if message == 'OK':
-            message = 'estimating'
-        if stale:
-            message += f'; on fallback: {", ".join(stale)}'
-        if len(stale) == len(self.est.inputs):
-            level = DiagnosticStatus.STALE[0]
-            message = 'every input stale (data gap): estimates run on held values; ' + \
-                self.est.alerts.summary()['message']
-        if self.model_failing:
-            level = DiagnosticStatus.ERROR[0]
-            message = f'model step failed, republishing the last estimate: {self.model_error}'
-        sigma = max(est.uncertainty_K.values()) if est.uncertainty_K else None
-        values += [('stamp [s]', f'{est.stamp_s:.3f}'), ('step', est.step)]
-        values += [(f'{n} [degC]', _fmt(est.temperatures_C.get(n))) for n in topics.ESTIMATES]
-        values.append(('uncertainty [K, 1 sigma]', _fmt(sigma)))
-        values.append(('margin_current [A RMS]', _fmt(est.margin_current_A, '.1f')))
-        for q in LIMITED:
-            ttl = est.time_to_limit_s
-            text = 'pending' if q not in ttl else (
-                'beyond horizon' if ttl[q] is None else f'{ttl[q]:.0f}')
-            values.append((f'time_to_limit {q} [s]', text))
-            values.append((f'limit {q} [degC]', _fmt(est.limits_C.get(q), '.1f')))
-        values.append(('forecast started at [s]', _fmt(est.forecast_stamp_s, '.3f')))
-        if self.latency_ms:
-            lat = np.percentile(self.latency_ms, [50, 99])
-            values.append(('step latency p50/p99/max [ms]',
-                           f'{lat[0]:.2f}/{lat[1]:.2f}/{max(self.latency_ms):.2f} (last '
-                           f'{len(self.latency_ms)} estimates; closing sample received -> '
-                           'estimate published)'))
-        for tc, name in topics.THERMOCOUPLES.items():
-            if tc in self.est.measured_C:
-                t_meas = self.est.measured_C[tc][1]
-                values.append((f'measured {tc} [degC]',
-                               f'{t_meas:.2f} (estimate {name} '
-                               f'{est.temperatures_C[name] - t_meas:+.2f} K)'))
-        values += self._correction_values()
-        gaps = self.est.gaps
-        gap_text = f'{gaps.count}, longest {gaps.longest_s:.1f} s, total {gaps.total_s:.1f} s'
-        if gaps.open_since_s is not None:
-            gap_text = f'every input silent since {gaps.open_since_s:.3f} s; ' + gap_text
-        jump = self.est.last_clock_jump
-        values += [('alerts', self.est.alerts.summary()['message']),
-                   ('data gaps (every input silent)', gap_text),
-                   ('held blocks (silences crossed)', self.est.held_blocks),
-                   ('clock jumps', self.est.clock_jumps if jump is None else
-                    f'{self.est.clock_jumps} (last from {jump[0]:.3f} s to {jump[1]:.3f} s)'),
-                   ('inputs on fallback', ', '.join(stale) or 'none'),
-                   ('estimates published', self.published),
-                   ('model errors', self.model_errors),
-                   ('forecast failures', self.est.forecast_failures),
-                   ('background errors', self.background_errors),
-                   ('callback errors', sum(self.callback_errors.values())),
-                   ('samples before the clock', self.waiting_for_clock),
-                   ('foxglove view', self._view_text())]
-        return self._status('estimate', level, message, values)
 
     def _view_text(self) -> str:
         """Return the Foxglove view's state in words, for the diagnostics."""
@@ -655,102 +595,6 @@ class EstimatorNode(Node):
         text = (f'{v.url}, {len(v.watched())} channels watched; {v.shown} of {v.offered} '
                 'estimates shown')
         return text + (f'; {v.errors} errors (last: {v.last_error})' if v.errors else '')
-
-    def _correction_values(self) -> list:
-        """Return the estimate status's key-values of the live correction."""
-        c = self.est.correction
-        if c is None:
-            return [('correction', 'off (estimator.correction.enabled: false)')]
-        used = [tc for tc, h in c.tcs.items() if h.status == 'ok']
-        dropped = [f'{tc} ({h.status})' for tc, h in c.tcs.items() if h.dropped]
-        if not c.active:
-            text = 'waiting for a usable thermocouple: open loop'
-        else:
-            text = f'on, correcting with: {", ".join(used) or "none now"}'
-        if dropped:
-            text += f'; dropped: {", ".join(dropped)}'
-        values = [('correction', text), ('correction updates', c.updates),
-                  ('correction failures', c.failures if not c.failures
-                   else f'{c.failures} (last: {c.last_failure})')]
-        values += [(f'learned heat {name} [W]', f'{value:.2f}')
-                   for name, value in zip(c.disturbance_names, c.d.tolist())]
-        return values
-
-    def _thermocouple_status(self, tc: str) -> DiagnosticStatus:
-        """Return the status of one thermocouple in the live correction."""
-        h = self.est.correction.tcs[tc]
-        ok = DiagnosticStatus.OK[0]
-        level = {'ok': ok, 'waiting': ok, 'absent': ok, 'unused': ok,
-                 'stale': DiagnosticStatus.STALE[0]}.get(h.status, DiagnosticStatus.WARN[0])
-        message = {
-            'ok': 'correcting the model',
-            'waiting': 'learning its noise before use',
-            'absent': 'no reading yet',
-            'unused': 'displayed only (use: false)',
-            'held': 'not used',
-            'stale': 'stale: not used',
-        }.get(h.status, 'dropped from the correction')
-        if h.reason:
-            message += f': {h.reason}'
-        est = self.est.latest
-        estimate = est.temperatures_C.get(h.quantity) if est is not None else None
-        values = [('topic', self._topic(f'{topics.MEASURED_PREFIX}/{tc}')),
-                  ('measures', h.quantity), ('status', h.status),
-                  ('received', h.received), ('rejected', h.rejected), ('used', h.used),
-                  ('gated', h.gated), ('late', h.late), ('stale_events', h.stale_events),
-                  ('dropped_events', h.dropped_events), ('recovered', h.recovered),
-                  ('last_value [degC]', _fmt(h.last_value_C, '.2f', 'none')),
-                  ('last_stamp [s]', _fmt(h.last_stamp_s, '.3f', 'none')),
-                  (f'estimate {h.quantity} [degC]', _fmt(estimate, '.2f', 'none')),
-                  ('innovation [K]', _fmt(h.innovation_K, '+.3f', 'none')),
-                  ('innovation sigma [K]', _fmt(h.innovation_sigma_K, '.3f', 'none')),
-                  ('observed noise [K]', _fmt(h.noise_K, '.3f', 'none')),
-                  ('sigma_K (config)', f'{h.sigma_K:g}')]
-        return self._status(f'thermocouple {tc}', level, message, values)
-
-    def _input_status(self, name: str, now_s: float) -> DiagnosticStatus:
-        h = self.est.health[name]
-        rejected = h.rejected
-        new_rejected = rejected - self._diag_prev[name]
-        self._diag_prev[name] = rejected
-        level, message = DiagnosticStatus.OK[0], 'OK'
-        if new_rejected > 0:
-            level = DiagnosticStatus.WARN[0]
-            message = f'{new_rejected} samples rejected since the last report'
-        if h.stale:
-            level = DiagnosticStatus.STALE[0]
-            if h.last_value is None:
-                message = f'stale: no sample yet, using the resting value {self.est.rest[name]:g}'
-            else:
-                since = h.stale_since_s if h.stale_since_s is not None else now_s
-                message = (f'stale: holding last value {h.last_value:g} since {since:.3f} s '
-                           f'({max(now_s - since, 0.0):.1f} s)')
-        cfg = self.est.channel_cfg[name]
-        values = [('topic', self.topic_names[name]), ('received', h.received),
-                  ('accepted', h.accepted), ('non_finite', h.non_finite),
-                  ('out_of_range', h.out_of_range), ('backwards', h.backwards),
-                  ('late', h.late), ('future', h.future), ('overflow', h.overflow),
-                  ('discarded at clock jumps', h.discarded), ('stale_events', h.stale_events),
-                  ('callback_errors', self.callback_errors.get(name, 0)),
-                  ('last_value', _fmt(h.last_value, 'g', 'none')),
-                  ('last_stamp [s]', _fmt(h.last_stamp_s, '.3f', 'none')),
-                  ('timeout [s]', f'{cfg.timeout_s:g}'),
-                  ('range', f'[{cfg.low:g}, {cfg.high:g}]')]
-        return self._status(f'input {name}', level, message, values)
-
-    def _plausibility_status(self) -> DiagnosticStatus:
-        counts = self.est.implausible_counts
-        total = sum(counts.values())
-        new = total - self._implausible_prev
-        self._implausible_prev = total
-        latest = self.est.latest.implausible if self.est.latest is not None else []
-        if new > 0:
-            level = DiagnosticStatus.WARN[0]
-            message = (f'{new} implausible steps since the last report: '
-                       f'{", ".join(latest) or "see counters"}')
-        else:
-            level, message = DiagnosticStatus.OK[0], 'OK'
-        return self._status('plausibility', level, message, list(counts.items()))
 
     def summary(self) -> str:
         """Return a one-line account of the run: samples per input, gaps, clock jumps."""

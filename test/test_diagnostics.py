@@ -1,0 +1,93 @@
+"""The estimator node's diagnostic statuses, built without ROS from an estimator fed by hand."""
+
+import pytest
+from wet_eha_thermal.config import load_config
+from wet_eha_thermal.estimator.core import Estimator, INPUTS
+from wet_eha_thermal.ros import diagnostics as dg
+from wet_eha_thermal.ros import topics
+
+VALUES = {'current_A': 15.0, 'speed_rad_s': 800.0, 'p_a_Pa': 3e6, 'p_b_Pa': 1e6,
+          'p_acc_Pa': 1e6, 'position_m': 0.0}
+
+
+def counters(**kw):
+    base = {'hardware_id': 'rig-7', 'published': 3, 'model_errors': 0, 'model_error': None,
+            'background_errors': 0, 'callback_errors': {}, 'waiting_for_clock': 0,
+            'latency_ms': [], 'view': 'off'}
+    return dg.NodeCounters(**{**base, **kw})
+
+
+def feed(est, t0, seconds, skip=()):
+    """Feed every input but ``skip`` at 1 kHz from ``t0``, advancing every 20 ms."""
+    for k in range(1, int(seconds * 1000) + 1):
+        for ch in INPUTS:
+            if ch not in skip:
+                est.add(ch, t0 + k / 1000, VALUES[ch])
+        if k % 20 == 0:
+            est.advance()
+    return t0 + seconds
+
+
+def report(est, now_s, node=None, new_rejected=None, new_implausible=0):
+    topic_of = {n: f'/eha/{n}' for n in est.inputs}
+    topic_of.update({f'{topics.MEASURED_PREFIX}/{tc}': f'/eha/measured/{tc}'
+                     for tc in topics.THERMOCOUPLES})
+    rejected = {**dict.fromkeys(est.inputs, 0), **(new_rejected or {})}
+    return {s.name: s for s in dg.statuses(est, node or counters(), now_s, topic_of, rejected,
+                                           new_implausible)}
+
+
+@pytest.fixture
+def est():
+    return Estimator(load_config(overrides={'estimator.correction.enabled': False}))
+
+
+def test_no_estimate_yet_is_stale_and_names_the_fallbacks(est):
+    s = report(est, 0.0)
+    assert s['estimate'].level == dg.STALE
+    assert s['estimate'].message.startswith('no estimate yet')
+    # no input has been silent for its timeout yet
+    assert dict(s['estimate'].values)['inputs on fallback'] == 'none'
+    assert [n for n in s if n.startswith('thermocouple')] == []     # correction off
+
+
+def test_a_silent_input_is_stale_holding_its_last_value(est):
+    t = feed(est, 0.0, 2.0)
+    s = report(est, t)
+    assert {x.level for x in s.values()} == {dg.OK}
+    t = feed(est, t, 3.0, skip=('speed_rad_s',))
+    s = report(est, t)
+    speed = s['input speed_rad_s']
+    assert speed.level == dg.STALE
+    since = est.health['speed_rad_s'].stale_since_s
+    assert speed.message == (f'stale: holding last value 800 since {since:.3f} s '
+                             f'({t - since:.1f} s)')
+    assert dict(speed.values)['topic'] == '/eha/speed_rad_s'
+    assert s['estimate'].message.endswith('on fallback: speed_rad_s')
+    assert s['input current_A'].level == dg.OK
+
+
+def test_rejections_warn_and_a_failing_model_is_an_error(est):
+    t = feed(est, 0.0, 1.0)
+    s = report(est, t, new_rejected={'current_A': 4})
+    assert (s['input current_A'].level, s['input current_A'].message) == (
+        dg.WARN, '4 samples rejected since the last report')
+    s = report(est, t, node=counters(model_error='ValueError: boom', model_errors=2))
+    assert s['estimate'].level == dg.ERROR
+    assert s['estimate'].message.endswith('ValueError: boom')
+    assert dict(s['estimate'].values)['model errors'] == 2
+    s = report(est, t, new_implausible=2)
+    assert s['plausibility'].level == dg.WARN
+    assert s['plausibility'].message.startswith('2 implausible steps')
+
+
+def test_with_the_correction_every_thermocouple_has_a_status():
+    est = Estimator(load_config(overrides={'estimator.correction.enabled': True}))
+    s = report(est, feed(est, 0.0, 1.0))
+    names = list(s)
+    assert names == (['estimate'] + [f'input {n}' for n in est.inputs] + ['plausibility']
+                     + [f'thermocouple {tc}' for tc in topics.THERMOCOUPLES])
+    # no reading yet: each says so, at OK, on its own topic
+    frame = s['thermocouple frame']
+    assert (frame.level, frame.message) == (dg.OK, 'no reading yet')
+    assert dict(frame.values)['topic'] == '/eha/measured/frame'
