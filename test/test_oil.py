@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from wet_eha_thermal.config import OIL_GRADE_NAMES
 from wet_eha_thermal.model.oil import (
     get_oil, isenthalpic_throttle_temperature_rise, OIL_GRADES, temperature_of_energy,
     volumetric_energy, walther_fit)
@@ -12,6 +13,10 @@ from wet_eha_thermal.model.validity import ValidityLog
 
 T0 = 273.15
 GRADES = sorted(OIL_GRADES)
+
+
+def test_the_configuration_names_exactly_the_grades_with_properties():
+    assert sorted(OIL_GRADE_NAMES) == GRADES
 
 
 @pytest.mark.parametrize('name', GRADES)

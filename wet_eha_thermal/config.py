@@ -19,7 +19,9 @@ from typing import Any, Dict, Optional, Tuple
 
 import yaml
 
-from .model.oil import OIL_GRADES
+
+#: The oil grades a configuration may name; model/oil.py holds the properties of each.
+OIL_GRADE_NAMES = ('MIL-PRF-5606', 'MIL-PRF-83282')
 
 
 class ConfigError(ValueError):
@@ -414,7 +416,7 @@ class Hydraulics:
 class Fluid:
     """Hydraulic oil."""
 
-    grade: str = spec(choices=tuple(OIL_GRADES), doc='oil grade')
+    grade: str = spec(choices=OIL_GRADE_NAMES, doc='oil grade')
     oil_limit_C: float = spec(0.0, 300.0, doc='highest oil temperature allowed in service')
 
 
