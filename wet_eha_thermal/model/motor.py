@@ -17,7 +17,7 @@ ambient (natural convection and radiation, or a fan coefficient).
 
 from dataclasses import dataclass
 import math
-from typing import Dict, Optional, Tuple, Union
+from typing import Dict, NamedTuple, Optional, Tuple, Union
 
 import numpy as np
 
@@ -48,6 +48,15 @@ class MotorInputs:
     oil_flow_m3_s: float
     ambient_K: float
     case_pressure_Pa: float = 0.0
+
+
+class _Radii(NamedTuple):
+    """Radii (m) the builders share: tooth tip, magnet outer and inner, shaft."""
+
+    tip: float
+    magnet_outer: float
+    magnet_inner: float
+    shaft: float
 
 
 class WetMotor:
@@ -115,25 +124,46 @@ class WetMotor:
 
     # ------------------------------------------------------------------ build
     def _build(self) -> None:
+        """Build the network part by part, in a fixed order (it sets the node indices)."""
         c, net = self.cfg, self.net
-        n = c.slices
-        dz = self.dz = c.stack_length_m / n
-        stack = [dz] * n
-        fr, st, wd, ro, es = c.frame, c.stator, c.winding, c.rotor, c.end_spaces
+        self.dz = c.stack_length_m / c.slices
         self.amb = net.add_boundary('ambient')
         self.inlet = net.add_boundary('oil_inlet')
-        L_fend = 0.5 * (fr.length_m - c.stack_length_m)
-        L_send = 0.5 * (ro.shaft_length_m - c.stack_length_m)
-        r_tip = st.bore_radius_m + st.tooth_tip_depth_m
-        slot_frac = 1.0 - st.tooth_fraction
+        st, ro = c.stator, c.rotor
         r_mag_out = ro.outer_radius_m - ro.sleeve_thickness_m
-        r_mag_in = r_mag_out - ro.magnet_thickness_m
-        r_shaft = ro.core_inner_radius_m
+        g = _Radii(tip=st.bore_radius_m + st.tooth_tip_depth_m, magnet_outer=r_mag_out,
+                   magnet_inner=r_mag_out - ro.magnet_thickness_m,
+                   shaft=ro.core_inner_radius_m)
+        self._build_stack(g)
+        self._build_airgap_oil()
+        self.ambient_links, self.ambient_areas = [], []
+        self.cap_links, self.cap_areas = [], []
+        self.end_links, self.end_areas = [], []
+        self.gap_links_stator, self.gap_links_rotor = [], []
+        self._build_slice_contacts(g)
+        self.end_winding = {}
+        for side in ('front', 'rear'):
+            self._build_end(side, g)
+        self._build_sources()
+        self._build_indices()
 
-        def cyl(name, r1, r2, lengths, mat, frac=1.0, **kw):
-            return add_cylinder(net, name, r1, r2, lengths, mat.k_radial_W_mK,
-                                mat.k_axial_W_mK, mat.rho_c_J_m3K, frac, **kw)
+    def _cylinder(self, name, r1, r2, lengths, mat, frac=1.0, **kw):
+        return add_cylinder(self.net, name, r1, r2, lengths, mat.k_radial_W_mK,
+                            mat.k_axial_W_mK, mat.rho_c_J_m3K, frac, **kw)
 
+    def _to_ambient(self, node: str, area_m2: float) -> None:
+        self.ambient_links.append(self.net.add_conductance(node, self.amb))
+        self.ambient_areas.append(area_m2)
+
+    def _to_end_oil(self, node: str, side: str, area_m2: float) -> None:
+        self.end_links.append(self.net.add_conductance(node, self.end_oil[side]))
+        self.end_areas.append(area_m2)
+
+    def _build_stack(self, g: '_Radii') -> None:
+        """Add the cylinders of the active length, a block per slice: frame to shaft."""
+        c, cyl = self.cfg, self._cylinder
+        stack = [self.dz] * c.slices
+        fr, st, wd, ro = c.frame, c.stator, c.winding, c.rotor
         frame = cyl('frame', fr.outer_radius_m, fr.inner_radius_m, stack, fr.material)
         yoke = cyl('yoke', st.outer_radius_m, st.yoke_inner_radius_m, stack, st.material)
         teeth = cyl('teeth', st.yoke_inner_radius_m, st.bore_radius_m, stack, st.material,
@@ -142,18 +172,22 @@ class WetMotor:
         rc_wind = (wd.copper_fill * wd.copper_density_kg_m3 * wd.copper_specific_heat_J_kgK
                    + (1 - wd.copper_fill) * wd.insulation_density_kg_m3
                    * wd.insulation_specific_heat_J_kgK)
-        winding = add_cylinder(net, 'winding', st.yoke_inner_radius_m, r_tip, stack,
-                               wd.k_radial_W_mK, wd.k_axial_W_mK, rc_wind, slot_frac)
-        sleeve = cyl('sleeve', ro.outer_radius_m, r_mag_out, stack, ro.sleeve)
-        magnet = cyl('magnet', r_mag_out, r_mag_in, stack, ro.magnet)
-        core = cyl('rotor_core', r_mag_in, r_shaft, stack, ro.core)
-        shaft = cyl('shaft', r_shaft, 0.0, stack, ro.shaft)
+        winding = add_cylinder(self.net, 'winding', st.yoke_inner_radius_m, g.tip, stack,
+                               wd.k_radial_W_mK, wd.k_axial_W_mK, rc_wind,
+                               1.0 - st.tooth_fraction)
+        sleeve = cyl('sleeve', ro.outer_radius_m, g.magnet_outer, stack, ro.sleeve)
+        magnet = cyl('magnet', g.magnet_outer, g.magnet_inner, stack, ro.magnet)
+        core = cyl('rotor_core', g.magnet_inner, g.shaft, stack, ro.core)
+        shaft = cyl('shaft', g.shaft, 0.0, stack, ro.shaft)
         self.parts = {'frame': frame, 'yoke': yoke, 'teeth': teeth, 'winding': winding,
                       'sleeve': sleeve, 'magnet': magnet, 'rotor_core': core, 'shaft': shaft}
 
-        # airgap oil: n well-mixed sections between the end spaces
+    def _build_airgap_oil(self) -> None:
+        """Add the oil path: front end space, n mixed airgap sections, rear end space."""
+        c, net, n = self.cfg, self.net, self.cfg.slices
+        st, ro, es = c.stator, c.rotor, c.end_spaces
         oil_rc = self._oil_rho_cp(C_TO_K + 40.0, 0.0)
-        gap_vol = np.pi * (st.bore_radius_m ** 2 - ro.outer_radius_m ** 2) * dz
+        gap_vol = np.pi * (st.bore_radius_m ** 2 - ro.outer_radius_m ** 2) * self.dz
         self.gap = [net.add_node(f'gap_oil.s{i + 1}', oil_rc * gap_vol) for i in range(n)]
         self.end_oil = {s: net.add_node(f'end_oil_{s}', oil_rc * es.oil_volume_m3)
                         for s in ('front', 'rear')}
@@ -162,32 +196,27 @@ class WetMotor:
         self.adv = [net.add_advection(u, d) for u, d in
                     zip([self.inlet] + self.oil_nodes[:-1], self.oil_nodes)]
 
+    def _build_slice_contacts(self, g: '_Radii') -> None:
+        """Link each slice radially: frame to ambient and yoke, slot liners, airgap, rotor."""
+        c, net, dz = self.cfg, self.net, self.dz
+        fr, st, wd, ro = c.frame, c.stator, c.winding, c.rotor
+        frame, yoke, teeth, winding, sleeve, magnet, core, shaft = (
+            self.parts[k] for k in ('frame', 'yoke', 'teeth', 'winding', 'sleeve', 'magnet',
+                                    'rotor_core', 'shaft'))
         ring = 2 * np.pi * dz  # lateral area per unit radius of one slice
-        self.ambient_links, self.ambient_areas = [], []
-        self.cap_links, self.cap_areas = [], []
-        self.end_links, self.end_areas = [], []
-        self.gap_links_stator, self.gap_links_rotor = [], []
-
-        def to_ambient(node, area):
-            self.ambient_links.append(net.add_conductance(node, self.amb))
-            self.ambient_areas.append(area)
-
-        def to_end_oil(node, side, area):
-            self.end_links.append(net.add_conductance(node, self.end_oil[side]))
-            self.end_areas.append(area)
-
+        slot_frac = 1.0 - st.tooth_fraction
         liner_h = wd.liner_conductivity_W_mK / wd.liner_thickness_m
         gap_h = st.contact_gap_conductivity_W_mK / st.frame_contact_gap_m
-        tooth_pitch = 2 * np.pi * 0.5 * (st.yoke_inner_radius_m + r_tip) / c.slots
-        slot_depth = st.yoke_inner_radius_m - r_tip
-        for i in range(n):
-            to_ambient(frame.outer[i], fr.outer_radius_m * ring)
+        tooth_pitch = 2 * np.pi * 0.5 * (st.yoke_inner_radius_m + g.tip) / c.slots
+        slot_depth = st.yoke_inner_radius_m - g.tip
+        for i in range(c.slices):
+            self._to_ambient(frame.outer[i], fr.outer_radius_m * ring)
             net.add_conductance(frame.inner[i], yoke.outer[i],
                                 gap_h * fr.inner_radius_m * ring)
             net.add_conductance(winding.outer[i], yoke.inner[i],
                                 liner_h * slot_frac * st.yoke_inner_radius_m * ring)
             net.add_conductance(winding.inner[i], teeth.inner[i],
-                                liner_h * slot_frac * r_tip * ring)
+                                liner_h * slot_frac * g.tip * ring)
             # slot sides to the teeth: liner in series with the mean-to-wall
             # resistance of a slab with uniform generation (w / (6 k A_walls))
             walls = 2 * c.slots * slot_depth * dz
@@ -199,15 +228,28 @@ class WetMotor:
             self.gap_links_stator.append(net.add_conductance(teeth.inner[i], self.gap[i]))
             self.gap_links_rotor.append(net.add_conductance(sleeve.outer[i], self.gap[i]))
             net.add_conductance(sleeve.inner[i], magnet.outer[i],
-                                ro.sleeve_magnet_htc_W_m2K * r_mag_out * ring)
+                                ro.sleeve_magnet_htc_W_m2K * g.magnet_outer * ring)
             net.add_conductance(magnet.inner[i], core.outer[i],
-                                ro.magnet_core_htc_W_m2K * r_mag_in * ring)
+                                ro.magnet_core_htc_W_m2K * g.magnet_inner * ring)
             net.add_conductance(core.inner[i], shaft.outer[i],
-                                ro.core_shaft_htc_W_m2K * r_shaft * ring)
+                                ro.core_shaft_htc_W_m2K * g.shaft * ring)
 
+    def _build_end(self, side: str, g: '_Radii') -> None:
+        """
+        Add one end of the motor: end winding, stack faces, frame end, end cap, shaft end.
+
+        Everything there exchanges heat with the end space's oil; the frame end
+        and the cap also with ambient, the shaft end through the bearing.
+        """
+        c, net, cyl, n = self.cfg, self.net, self._cylinder, self.cfg.slices
+        fr, st, wd, ro, es = c.frame, c.stator, c.winding, c.rotor, c.end_spaces
+        p = self.parts
+        slot_frac = 1.0 - st.tooth_fraction
+        L_fend = 0.5 * (fr.length_m - c.stack_length_m)
+        L_send = 0.5 * (ro.shaft_length_m - c.stack_length_m)
         # end windings: the slot conductors continue out of the stack; per side the
         # end turns hold copper volume fill * A_slots * l_end_turn / 2
-        a_slots = slot_frac * np.pi * (st.yoke_inner_radius_m ** 2 - r_tip ** 2)
+        a_slots = slot_frac * np.pi * (st.yoke_inner_radius_m ** 2 - g.tip ** 2)
         v_block = a_slots * wd.end_overhang_m
         v_cu = wd.copper_fill * a_slots * wd.end_turn_length_m / 2
         if v_cu > v_block:
@@ -215,74 +257,82 @@ class WetMotor:
         rc_end = (v_cu * wd.copper_density_kg_m3 * wd.copper_specific_heat_J_kgK
                   + (v_block - v_cu) * wd.insulation_density_kg_m3
                   * wd.insulation_specific_heat_J_kgK) / v_block
-        self.end_winding = {}
-        for side, stack_face in (('front', 0), ('rear', n)):
-            outward = 0 if side == 'front' else 1   # index of the face away from the stack
-            kw = ({'rear_face': winding.faces[0]} if side == 'front'
-                  else {'front_face': winding.faces[n]})
-            ew = add_cylinder(net, f'end_winding_{side}', st.yoke_inner_radius_m, r_tip,
-                              [wd.end_overhang_m], wd.k_radial_W_mK, wd.k_axial_W_mK, rc_end,
-                              slot_frac, **kw)
-            self.end_winding[side] = ew
-            to_end_oil(ew.faces[outward], side, a_slots)
-            to_end_oil(ew.outer[0], side, 2 * np.pi * st.yoke_inner_radius_m * slot_frac
-                       * wd.end_overhang_m)
-            to_end_oil(ew.inner[0], side, 2 * np.pi * r_tip * slot_frac * wd.end_overhang_m)
-            # stack faces open to the end space
-            to_end_oil(yoke.faces[stack_face], side,
-                       np.pi * (st.outer_radius_m ** 2 - st.yoke_inner_radius_m ** 2))
-            to_end_oil(teeth.faces[stack_face], side, st.tooth_fraction * np.pi
-                       * (st.yoke_inner_radius_m ** 2 - st.bore_radius_m ** 2))
-            for part, r1, r2 in ((sleeve, ro.outer_radius_m, r_mag_out),
-                                 (magnet, r_mag_out, r_mag_in), (core, r_mag_in, r_shaft)):
-                to_end_oil(part.faces[stack_face], side, np.pi * (r1 ** 2 - r2 ** 2))
-            # frame end segment, end cap, shaft end, bearing
-            fkw = ({'rear_face': frame.faces[0]} if side == 'front'
-                   else {'front_face': frame.faces[n]})
-            fe = cyl(f'frame_end_{side}', fr.outer_radius_m, fr.inner_radius_m, [L_fend],
-                     fr.material, **fkw)
-            to_ambient(fe.outer[0], 2 * np.pi * fr.outer_radius_m * L_fend)
-            to_end_oil(fe.inner[0], side, 2 * np.pi * fr.inner_radius_m * L_fend)
-            cap = cyl(f'end_cap_{side}', fr.outer_radius_m, es.bearing_radius_m,
-                      [es.cap_thickness_m], es.cap_material)
-            net.add_conductance(cap.outer[0], fe.faces[outward], es.cap_frame_htc_W_m2K * np.pi
-                                * (fr.outer_radius_m ** 2 - fr.inner_radius_m ** 2))
-            self.cap_links.append(net.add_conductance(cap.faces[outward], self.amb))
-            self.cap_areas.append(np.pi * (fr.outer_radius_m ** 2 - es.bearing_radius_m ** 2))
-            to_end_oil(cap.faces[1 - outward], side,
-                       np.pi * (fr.inner_radius_m ** 2 - es.bearing_radius_m ** 2))
-            skw = ({'rear_face': shaft.faces[0]} if side == 'front'
-                   else {'front_face': shaft.faces[n]})
-            se = cyl(f'shaft_end_{side}', r_shaft, 0.0, [L_send], ro.shaft, **skw)
-            to_end_oil(se.outer[0], side, 2 * np.pi * r_shaft * min(L_send, L_fend))
-            net.add_conductance(se.outer[0], cap.inner[0], es.bearing_conductance_W_K)
-            self.parts.update({f'end_winding_{side}': ew, f'frame_end_{side}': fe,
-                               f'end_cap_{side}': cap, f'shaft_end_{side}': se})
+        stack_face = 0 if side == 'front' else n
+        outward = 0 if side == 'front' else 1   # index of the face away from the stack
 
-        # heat sources, one per heated node
+        def joined(part: str) -> dict:
+            """Join an end block to the stack face of ``part``."""
+            return ({'rear_face': p[part].faces[0]} if side == 'front'
+                    else {'front_face': p[part].faces[n]})
+
+        ew = add_cylinder(net, f'end_winding_{side}', st.yoke_inner_radius_m, g.tip,
+                          [wd.end_overhang_m], wd.k_radial_W_mK, wd.k_axial_W_mK, rc_end,
+                          slot_frac, **joined('winding'))
+        self.end_winding[side] = ew
+        self._to_end_oil(ew.faces[outward], side, a_slots)
+        self._to_end_oil(ew.outer[0], side, 2 * np.pi * st.yoke_inner_radius_m * slot_frac
+                         * wd.end_overhang_m)
+        self._to_end_oil(ew.inner[0], side, 2 * np.pi * g.tip * slot_frac * wd.end_overhang_m)
+        # stack faces open to the end space
+        self._to_end_oil(p['yoke'].faces[stack_face], side,
+                         np.pi * (st.outer_radius_m ** 2 - st.yoke_inner_radius_m ** 2))
+        self._to_end_oil(p['teeth'].faces[stack_face], side, st.tooth_fraction * np.pi
+                         * (st.yoke_inner_radius_m ** 2 - st.bore_radius_m ** 2))
+        for part, r1, r2 in (('sleeve', ro.outer_radius_m, g.magnet_outer),
+                             ('magnet', g.magnet_outer, g.magnet_inner),
+                             ('rotor_core', g.magnet_inner, g.shaft)):
+            self._to_end_oil(p[part].faces[stack_face], side, np.pi * (r1 ** 2 - r2 ** 2))
+        # frame end segment, end cap, shaft end, bearing
+        fe = cyl(f'frame_end_{side}', fr.outer_radius_m, fr.inner_radius_m, [L_fend],
+                 fr.material, **joined('frame'))
+        self._to_ambient(fe.outer[0], 2 * np.pi * fr.outer_radius_m * L_fend)
+        self._to_end_oil(fe.inner[0], side, 2 * np.pi * fr.inner_radius_m * L_fend)
+        cap = cyl(f'end_cap_{side}', fr.outer_radius_m, es.bearing_radius_m,
+                  [es.cap_thickness_m], es.cap_material)
+        net.add_conductance(cap.outer[0], fe.faces[outward], es.cap_frame_htc_W_m2K * np.pi
+                            * (fr.outer_radius_m ** 2 - fr.inner_radius_m ** 2))
+        self.cap_links.append(net.add_conductance(cap.faces[outward], self.amb))
+        self.cap_areas.append(np.pi * (fr.outer_radius_m ** 2 - es.bearing_radius_m ** 2))
+        self._to_end_oil(cap.faces[1 - outward], side,
+                         np.pi * (fr.inner_radius_m ** 2 - es.bearing_radius_m ** 2))
+        se = cyl(f'shaft_end_{side}', g.shaft, 0.0, [L_send], ro.shaft, **joined('shaft'))
+        self._to_end_oil(se.outer[0], side, 2 * np.pi * g.shaft * min(L_send, L_fend))
+        net.add_conductance(se.outer[0], cap.inner[0], es.bearing_conductance_W_K)
+        p.update({f'end_winding_{side}': ew, f'frame_end_{side}': fe,
+                  f'end_cap_{side}': cap, f'shaft_end_{side}': se})
+
+    def _build_sources(self) -> None:
+        """Add the heat sources, one per heated node: copper, core, airgap friction."""
+        c, net, p = self.cfg, self.net, self.parts
+        wd, n = c.winding, c.slices
         ends = [self.end_winding['front'].mean[0], self.end_winding['rear'].mean[0]]
-        self.copper_nodes = winding.mean + ends
+        self.copper_nodes = p['winding'].mean + ends
         turn = c.stack_length_m + wd.end_turn_length_m   # half a turn's conductor length
-        self.copper_share = np.array([dz / turn] * n + [wd.end_turn_length_m / (2 * turn)] * 2)
+        self.copper_share = np.array([self.dz / turn] * n
+                                     + [wd.end_turn_length_m / (2 * turn)] * 2)
         self.src_copper = [net.add_source(m) for m in self.copper_nodes]
-        self.src_yoke = [net.add_source(m) for m in yoke.mean]
-        self.src_teeth = [net.add_source(m) for m in teeth.mean]
+        self.src_yoke = [net.add_source(m) for m in p['yoke'].mean]
+        self.src_teeth = [net.add_source(m) for m in p['teeth'].mean]
         self.src_gap = [net.add_source(m) for m in self.gap]
-        rho_fe = st.material.density_kg_m3
-        self.yoke_mass = rho_fe * np.array(yoke.volume_m3)
-        self.teeth_mass = rho_fe * np.array(teeth.volume_m3)
+        rho_fe = c.stator.material.density_kg_m3
+        self.yoke_mass = rho_fe * np.array(p['yoke'].volume_m3)
+        self.teeth_mass = rho_fe * np.array(p['teeth'].volume_m3)
+
+    def _build_indices(self) -> None:
+        """Index the nodes the steps and outputs use, and those that trigger a refresh."""
+        net, p = self.net, self.parts
         self.ambient_areas = np.array(self.ambient_areas)
         self.cap_areas = np.array(self.cap_areas)
         self.end_areas = np.array(self.end_areas)
         self.idx_copper = np.array([net.index(m) for m in self.copper_nodes])
         self.idx_gap = np.array([net.index(m) for m in self.gap])
         self.idx_oil = np.array([net.index(m) for m in self.oil_nodes])
-        self.idx_frame_outer = np.array([net.index(m) for m in frame.outer])
-        self.idx_cap_outer = np.array([net.index(self.parts[f'end_cap_{s}'].faces[o])
+        self.idx_frame_outer = np.array([net.index(m) for m in p['frame'].outer])
+        self.idx_cap_outer = np.array([net.index(p[f'end_cap_{s}'].faces[o])
                                        for s, o in (('front', 0), ('rear', 1))])
-        self.idx_magnet = np.array([net.index(m) for m in magnet.mean])
-        self.idx_frame = np.array([net.index(m) for m in frame.mean])
-        self.frame_volumes = np.array(frame.volume_m3)
+        self.idx_magnet = np.array([net.index(m) for m in p['magnet'].mean])
+        self.idx_frame = np.array([net.index(m) for m in p['frame'].mean])
+        self.frame_volumes = np.array(p['frame'].volume_m3)
         # nodes whose temperature sets a coefficient, with the drift (in units of
         # refresh_dT_K) that triggers a refresh: airgap oil viscosity sets the airgap h
         # (~1.5 %/K); end-space oil capacity and natural convection move < 0.2 %/K.
