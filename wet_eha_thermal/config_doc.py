@@ -98,14 +98,18 @@ def _default_text(f: dataclasses.Field) -> str:
     return 'required'
 
 
+def _checks(cls: type) -> str:
+    """Return what the ``check`` of a section checks, from its docstring ('' without one)."""
+    check = getattr(cls, 'check', None)
+    if check is None:
+        return ''
+    return check.__doc__.strip().split('\n')[0].rstrip('.').removeprefix('Check ')
+
+
 def _summary(cls: type) -> str:
     """Return the first paragraph of a class docstring on one line, and what its check checks."""
     text = ' '.join((cls.__doc__ or '').strip().split('\n\n')[0].split()).replace('``', '`')
-    check = getattr(cls, 'check', None)
-    if check is not None:
-        what = check.__doc__.strip().split('\n')[0].rstrip('.').removeprefix('Check ')
-        text += f' Loading also checks {what}.'
-    return text
+    return text + (f' Loading also checks {_checks(cls)}.' if _checks(cls) else '')
 
 
 def _row(f: dataclasses.Field, tp: Any, values: List[str]) -> str:
@@ -200,8 +204,7 @@ def config_reference(folder: Optional[Path] = None) -> str:
         except ConfigError:      # a YAML that is no Config: the ROS parameters file
             continue
         files.append(f'`{path.name}`')
-    out = [INTRO, _summary(Config).replace(
-        'Whole configuration file. Loading also checks', 'Across sections, loading also checks')]
+    out = [INTRO, f'Across sections, loading also checks {_checks(Config)}.']
     hints = typing.get_type_hints(Config)
     for f in dataclasses.fields(Config):
         _section(hints[f.name], f.name, [getattr(c, f.name) for c in configs], files,
