@@ -118,6 +118,17 @@ def air_properties(T_K, p_Pa=101325.0, log: Optional[ValidityLog] = None) -> Air
 
     :return: :class:`AirProperties`.
 
+    Examples
+    --------
+    Incropera, Fundamentals of Heat and Mass Transfer, Table A.4 at 300 K:
+    mu 184.6e-7 Pa s, k 26.3e-3 W/(m K), cp 1007 J/(kg K), Pr 0.707.
+
+    >>> air = air_properties(300.0)
+    >>> round(float(air.mu) * 1e7, 1), round(float(air.k) * 1e3, 1), round(float(air.cp))
+    (184.7, 26.2, 1007)
+    >>> round(float(air.Pr), 3)
+    0.709
+
     """
     if log is not None:
         check(log, 'air properties', 'T_K', T_K, 200.0, 600.0,
@@ -154,6 +165,14 @@ def couette_torque(mu, omega, L, r_rotor, r_bore):
     :param L: wetted length (m).
     :param r_rotor: rotor outer radius r1 (m).
     :param r_bore: bore radius r2 > r1 (m).
+
+    Examples
+    --------
+    Hand-checked: mu 0.01 Pa s, omega 100 rad/s, L 0.1 m, r1 10 mm, r2 20 mm:
+    M = 4 pi 0.01 100 0.1 (1e-4 4e-4 / 3e-4) = 4 pi 1.3333e-5 = 1.6755e-4 N m.
+
+    >>> round(float(couette_torque(0.01, 100.0, 0.1, 0.01, 0.02)) * 1e4, 4)
+    1.6755
 
     """
     r1s = np.square(r_rotor)
@@ -198,6 +217,15 @@ def bilgen_boulos_torque_coefficient(Re_d, gap_ratio, log: Optional[ValidityLog]
     :param log: optional validity log.
 
     :return: ``(C_M, regime)``; C_M is inf at Re_d = 0.
+
+    Examples
+    --------
+    Hand-checked, regime 3 at Re_d 2000 and g 0.03:
+    C_M = 1.03 0.03^0.3 / 2000^0.5 = 1.03 * 0.34925 / 44.721 = 0.008044.
+
+    >>> cm, regime = bilgen_boulos_torque_coefficient(2000.0, 0.03)
+    >>> round(float(cm), 6), int(regime)
+    (0.008044, 3)
 
     """
     if log is not None:
@@ -295,6 +323,26 @@ def airgap_friction(rho, mu, omega, r_rotor, r_bore, L, log: Optional[ValidityLo
         set the torque (edges ``BILGEN_BOULOS_RE_EDGES``), 5
         (``AIRGAP_ONSET_BLEND``) = the blend just above the vortex onset.
 
+    Examples
+    --------
+    Hand-checked on the reference rig's airgap (r1 18 mm, r2 18.5 mm, L 55 mm).
+    Cold oil (rho 850 kg/m^3, mu 0.5 Pa s) at 10 rad/s is far below the vortex
+    onset (Ta about 7e-4), so P = M omega with the Couette torque
+    M = 4 pi 0.5 10 0.055 (r1^2 r2^2 / (r2^2 - r1^2)) = 0.0209975 N m:
+
+    >>> power, regime = airgap_friction(850.0, 0.5, 10.0, 0.018, 0.0185, 0.055)
+    >>> round(float(power), 5), int(regime)
+    (0.20998, 0)
+
+    Oil at 40 degC (rho 848 kg/m^3, mu 0.0114 Pa s) at 20 000 rpm (2094.4 rad/s):
+    Re_d = 848 2094.4 0.018 0.0005 / 0.0114 = 1402 (Bilgen-Boulos regime 3),
+    C_M = 1.03 (0.5/18)^0.3 / 1402^0.5 = 0.009388 and
+    P = 0.5 C_M pi rho omega^3 r1^4 L = 663 W:
+
+    >>> power, regime = airgap_friction(848.0, 0.0114, 2094.4, 0.018, 0.0185, 0.055)
+    >>> round(float(power)), int(regime)
+    (663, 3)
+
     """
     w = np.abs(omega)
     try:      # a machine's dimensions come back every call: their factors are cached
@@ -360,6 +408,18 @@ def becker_kaye_geometric_factor(r_rotor, r_bore):
     :param r_rotor: rotor outer radius r1 (m).
     :param r_bore: bore radius r2 (m).
 
+    Examples
+    --------
+    Becker and Kaye's narrow-gap limit 0.9955, and, hand-checked, the
+    reference rig's airgap (delta/r1 = 0.5/18): X = 1 - 0.652 * 0.028571 =
+    0.98137, P = 0.056036 + 0.000571 = 0.056607, F_g = 97.409 / (1697 P
+    (1 - 0.0005/0.0365)) = 1.0281.
+
+    >>> round(float(becker_kaye_geometric_factor(1.0, 1.0 + 1e-6)), 4)
+    0.9955
+    >>> round(float(becker_kaye_geometric_factor(0.018, 0.0185)), 4)
+    1.0281
+
     """
     r1 = np.asarray(r_rotor, dtype=float)
     delta = np.subtract(r_bore, r1)
@@ -376,6 +436,15 @@ def taylor_number(omega, r_rotor, r_bore, nu):
 
     Definition of Becker and Kaye (1962); R_m the mean radius, delta the gap,
     nu the kinematic viscosity (m^2/s), omega in rad/s (either sign).
+
+    Examples
+    --------
+    Hand-checked, the reference rig's airgap at 1000 rad/s, nu 1.3e-5 m^2/s:
+    Ta = 1e6 0.01825 (5e-4)^3 / (1.3e-5)^2 = 13 499.
+
+    >>> round(float(taylor_number(1000.0, 0.018, 0.0185, 1.3e-5)))
+    13499
+
     """
     delta = np.subtract(r_bore, r_rotor)
     r_mean = 0.5 * np.add(r_rotor, r_bore)
@@ -388,6 +457,15 @@ def modified_taylor_number(omega, r_rotor, r_bore, nu):
 
     :func:`taylor_number` divided by :func:`becker_kaye_geometric_factor`;
     Taylor vortices appear at Ta_m of about 1700.
+
+    Examples
+    --------
+    Hand-checked, the case of :func:`taylor_number` and
+    :func:`becker_kaye_geometric_factor`: Ta_m = 13 499 / 1.0281 = 13 129.
+
+    >>> round(float(modified_taylor_number(1000.0, 0.018, 0.0185, 1.3e-5)))
+    13129
+
     """
     return _scalar(taylor_number(omega, r_rotor, r_bore, nu)
                    / becker_kaye_geometric_factor(r_rotor, r_bore))
@@ -411,6 +489,15 @@ def taylor_couette_nusselt(Ta_m, log: Optional[ValidityLog] = None):
 
     :param Ta_m: modified Taylor number (:func:`modified_taylor_number`).
     :param log: optional validity log.
+
+    Examples
+    --------
+    Hand-checked, one value per range: conduction 2 below the onset,
+    0.128 5000^0.367 = 0.128 * 22.778 = 2.916, 0.409 1e6^0.241 = 0.409 *
+    27.925 = 11.422.
+
+    >>> [round(float(taylor_couette_nusselt(ta)), 3) for ta in (1000.0, 5000.0, 1.0e6)]
+    [2.0, 2.916, 11.422]
 
     """
     if log is not None:
@@ -478,6 +565,16 @@ def annulus_axial_nusselt(Re, Pr, log: Optional[ValidityLog] = None):
     :param Pr: Prandtl number.
     :param log: optional validity log.
 
+    Examples
+    --------
+    Shah and London's laminar parallel-plate value, and the hand-checked
+    Gnielinski value of :func:`pipe_internal_nusselt` at Re 1e4, Pr 0.7.
+
+    >>> float(annulus_axial_nusselt(1000.0, 170.0))
+    7.54
+    >>> round(float(annulus_axial_nusselt(1.0e4, 0.7)), 1)
+    29.8
+
     """
     return _laminar_turbulent_nusselt(Re, Pr, NU_PARALLEL_PLATES_T,
                                       'annulus axial flow (plates / Gnielinski)', log)
@@ -502,6 +599,18 @@ def pipe_internal_nusselt(Re, Pr, thermal_bc='T', log: Optional[ValidityLog] = N
     :param log: optional validity log.
 
     :raises ValueError: ``thermal_bc`` is neither ``'T'`` nor ``'q'``.
+
+    Examples
+    --------
+    Shah and London's laminar values 3.66 and 4.36; Gnielinski hand-checked at
+    Re 1e4, Pr 0.7: f = (0.790 ln 1e4 - 1.64)^-2 = 0.03148, Nu = (f/8) 9000 0.7
+    / [1 + 12.7 (f/8)^0.5 (0.7^(2/3) - 1)] = 24.79 / 0.8314 = 29.8
+    (Dittus-Boelter, 0.023 Re^0.8 Pr^0.4, gives 31.6).
+
+    >>> float(pipe_internal_nusselt(1000.0, 5.0)), float(pipe_internal_nusselt(1000.0, 5.0, 'q'))
+    (3.66, 4.36)
+    >>> round(float(pipe_internal_nusselt(1.0e4, 0.7)), 1)
+    29.8
 
     """
     if thermal_bc == 'T':
@@ -579,6 +688,20 @@ def airgap_wall_to_bulk_htc(omega, r_rotor, r_bore, axial_flow_m3_s, rho, mu, k,
 
     :return: :class:`AirgapHTC` ``(h, Ta_m, Re_axial, Nu)``.
 
+    Examples
+    --------
+    Hand-checked on the reference rig's airgap (delta 0.5 mm) with oil of
+    k 0.132 W/(m K): a still, stagnant gap conducts, Nu_wb = 4 and
+    h = 4 0.132 / 0.001 = 528 W/(m^2 K); a laminar leakage flow without
+    rotation gives 7.54 and h = 7.54 0.132 / 0.001 = 995.3 W/(m^2 K).
+
+    >>> still = airgap_wall_to_bulk_htc(0.0, 0.018, 0.0185, 0.0, 848.0, 0.0114, 0.132, 1957.0)
+    >>> round(float(still.Nu), 2), round(float(still.h), 1)
+    (4.0, 528.0)
+    >>> leak = airgap_wall_to_bulk_htc(0.0, 0.018, 0.0185, 1e-5, 848.0, 0.0114, 0.132, 1957.0)
+    >>> round(float(leak.Nu), 2), round(float(leak.h), 1)
+    (7.54, 995.3)
+
     """
     delta = np.subtract(r_bore, r_rotor)
     ta_m = modified_taylor_number(omega, r_rotor, r_bore, np.divide(mu, rho))
@@ -615,6 +738,14 @@ def churchill_chu_horizontal_cylinder(Ra, Pr, log: Optional[ValidityLog] = None)
     :param Pr: Prandtl number.
     :param log: optional validity log.
 
+    Examples
+    --------
+    Cengel and Ghajar, Heat and Mass Transfer, the hot-water pipe of their
+    natural-convection chapter: Ra_D = 1.867e6, Pr = 0.7241, Nu_D = 17.40.
+
+    >>> round(float(churchill_chu_horizontal_cylinder(1.867e6, 0.7241)), 1)
+    17.4
+
     """
     if log is not None:
         check(log, 'Churchill-Chu horizontal cylinder', 'Ra', _positive_or_nan(Ra),
@@ -638,6 +769,14 @@ def churchill_chu_vertical_plate(Ra, Pr, log: Optional[ValidityLog] = None):
     :param Ra: Rayleigh number on the height.
     :param Pr: Prandtl number.
     :param log: optional validity log.
+
+    Examples
+    --------
+    Incropera, Fundamentals of Heat and Mass Transfer, Example 9.2 (glass
+    fireplace screen): Ra_L = 1.813e9, Pr = 0.690, Nu_L = 147.
+
+    >>> round(float(churchill_chu_vertical_plate(1.813e9, 0.690)))
+    147
 
     """
     if log is not None:
@@ -665,11 +804,16 @@ def morgan_horizontal_cylinder(Ra, log: Optional[ValidityLog] = None):
     literature's other choice beside :func:`churchill_chu_horizontal_cylinder`:
     21 % above it at Ra 1e2, 10 % at 1e4, 4 % at 1e6 (air, Pr 0.71).
 
-    >>> round(float(morgan_horizontal_cylinder(1.0e6)), 2)
-    15.18
-
     :param Ra: Rayleigh number on the diameter.
     :param log: optional validity log.
+
+    Examples
+    --------
+    Hand-checked with Incropera's constants for Ra 1e4-1e7:
+    0.480 (1e6)^0.25 = 0.480 * 31.623 = 15.18.
+
+    >>> round(float(morgan_horizontal_cylinder(1.0e6)), 2)
+    15.18
 
     """
     if log is not None:
@@ -694,11 +838,16 @@ def mcadams_vertical_plate(Ra, log: Optional[ValidityLog] = None):
     :func:`churchill_chu_vertical_plate`: 9 % above it at Ra 1e4, 3 % below
     at 1e8, 15 % below at 1e10 (air, Pr 0.71).
 
-    >>> round(float(mcadams_vertical_plate(1.0e8)), 1)
-    59.0
-
     :param Ra: Rayleigh number on the height.
     :param log: optional validity log.
+
+    Examples
+    --------
+    Hand-checked, one value per law: 0.59 (1e8)^(1/4) = 0.59 * 100 = 59.0
+    and 0.10 (1e10)^(1/3) = 0.10 * 2154.4 = 215.4.
+
+    >>> [round(float(mcadams_vertical_plate(ra)), 1) for ra in (1.0e8, 1.0e10)]
+    [59.0, 215.4]
 
     """
     if log is not None:
@@ -736,6 +885,17 @@ def natural_convection_htc_horizontal_cylinder(T_surface_K, T_ambient_K, D_m,
     :param D_m: outer diameter (m).
     :param log: optional validity log.
 
+    Examples
+    --------
+    The hot-water pipe of Cengel and Ghajar (see
+    :func:`churchill_chu_horizontal_cylinder`; D 80 mm, 70 degC in 20 degC
+    air): Nu_D = 17.40 with their table's air properties; with the air laws
+    here h = 5.96 W/(m^2 K), Nu_D = h D / k = 17.2.
+
+    >>> h = natural_convection_htc_horizontal_cylinder(343.15, 293.15, 0.08)
+    >>> round(float(h), 2), round(float(h * 0.08 / air_properties(318.15).k), 1)
+    (5.96, 17.2)
+
     """
     ra, air = _rayleigh_air(T_surface_K, T_ambient_K, D_m, log)
     nu = morgan_horizontal_cylinder(ra, log) if law == 'morgan_mcadams' \
@@ -759,6 +919,17 @@ def natural_convection_htc_vertical_plate(T_surface_K, T_ambient_K, height_m,
     :param height_m: plate height (m).
     :param log: optional validity log.
 
+    Examples
+    --------
+    Incropera's Example 9.2 (see :func:`churchill_chu_vertical_plate`; 0.71 m
+    high, 232 degC in 23 degC air): Nu_L = 147 with the table's air
+    properties at 400 K; with the air laws here h = 7.04 W/(m^2 K),
+    Nu_L = h L / k = 149.
+
+    >>> h = natural_convection_htc_vertical_plate(505.15, 296.15, 0.71)
+    >>> round(float(h), 2), round(float(h * 0.71 / air_properties(400.65).k))
+    (7.04, 149)
+
     """
     ra, air = _rayleigh_air(T_surface_K, T_ambient_K, height_m, log)
     nu = mcadams_vertical_plate(ra, log) if law == 'morgan_mcadams' \
@@ -774,6 +945,15 @@ def radiation_htc(T_surface_K, T_ambient_K, emissivity):
     1.9): q = eps sigma (T_s^4 - T_sur^4) = h_r (T_s - T_sur) with
     h_r = eps sigma (T_s^2 + T_sur^2)(T_s + T_sur), exact for any pair of
     temperatures (K). sigma from scipy.constants.
+
+    Examples
+    --------
+    Hand-checked: a black surface at 300 K in 300 K surroundings,
+    h_r = 4 sigma T^3 = 4 * 5.6704e-8 * 2.7e7 = 6.124 W/(m^2 K).
+
+    >>> round(float(radiation_htc(300.0, 300.0, 1.0)), 3)
+    6.124
+
     """
     ts = np.asarray(T_surface_K, dtype=float)
     return _scalar(np.multiply(emissivity, _SIGMA) * (ts * ts + np.square(T_ambient_K))

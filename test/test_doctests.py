@@ -1,0 +1,106 @@
+"""
+The examples in the docstrings of the correlations, the oil and the Mellor blocks run.
+
+Each physics function carries an example with a published or hand-checked
+value (as CalebBell's ``ht`` does); here they run as doctests, so a docstring
+cannot drift from the code. numba's compiled functions are found through
+their ``py_func`` as well, whatever numba version hides or shows their
+docstrings to :mod:`doctest`.
+"""
+
+import doctest
+import inspect
+import io
+
+import pytest
+from wet_eha_thermal.model import correlations, mellor, oil
+
+MODULES = (correlations, oil, mellor)
+
+#: Public functions and methods of MODULES without an example of their own, and why.
+NO_EXAMPLE = {
+    'correlations.airgap_friction_power': 'compiled kernel of airgap_friction (its examples)',
+    'correlations.laminar_turbulent_nusselt': 'compiled kernel of pipe_internal_nusselt',
+    'oil.density': 'the law of Oil.density without checks (its example)',
+    'oil.kinematic_viscosity': 'the law of Oil.kinematic_viscosity without checks',
+    'oil.specific_heat': 'the law of Oil.specific_heat without checks',
+    'oil.conductivity': 'the law of Oil.conductivity without checks',
+    'oil.get_oil': 'looks a grade up by name (every oil example calls it)',
+    'oil.OilGrade.walther_hot': "walther_fit of the grade's data (Oil.kinematic_viscosity)",
+    'oil.OilGrade.walther_cold': "walther_fit of the grade's data (Oil.kinematic_viscosity)",
+    'oil.Oil.name': 'a datum of the grade',
+    'oil.Oil.alpha_p': 'a datum of the grade',
+    'oil.Oil.bulk_modulus': 'a datum of the grade',
+    'mellor.add_cylinder': 'wires mellor_resistances into a network (test_mellor.py)',
+    'mellor.Cylinder.slices': 'counts node names',
+}
+
+# Fewer would mean the collection below lost docstrings (31 docstrings and 59 examples
+# when this was written).
+MIN_DOCSTRINGS = 31
+MIN_EXAMPLES = 59
+
+
+def prefix(module) -> str:
+    """Return the last part of a module's name, the prefix of the short names here."""
+    return module.__name__.rsplit('.', 1)[-1]
+
+
+def collect_doctests() -> dict:
+    """Return the doctests with examples of MODULES, by short name (``oil.Oil.density``)."""
+    finder = doctest.DocTestFinder()
+    tests = {}
+    for module in MODULES:
+        # numba's dispatchers first, through the Python function they compile: doctest
+        # sees a dispatcher's docstring only while numba copies it and the dispatcher
+        # passes for a routine
+        for name, obj in vars(module).items():
+            func = getattr(obj, 'py_func', None)
+            if func is not None and func.__module__ == module.__name__:
+                for test in finder.find(func, f'{module.__name__}.{name}', module=module,
+                                        globs=vars(module)):
+                    tests[f'{prefix(module)}.{name}'] = test
+        for test in finder.find(module):
+            tests.setdefault(prefix(module) + test.name[len(module.__name__):], test)
+    return {name: test for name, test in tests.items() if test.examples}
+
+
+def public_functions() -> set:
+    """Return the short names of the public functions, methods and properties of MODULES."""
+    names = set()
+    for module in MODULES:
+        for name, obj in vars(module).items():
+            if name.startswith('_') or getattr(obj, '__module__', None) != module.__name__:
+                continue
+            if inspect.isclass(obj):
+                names.update(f'{prefix(module)}.{name}.{attr}'
+                             for attr, member in vars(obj).items() if not attr.startswith('_')
+                             and (inspect.isfunction(member) or isinstance(member, property)))
+            elif callable(obj):
+                names.add(f'{prefix(module)}.{name}')
+    return names
+
+
+DOCTESTS = collect_doctests()
+
+
+@pytest.mark.parametrize('name', sorted(DOCTESTS))
+def test_docstring_examples_run(name):
+    runner = doctest.DocTestRunner()
+    out = io.StringIO()
+    result = runner.run(DOCTESTS[name], out=out.write)
+    assert result.failed == 0, out.getvalue()
+
+
+def test_the_examples_are_all_collected():
+    examples = sum(len(test.examples) for test in DOCTESTS.values())
+    assert len(DOCTESTS) >= MIN_DOCSTRINGS and examples >= MIN_EXAMPLES, \
+        f'only {len(DOCTESTS)} docstrings with {examples} examples collected'
+
+
+def test_every_physics_function_has_an_example():
+    public = public_functions()
+    assert set(NO_EXAMPLE) <= public, 'NO_EXAMPLE names what is gone'
+    assert not set(NO_EXAMPLE) & set(DOCTESTS), 'NO_EXAMPLE names what has an example'
+    missing = public - set(DOCTESTS) - set(NO_EXAMPLE)
+    assert not missing, f'public functions without an example: {sorted(missing)}'
