@@ -5,7 +5,7 @@ Run: OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_calibrate.py
      [--dir DIR] [--minutes 60] [--stages 3 4 6] [--validate N ...] [--fit KEY ...]
      [--step S] [--jobs 2]
 
-The logs come from the simulated rig running the issue's truth: the reference
+The logs come from the simulated rig running the known truth of docs/calibration.md: the reference
 rig with a 30 % larger frame-yoke contact gap (30 % more contact resistance)
 and a 20 W seal loss into the pump case oil. Each is what the recorder writes
 (:func:`~wet_eha_thermal.simulated_rig.write_rig_bag`): current, speed, one

@@ -10,13 +10,13 @@ differential pressure and position at 1 kHz, thermocouples at 10 Hz, ambient
 at 1 Hz), ``--minutes`` long. Then, each in its own process so that its peak
 RSS is its own:
 
-- ``plain``: the reference loop of the issue, ``mcap.reader.make_reader``
+- ``plain``: the reference loop, ``mcap.reader.make_reader``
   ``iter_messages()`` with a struct unpack of every message's double
   (``read_plain`` of ``bench_replay_read.py``);
 - ``open-loop``: :func:`wet_eha_thermal.replay.replay` of the whole log (read,
   decode, estimator in sample time at its 20 ms step) plus the CSV and MCAP
   outputs, as ``wet-eha-thermal replay --no-report --open-loop`` does: the
-  work of the issue's log, four sensor topics and no thermocouple;
+  work of a rig log: four sensor topics and no thermocouple;
 - ``replay``: the same with the live correction on (the shipped default for
   a log with thermocouples, as this one has).
 

@@ -1,7 +1,7 @@
 """
 Live correction with thermocouples, on known truth: the Kalman filter and its guards.
 
-The simulated rig runs the issue's truth: 30 % more frame-yoke contact
+The simulated rig runs the known truth of docs/calibration.md: 30 % more frame-yoke contact
 resistance and a 20 W seal loss into the pump case oil that the nominal
 configuration (the estimator's) does not have. Stage 3 (8 MPa, 6 L/min at
 1 Hz) for 30 minutes from cold: a loaded stage in which the open-loop winding
@@ -119,7 +119,7 @@ def test_frame_thermocouple_halves_the_winding_error(cfg, rig_data, open_loop):
         (mx0, rms0), (mx, rms) = figures(open_loop, q), figures(out, q)
         print(f'{q}: open loop max {mx0:.2f} K RMS {rms0:.2f} K; frame-corrected max '
               f'{mx:.2f} K RMS {rms:.2f} K')
-        assert mx0 > 5.0                        # the open-loop error the issue describes
+        assert mx0 > 5.0                        # the open-loop error of that truth
         assert mx <= 0.5 * mx0 and rms <= 0.5 * rms0, q
     frame = est.correction.tcs['frame']
     assert frame.status == 'ok' and frame.dropped_events == 0 and frame.gated == 0

@@ -10,7 +10,7 @@ from scipy.constants import Stefan_Boltzmann
 from wet_eha_thermal.model import correlations as c
 from wet_eha_thermal.model.validity import ValidityLog
 
-# Reference-rig airgap (reference-eha.md): rotor 18.0 mm, gap 0.5 mm, stack 55 mm.
+# Reference-rig airgap (docs/model.md, The reference rig): rotor 18.0 mm, gap 0.5 mm, stack 55 mm.
 R1 = 0.018
 R2 = 0.0185
 L = 0.055

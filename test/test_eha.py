@@ -17,7 +17,7 @@ def cfg():
 
 @pytest.mark.parametrize('stage', [1, 2, 3, 4, 5, 6])
 def test_energy_is_conserved_over_a_stage(cfg, stage):
-    # physics.md check 5: electrical energy in minus work to the load = heat stored
+    # docs/model.md check 5: electrical energy in minus work to the load = heat stored
     # + heat to ambient, to 0.1 %; ten minutes from cold at the default step
     r = simulate(cfg, stage_duty(cfg, stage), 600.0, record_every_s=600.0)
     e = r.model.energy()

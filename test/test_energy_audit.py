@@ -25,7 +25,7 @@ def cfg():
 
 @pytest.mark.parametrize('stage', [1, 2, 3, 4, 5, 6])
 def test_audit_closes_on_every_stage_at_the_default_step(cfg, stage):
-    # physics.md check 5 (0.1 %), from the outputs: 600 s from ambient at 1 s steps
+    # docs/model.md check 5 (0.1 %), from the outputs: 600 s from ambient at 1 s steps
     f = audit(cfg, stage_duty(cfg, stage), 600.0, 1.0)
     assert f['input_kJ'] > 10.0
     assert abs(f['audit']) < 1e-3, f

@@ -1,4 +1,4 @@
-"""Check 1 of physics.md: the Mellor T-block against analytic conduction solutions."""
+"""Check 1 of docs/model.md: the Mellor T-block against analytic conduction solutions."""
 
 import numpy as np
 import pytest

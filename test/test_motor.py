@@ -1,4 +1,4 @@
-"""Wet motor model: check 7 of physics.md, convergence, heat balance, transient accuracy."""
+"""Wet motor model: check 7 of docs/model.md, convergence, heat balance, transient accuracy."""
 
 import numpy as np
 import pytest
@@ -47,7 +47,7 @@ def test_default_network_size_and_names(cfg):
 
 
 def test_speed_sweep_rises_monotonically(maps):
-    # physics.md check 7: at 15 A, winding and frame rise with speed 2000 -> 20000 r/min
+    # docs/model.md check 7: at 15 A, winding and frame rise with speed 2000 -> 20000 r/min
     pts = [p for p in maps if p.sweep == 'speed']
     assert [p.speed_rpm for p in pts] == sorted(p.speed_rpm for p in pts)
     assert pts[0].speed_rpm == 2000 and pts[-1].speed_rpm == 20000

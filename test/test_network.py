@@ -1,4 +1,4 @@
-"""Thermal network engine: checks 2 and 3 of physics.md, stiffness, energy, errors."""
+"""Thermal network engine: checks 2 and 3 of docs/model.md, stiffness, energy, errors."""
 
 import numpy as np
 import pytest

@@ -61,7 +61,7 @@ def test_walther_fit_two_points_and_cold_start_need():
 
     The single 40/100 degC line of MIL-PRF-5606 predicts about 200 cSt at
     -40 degC against 495 cSt measured (VI improver): the reason for the
-    piecewise fit (physics.md section 4).
+    piecewise fit (docs/model.md, Oil properties).
     """
     a, b = walther_fit(T0 + 40.0, 13.5, T0 + 100.0, 5.1)
     for t_k, nu in ((T0 + 40.0, 13.5), (T0 + 100.0, 5.1)):

@@ -482,7 +482,7 @@ class AlertLevels:
 
 @dataclass(frozen=True, kw_only=True)
 class Alerts:
-    """Alert thresholds of the estimated temperatures (limits: reference-eha.md)."""
+    """Alert thresholds of the estimated temperatures (limits: docs/model.md, reference rig)."""
 
     winding_hotspot: AlertLevels
     magnet: AlertLevels

@@ -294,7 +294,7 @@ def airgap_friction(rho, mu, omega, r_rotor, r_bore, L, log: Optional[ValidityLo
     """
     Return the viscous friction power of a flooded airgap and its regime.
 
-    physics.md section 2. Below the onset of Taylor vortices (modified Taylor
+    docs/model.md (Motor losses). Below the onset of Taylor vortices (modified Taylor
     number Ta_m < ``TAYLOR_ONSET``, 1700) the flow is laminar circular
     Couette flow and the torque is exactly :func:`couette_torque`'s. Above
     it, the torque grows linearly in eps = Ta_m / 1700 - 1 from the Couette
@@ -588,7 +588,7 @@ def pipe_internal_nusselt(Re, Pr, thermal_bc='T', log: Optional[ValidityLog] = N
     ``'T'``) or 4.36 at uniform heat flux (``'q'``) (Shah and London 1978).
     Turbulent (Re >= 4000): Gnielinski (1976) with the Petukhov friction
     factor, valid 3000 <= Re <= 5e6 and 0.5 <= Pr <= 2000. Between 2300 and
-    4000 the value is interpolated linearly in Re (physics.md section 4).
+    4000 the value is interpolated linearly in Re (docs/model.md, Heat paths of the circuit).
     Entrance effects are neglected. Validity flagged: Re > 5e6; Pr outside
     0.5-2000 in the transitional and turbulent range.
 
@@ -647,7 +647,7 @@ def airgap_wall_to_bulk_htc(omega, r_rotor, r_bore, axial_flow_m3_s, rho, mu, k,
 
     The model has one well-mixed oil node per section between rotor and
     stator, so what is needed is h between either wall and that bulk node.
-    physics.md section 3 combines a rotational (Taylor vortex) part and an
+    docs/model.md (Frame and end caps to ambient) combines a rotational (Taylor vortex) part and an
     axial-flow part; conduction must be counted once:
 
     - Becker-Kaye's Nu_TC (:func:`taylor_couette_nusselt`) is wall-to-wall,
@@ -665,7 +665,7 @@ def airgap_wall_to_bulk_htc(omega, r_rotor, r_bore, axial_flow_m3_s, rho, mu, k,
     node is then the mid-gap fluid, not a mixed-mean stream), so Nu_wb steps
     from 4 to 7.54 as soon as any flow exists: the fully developed laminar
     value does not depend on the flow rate. The addition of the two
-    enhancements is the approximation of physics.md (no interaction term);
+    enhancements is the model's approximation (docs/model.md; no interaction term);
     7.54 is the symmetric-wall value, used although rotor and stator run at
     different temperatures, and thermal-entrance effects (which raise Nu in
     short, slow sections) are neglected.

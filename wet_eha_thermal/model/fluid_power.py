@@ -37,7 +37,7 @@ def pump_friction_torque(speed_rad_s, dp_Pa, mu_Pa_s, displacement_m3_rad: float
     """
     Return the pump friction torque magnitude (N m): C_v mu D |w| + C_f D |dp| + T_c.
 
-    Lumped loss model of physics.md section 4 (viscous, pressure-proportional
+    Lumped loss model of docs/model.md (hydraulic control volumes) (viscous, pressure-proportional
     and Coulomb parts, D per radian); it always opposes the motion, so the
     loss power is this torque times |w|.
     """

@@ -1,5 +1,5 @@
 """
-Control-node thermal model of the EHA hydraulic circuit (physics.md section 4).
+Control-node thermal model of the EHA hydraulic circuit (docs/model.md).
 
 Oil volumes (pump ports A and B, pump case, the two lines, the two actuator
 chambers, the accumulator) and solid shells (pump, lines, actuator,

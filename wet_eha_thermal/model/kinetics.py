@@ -8,7 +8,7 @@ model is driven offline exactly as the live estimator is driven by the real
 sensors, plus internal "truth" quantities (leakages, pump port pressures,
 torque, loss powers) for energy checks.
 
-Sign conventions (physics.md, reference-eha.md): the load pressure is
+Sign conventions (docs/model.md, The kinetic model; The reference rig): the load pressure is
 dp = p_A - p_B across the actuator; a positive actuator flow Q goes into
 chamber A (the piston moves toward B, the position x grows); a positive
 speed makes the pump deliver into port A.
@@ -67,7 +67,7 @@ def _stage(number: int, dp_MPa: float, q_L_min: float, f_Hz: float) -> Stage:
     return Stage(number, dp_MPa * MPA, q_L_min * L_MIN, f_Hz)
 
 
-#: The six stages of reference-eha.md (flight-control duty; 6 is the no-load rig test).
+#: The reference rig's six stages (docs/model.md): flight-control duty; 6 is the no-load test.
 STAGES: Dict[int, Stage] = {s.number: s for s in (
     _stage(1, 16.0, 2.0, 0.2),
     _stage(2, 12.0, 4.0, 0.5),
@@ -363,7 +363,7 @@ def no_loss(speed_rad_s: np.ndarray) -> np.ndarray:
 @dataclass
 class ThermalFeedback:
     """
-    The thermal state the kinetics needs (physics.md section 1: oil properties back).
+    The thermal state the kinetics needs (docs/model.md, The coupled model: oil properties back).
 
     :ivar pump_oil_K: oil temperature in the pump (K): leakage and friction viscosity.
     :ivar line_oil_K: oil temperature in the lines (K): line pressure drops.

@@ -7,7 +7,7 @@ atmospheric pressure), density in kg/m^3, kinematic viscosity in m^2/s,
 dynamic viscosity in Pa s, specific heat in J/(kg K), conductivity in
 W/(m K). Every function accepts floats or numpy arrays (broadcast together).
 
-Models (physics.md section 4):
+Models (docs/model.md, Oil properties):
 
 - density: rho = rho_15 [1 - alpha_p (T - 288.15 K)] (1 + p / K), with K the
   isothermal *secant* bulk modulus (the one that gives the density change
@@ -363,8 +363,8 @@ class Oil:
         """
         Return the density rho(T, p) in kg/m^3.
 
-        rho = rho_15 [1 - alpha_p (T - 288.15 K)] (1 + p / K), physics.md
-        section 4; alpha_p and K constant (first-order expansion about
+        rho = rho_15 [1 - alpha_p (T - 288.15 K)] (1 + p / K), docs/model.md
+        (Oil properties); alpha_p and K constant (first-order expansion about
         15 degC and 0 Pa gauge). Validity: the grade's temperature range and
         0..35 MPa.
 
@@ -509,7 +509,7 @@ def _grade_5606() -> OilGrade:
         T_max_K=T0_K + 135.0,
         source_notes=(
             'Petroleum base, VI-improved (NATO H-515). Viscosity: typical values of '
-            'qualified fluids (physics.md): 13.5 cSt at 40 degC, 5.1 cSt at 100 degC, '
+            'qualified fluids: 13.5 cSt at 40 degC, 5.1 cSt at 100 degC, '
             '495 cSt at -40 degC (spec limits: >= 10.0, >= 4.90, <= 600 cSt). '
             'rho_15 865 kg/m^3 (typical data sheets 0.86-0.87). alpha_p 8e-4 1/K (est.). '
             'Bulk modulus: isothermal secant, 0..35 MPa at about 40 degC, 1.4 GPa (est.; '
@@ -582,7 +582,7 @@ def isenthalpic_throttle_temperature_rise(dp_Pa, T_K, oil: Oil, p_Pa=0.0,
     """
     Return the temperature rise (K) of oil throttled isenthalpically across dp_Pa.
 
-    From dh = c_p dT + (1 - alpha_p T) dp / rho = 0 (physics.md section 4):
+    From dh = c_p dT + (1 - alpha_p T) dp / rho = 0 (docs/model.md, Oil properties):
     dT = (1 - alpha_p T) dp / (rho c_p), about 0.45 K/MPa for MIL-PRF-5606 at
     40 degC. ``dp_Pa`` is the pressure drop (positive for a drop, giving a
     rise); ``T_K`` and ``p_Pa`` (gauge) are the state at which rho and c_p

@@ -58,7 +58,7 @@ DIAGNOSTICS_TOPIC = '/diagnostics'
 ESTIMATES = ('winding_mean', 'winding_hotspot', 'frame', 'magnet', 'airgap_oil_outlet',
              'motor_oil_outlet', 'pump_case', 'pump_outlet', 'chamber_a', 'chamber_b',
              'accumulator', 'oil')
-# thermocouples of the reference rig (reference-eha.md) and the estimate each one measures
+# thermocouples of the reference rig (docs/model.md) and the estimate each one measures
 THERMOCOUPLES = {'winding': 'winding_mean', 'frame': 'frame', 'pump_inlet': 'pump_outlet',
                  'pump_case': 'pump_case', 'chamber_a': 'chamber_a', 'chamber_b': 'chamber_b',
                  'motor_oil_outlet': 'motor_oil_outlet'}
