@@ -80,6 +80,7 @@ import numpy as np
 from .config import (Calibration, CalibrationResult, Config, config_from_yaml, config_value,
                      ConfigError, from_dict, model_parameter, with_values)
 from .estimator.core import Estimator
+from .outputs import markdown_table, save_figure, write_text
 from .ros import topics
 from .ros.topics import THERMOCOUPLES
 
@@ -1171,10 +1172,6 @@ def config_yaml(cfg: Config, header: str = '') -> str:
     return lines + text
 
 
-def _partial(path: Path) -> Path:
-    return path.with_name(path.name + '.partial')
-
-
 def write_outputs(run: CalibrationRun, out_dir: Path, command: str = '') -> List[Path]:
     """
     Write the plots, ``report.md`` and ``calibrated.yaml`` (last); return their paths.
@@ -1187,10 +1184,7 @@ def write_outputs(run: CalibrationRun, out_dir: Path, command: str = '') -> List
     for name in (CALIBRATED_YAML, 'report.md'):
         (out_dir / name).unlink(missing_ok=True)
     images = write_plots(run, out_dir)
-    report = out_dir / 'report.md'
-    tmp = _partial(report)
-    tmp.write_text(report_text(run, images, command))
-    tmp.replace(report)
+    report = write_text(out_dir / 'report.md', report_text(run, images, command))
     fitted = ', '.join(f'{p.key} = {p.value:.6g}' for p in run.fitted) or 'nothing'
     created = run.calibrated_cfg.calibration.result.created_utc
     header = (f'Calibrated by wet-eha-thermal calibrate, {created}\nfrom {run.config_source}.'
@@ -1199,10 +1193,7 @@ def write_outputs(run: CalibrationRun, out_dir: Path, command: str = '') -> List
               'not identifiable,\nand the logs used. Load it as any configuration (--config).')
     if command:
         header += f'\nCommand: {command}'
-    path = out_dir / CALIBRATED_YAML
-    tmp = _partial(path)
-    tmp.write_text(config_yaml(run.calibrated_cfg, header))
-    tmp.replace(path)
+    path = write_text(out_dir / CALIBRATED_YAML, config_yaml(run.calibrated_cfg, header))
     return images + [report, path]
 
 
@@ -1217,7 +1208,6 @@ def write_plots(run: CalibrationRun, out_dir: Path) -> List[Path]:
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
-    from .replay import save_figure
 
     images = []
     for k, lf in enumerate(run.logs):
@@ -1251,7 +1241,7 @@ def write_plots(run: CalibrationRun, out_dir: Path) -> List[Path]:
         axes[-1, 1].set_xlabel('time [min]')
         fig.suptitle(f'{lf.log.name} ({"fit" if lf.role == "fit" else "held out"}): '
                      f'{run.base_cfg.calibration.residual_interval_s:g} s means')
-        images.append(save_figure(fig, out_dir / f'{_stem(run, k)}.png', plt))
+        images.append(save_figure(fig, out_dir / f'{_stem(run, k)}.png'))
     return images
 
 
@@ -1261,15 +1251,16 @@ def _fmt(x: float, digits: int = 4) -> str:
 
 def error_table(lf: LogFit) -> List[str]:
     """Return a markdown table of a log's errors per thermocouple, before and after."""
-    lines = ['| thermocouple | estimate | before: max abs | RMS | bias | after: max abs | RMS '
-             '| bias | after, max abs of single readings |',
-             '| --- | --- | --- | --- | --- | --- | --- | --- | --- |']
-    for c in lf.windows.channels:
-        b, a = lf.before[c], lf.after[c]
-        lines.append(f'| {c} | {b["estimate"]} | {b["max_abs_K"]:.2f} | {b["rms_K"]:.2f} | '
-                     f'{b["bias_K"]:+.2f} | {a["max_abs_K"]:.2f} | {a["rms_K"]:.2f} | '
-                     f'{a["bias_K"]:+.2f} | {a["max_abs_raw_K"]:.2f} |')
-    return lines
+    def row(c: str) -> tuple:
+        before, after = lf.before[c], lf.after[c]
+        return (c, before['estimate'], f'{before["max_abs_K"]:.2f}', f'{before["rms_K"]:.2f}',
+                f'{before["bias_K"]:+.2f}', f'{after["max_abs_K"]:.2f}',
+                f'{after["rms_K"]:.2f}', f'{after["bias_K"]:+.2f}',
+                f'{after["max_abs_raw_K"]:.2f}')
+
+    return markdown_table(('thermocouple', 'estimate', 'before: max abs', 'RMS', 'bias',
+                           'after: max abs', 'RMS', 'bias', 'after, max abs of single readings'),
+                          (row(c) for c in lf.windows.channels))
 
 
 def report_text(run: CalibrationRun, images: Sequence[Path], command: str = '') -> str:
@@ -1286,25 +1277,23 @@ def report_text(run: CalibrationRun, images: Sequence[Path], command: str = '') 
               f'wall time: reading {run.read_s:.1f} s, fit {run.fit_s:.1f} s',
               f'- fit logs, all thermocouples: RMS error {run.rms_before_K:.3f} K nominal, '
               f'{run.rms_after_K:.3f} K calibrated; {run.n_residuals} residuals, '
-              f'{run.n_eff:.0f} effectively independent', '',
-              '| log | role | duration | size | sha256 | start (readings) | start offset '
-              'fitted |', '| --- | --- | --- | --- | --- | --- | --- |']
-    for lf in run.logs:
-        offset = f'{lf.start_offset_after_K:+.2f} K' if lf.role == 'fit' else '-'
-        lines.append(f'| {lf.log.path or lf.log.name} | {lf.role} | '
-                     f'{lf.log.duration_s:.0f} s | {lf.log.size_bytes} B | '
-                     f'{lf.log.sha256[:16] or "(in memory)"} | {lf.log.start_C:.2f} degC | '
-                     f'{offset} |')
-    lines += ['', '## Parameters', '',
-              '| key | bounds | nominal | calibrated | 95 % interval | step shift | '
-              'identifiable | largest effect across the bounds | collinearity index | note |',
-              '| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |']
-    for p in run.parameters:
-        ci = f'{p.ci95[0]:.4g} .. {p.ci95[1]:.4g}' if p.ci95 else '-'
-        shift = f'{p.step_shift:+.3g}' if p.identifiable and c.check_step_s else '-'
-        lines.append(f'| {p.key} | {p.low:.4g} .. {p.high:.4g} | {p.nominal:.4g} | '
-                     f'{p.value:.4g} | {ci} | {shift} | {"yes" if p.identifiable else "**no**"} '
-                     f'| {_fmt(p.effect_K, 3)} K | {_fmt(p.collinearity, 3)} | {p.note} |')
+              f'{run.n_eff:.0f} effectively independent', '']
+    lines += markdown_table(
+        ('log', 'role', 'duration', 'size', 'sha256', 'start (readings)', 'start offset fitted'),
+        ((lf.log.path or lf.log.name, lf.role, f'{lf.log.duration_s:.0f} s',
+          f'{lf.log.size_bytes} B', lf.log.sha256[:16] or '(in memory)',
+          f'{lf.log.start_C:.2f} degC',
+          f'{lf.start_offset_after_K:+.2f} K' if lf.role == 'fit' else '-')
+         for lf in run.logs))
+    lines += ['', '## Parameters', '']
+    lines += markdown_table(
+        ('key', 'bounds', 'nominal', 'calibrated', '95 % interval', 'step shift', 'identifiable',
+         'largest effect across the bounds', 'collinearity index', 'note'),
+        ((p.key, f'{p.low:.4g} .. {p.high:.4g}', f'{p.nominal:.4g}', f'{p.value:.4g}',
+          f'{p.ci95[0]:.4g} .. {p.ci95[1]:.4g}' if p.ci95 else '-',
+          f'{p.step_shift:+.3g}' if p.identifiable and c.check_step_s else '-',
+          'yes' if p.identifiable else '**no**', f'{_fmt(p.effect_K, 3)} K',
+          _fmt(p.collinearity, 3), p.note) for p in run.parameters))
     check = (f'plus the step shift: the change of the parameter that the fitted model run once '
              f'at a {c.check_step_s:g} s step implies (linearised), for the error of the fit '
              f'step itself' if c.check_step_s else 'no step check (check_step_s: 0): the '
