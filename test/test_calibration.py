@@ -283,6 +283,15 @@ def test_command_end_to_end(bags, tmp_path, capsys):
     assert plan.cfg.hydraulics.pump.extra_loss_W == seal
 
 
+def test_a_topic_mapped_to_two_thermocouples_feeds_both(bags):
+    config = rp.choose_config(open_bag(bags[3]), None)
+    topic = '/eha/measured/chamber_a'
+    log = cb.load_log(bags[3], config, config[0].calibration, {'measured/chamber_b': topic})
+    assert log.thermocouples['chamber_a'][0].size > 0
+    for a, b in zip(log.thermocouples['chamber_a'], log.thermocouples['chamber_b']):
+        assert np.array_equal(a, b)
+
+
 def _without_thermocouples(bag, path):
     info = open_bag(bag)
     keep = [t for t in info.topics if not t.startswith('/eha/measured/')]

@@ -251,7 +251,9 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
     inputs_plot = {name: _Decimator(plot_interval_s) for name in plan.inputs}
     t_wall = time.perf_counter()
     first_s: Optional[float] = None
-    by_topic = {topic: name for name, topic in plan.inputs.items()}
+    inputs_of: Dict[str, List[str]] = {}
+    for name, topic in plan.inputs.items():
+        inputs_of.setdefault(topic, []).append(name)
     size = max(os.path.getsize(plan.info.path), 1)
     done_bytes = [0]
     # the next block is read and decoded on the other core while the model steps
@@ -275,22 +277,20 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
                 continue
             t = columns.time_ns * 1e-9
             first_s = float(t[0]) if first_s is None else min(first_s, float(t[0]))
-            if topic in by_topic:
-                name = by_topic[topic]
+            for name in inputs_of.get(topic, ()):
                 series[name] = (t, next(iter(columns.values.values())))
                 inputs_plot[name].add(*series[name])
-            elif topic == plan.ambient:
+            if topic == plan.ambient:
                 ambient = (t, columns.values['temperature'])
-            else:
-                for tc, tc_topic in plan.thermocouples.items():
-                    if tc_topic == topic:
-                        measured[tc][0].append(t)
-                        measured[tc][1].append(columns.values['temperature'])
-                        # for the live correction (and the display): each reading is used
-                        # by stamp, so the whole block may go in before the steps
-                        for stamp, value in zip(t.tolist(),
-                                                columns.values['temperature'].tolist()):
-                            est.add_measured(tc, stamp, value)
+            for tc, tc_topic in plan.thermocouples.items():
+                if tc_topic == topic:
+                    measured[tc][0].append(t)
+                    measured[tc][1].append(columns.values['temperature'])
+                    # for the live correction (and the display): each reading is used
+                    # by stamp, so the whole block may go in before the steps
+                    for stamp, value in zip(t.tolist(),
+                                            columns.values['temperature'].tolist()):
+                        est.add_measured(tc, stamp, value)
         # an ambient reading applies from its stamp on, as it does live: feed the inputs
         # up to each reading, step, then take it
         cuts = {name: np.searchsorted(t, ambient[0], side='right')
