@@ -337,28 +337,14 @@ def read_log(plan, calib: Calibration, path: Optional[os.PathLike] = None) -> Lo
     h_ns = int(round(1e9 / calib.average_rate_Hz))
     origin_ns = info.start_time_ns - h_ns
     builder = LogBuilder(info.path.name, list(plan.inputs), calib, channel_ranges(plan.cfg))
-    # every name mapped to a topic gets its samples (two thermocouples may share one)
-    by_topic: Dict[str, List[Tuple[str, str]]] = {}
-    for name, topic in plan.inputs.items():
-        by_topic.setdefault(topic, []).append(('input', name))
-    for name, topic in plan.thermocouples.items():
-        by_topic.setdefault(topic, []).append(('tc', name))
-    if plan.ambient is not None:
-        by_topic.setdefault(plan.ambient, []).append(('ambient', 'ambient'))
     try:
         for block in iter_column_blocks(info.path, plan.specs):
-            for topic, columns in block.items():
-                if not len(columns):
-                    continue
-                t = (columns.time_ns - origin_ns).astype(np.float64) * 1e-9
-                for kind, name in by_topic[topic]:
-                    if kind == 'input':
-                        builder.add_input(name, t, next(iter(columns.values.values())))
-                    elif kind == 'tc':
-                        builder.add_thermocouple(name, t, columns.values['temperature'],
-                                                 columns.values['variance'])
-                    else:
-                        builder.add_ambient(t, columns.values['temperature'])
+            samples = plan.route(block, origin_ns)
+            for name, (t, v) in samples.inputs.items():
+                builder.add_input(name, t, v)
+            for name, (t, v, variance) in samples.thermocouples.items():
+                builder.add_thermocouple(name, t, v, variance)
+            builder.add_ambient(*samples.ambient)
     except BagError as exc:
         raise CalibrationError(str(exc)) from None
     log = builder.build(plan.cfg.estimator.pressure_inputs, plan.missing,

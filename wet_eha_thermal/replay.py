@@ -28,11 +28,12 @@ import math
 import os
 from pathlib import Path
 import time
-from typing import Callable, Dict, List, Mapping, Optional, Sequence
+from typing import Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
-from .bag.reader import BagError, BagInfo, iter_column_blocks, open_bag, TEMPERATURE
+from .bag.reader import (BagError, BagInfo, Columns, iter_column_blocks, open_bag,
+                         TEMPERATURE)
 from .config import Config, config_from_yaml, default_config_path, load_config, with_values
 from .estimator.core import Estimator, INPUTS, sensor_inputs
 from .outputs import atomic, markdown_table, save_figure, write_text
@@ -47,6 +48,18 @@ OUTPUT_ESTIMATES = topics.ESTIMATES
 
 class ReplayError(ValueError):
     """A bag or a topic mapping that cannot be replayed; the message says why."""
+
+
+@dataclass
+class Samples:
+    """One block of a bag by what it feeds: stamps (s) and values, in SI units and degC."""
+
+    inputs: Dict[str, Tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+    # stamps, readings (degC) and the variances the messages give (K^2)
+    thermocouples: Dict[str, Tuple[np.ndarray, np.ndarray, np.ndarray]] = field(
+        default_factory=dict)
+    ambient: Tuple[np.ndarray, np.ndarray] = (np.zeros(0), np.zeros(0))
+    first_s: Optional[float] = None            # the earliest stamp of the block
 
 
 @dataclass
@@ -70,6 +83,31 @@ class ReplayPlan:
         if self.ambient is not None:
             specs[self.ambient] = TEMPERATURE
         return specs
+
+    def route(self, block: Dict[str, Columns], origin_ns: int = 0) -> Samples:
+        """
+        Return a block of decoded columns (:func:`iter_column_blocks`) by what each topic feeds.
+
+        Stamps are seconds from ``origin_ns``. Every name mapped to a topic
+        gets its samples; thermocouples in the order of the block's topics.
+        """
+        samples = Samples()
+        for topic, columns in block.items():
+            if not len(columns):
+                continue
+            t = (columns.time_ns - origin_ns).astype(np.float64) * 1e-9
+            samples.first_s = float(t[0]) if samples.first_s is None \
+                else min(samples.first_s, float(t[0]))
+            for name, input_topic in self.inputs.items():
+                if input_topic == topic:
+                    samples.inputs[name] = (t, next(iter(columns.values.values())))
+            if topic == self.ambient:
+                samples.ambient = (t, columns.values['temperature'])
+            for tc, tc_topic in self.thermocouples.items():
+                if tc_topic == topic:
+                    samples.thermocouples[tc] = (t, columns.values['temperature'],
+                                                 columns.values['variance'])
+        return samples
 
 
 def choose_config(info: BagInfo, config_path: Optional[os.PathLike]) -> tuple:
@@ -251,9 +289,6 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
     inputs_plot = {name: _Decimator(plot_interval_s) for name in plan.inputs}
     t_wall = time.perf_counter()
     first_s: Optional[float] = None
-    inputs_of: Dict[str, List[str]] = {}
-    for name, topic in plan.inputs.items():
-        inputs_of.setdefault(topic, []).append(name)
     size = max(os.path.getsize(plan.info.path), 1)
     done_bytes = [0]
     # the next block is read and decoded on the other core while the model steps
@@ -270,27 +305,19 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
                     + [max(e.uncertainty_K.values()), e.alert_level, len(e.stale)]))
 
     for block in blocks:
-        series = {}
-        ambient = (np.zeros(0), np.zeros(0))
-        for topic, columns in block.items():
-            if not len(columns):
-                continue
-            t = columns.time_ns * 1e-9
-            first_s = float(t[0]) if first_s is None else min(first_s, float(t[0]))
-            for name in inputs_of.get(topic, ()):
-                series[name] = (t, next(iter(columns.values.values())))
-                inputs_plot[name].add(*series[name])
-            if topic == plan.ambient:
-                ambient = (t, columns.values['temperature'])
-            for tc, tc_topic in plan.thermocouples.items():
-                if tc_topic == topic:
-                    measured[tc][0].append(t)
-                    measured[tc][1].append(columns.values['temperature'])
-                    # for the live correction (and the display): each reading is used
-                    # by stamp, so the whole block may go in before the steps
-                    for stamp, value in zip(t.tolist(),
-                                            columns.values['temperature'].tolist()):
-                        est.add_measured(tc, stamp, value)
+        samples = plan.route(block)
+        if samples.first_s is not None:
+            first_s = samples.first_s if first_s is None else min(first_s, samples.first_s)
+        series, ambient = samples.inputs, samples.ambient
+        for name, (t, v) in series.items():
+            inputs_plot[name].add(t, v)
+        for tc, (t, v, _) in samples.thermocouples.items():
+            measured[tc][0].append(t)
+            measured[tc][1].append(v)
+            # for the live correction (and the display): each reading is used by stamp, so
+            # the whole block may go in before the steps
+            for stamp, value in zip(t.tolist(), v.tolist()):
+                est.add_measured(tc, stamp, value)
         # an ambient reading applies from its stamp on, as it does live: feed the inputs
         # up to each reading, step, then take it
         cuts = {name: np.searchsorted(t, ambient[0], side='right')
