@@ -66,8 +66,9 @@ interval otherwise assumes the model's structure.
 The modules follow the method: :mod:`.logs` reads a bag into memory,
 :mod:`.evaluator` runs the model on a log and compares it with the
 thermocouples, :mod:`.fit` chooses and fits the parameters
-(:func:`calibrate`), :mod:`.results` holds what it found and
-:mod:`.outputs` writes the calibrated configuration, the report and the plots.
+(:func:`calibrate`) on the least-squares problem of :mod:`.problem`,
+:mod:`.results` holds what it found and :mod:`.outputs` writes the
+calibrated configuration, the report and the plots.
 """
 
 from .evaluator import (channel_errors, evaluate_run, Evaluator, lagged, make_windows,

@@ -1,12 +1,15 @@
 """
-The fit: which parameters, their identifiability, the least-squares problem, :func:`calibrate`.
+The fit: the parameters, their identifiability, their values and intervals (:func:`calibrate`).
 
-The parameters are scaled to [0, 1] over their bounds; the residuals are those
-of :func:`~.evaluator.residuals` over the fit logs, each log's starting
-temperature a nuisance parameter eliminated by its linearised effect.
+:func:`calibrate` reads as the method's steps: the first batch of runs (the
+nominal values, the Jacobian there, the start offsets' effect), the
+screening, the least-squares fit (:class:`~.problem.FitProblem`) with the
+intervals that hold a parameter after it, the step check, and the calibrated
+runs and errors of every log.
 """
 
 import dataclasses
+from dataclasses import dataclass
 import math
 import time
 from typing import Callable, Dict, List, Optional, Sequence, Tuple
@@ -16,13 +19,10 @@ import numpy as np
 from .evaluator import (channel_errors, Evaluator, lagged_run, make_windows, residuals,
                         run_config, window_means, Windows)
 from .logs import CalibrationError, CHANNELS, LogData
+from .problem import FitProblem, START_OFFSET_MAX_K
 from .results import CalibrationRun, LogFit, ParameterFit, result_record
 from ..config import Calibration, Config, config_value, model_parameter, with_values
 
-#: Forward-difference step of the Jacobian, as a share of each parameter's bounds.
-FD_STEP = 0.005
-#: The fitted starting temperature of a log stays within this of its readings' (K).
-START_OFFSET_MAX_K = 2.0
 #: Largest integrated autocorrelation time counted (in residual intervals).
 TAU_MAX = 100.0
 #: z of a two-sided 95 % interval.
@@ -110,141 +110,6 @@ def effective_samples(series: Sequence[np.ndarray]) -> float:
     return max(n_eff, 1.0)
 
 
-class _Problem:
-    """
-    The fit's residual function and Jacobian over the fit logs, with a cache of runs.
-
-    Each fit log's starting temperature is a nuisance parameter: the
-    residuals are those of the best uniform start offset (within
-    ``START_OFFSET_MAX_K``), from the offset's linearised effect (a run
-    started 1 K warmer at the nominal values).
-    """
-
-    def __init__(self, evaluator: Evaluator, fit_idx: List[int], windows: Dict[int, Windows],
-                 params: List[ParameterFit], calib: Calibration,
-                 on_progress: Callable[[str], None]) -> None:
-        self.ev, self.fit_idx, self.windows = evaluator, fit_idx, windows
-        self.params, self.calib = params, calib
-        self.free: List[int] = []
-        self.on_progress = on_progress
-        self.offset_cols: Dict[int, np.ndarray] = {}   # d residuals / d start (per K)
-        self.cache: Dict[tuple, np.ndarray] = {}       # key of a parameter vector -> residuals
-        self.offsets: Dict[tuple, Dict[int, float]] = {}   # and the start offsets (K)
-        self.series: Dict[tuple, Dict[int, tuple]] = {}    # model runs of the base points
-        self.t0 = time.perf_counter()
-        self.previous = 'jac'
-        self.calls = 0
-
-    def key(self, th: np.ndarray) -> tuple:
-        """
-        Return the cache key of a parameter vector: its position in the bounds, rounded.
-
-        The trust-region method moves a start on a bound 1e-10 inside; that is
-        the same model run.
-        """
-        return tuple(round((float(x) - p.low) / p.span, 8) for x, p in zip(th, self.params))
-
-    def residuals(self, runs: Dict[int, tuple],
-                  calib: Optional[Calibration] = None) -> Tuple[np.ndarray, Dict[int, float]]:
-        """Return the weighted residuals of runs of the fit logs, and their start offsets."""
-        parts, offsets = [], {}
-        for li in self.fit_idx:
-            r = residuals(self.windows[li], *lagged_run(runs[li], calib or self.calib))
-            g = self.offset_cols.get(li)
-            gg = float(np.dot(g, g)) if g is not None else 0.0
-            if gg > 0.0:
-                d = float(np.clip(-np.dot(g, r) / gg, -START_OFFSET_MAX_K, START_OFFSET_MAX_K))
-                r = r + d * g
-                offsets[li] = d
-            parts.append(r)
-        return np.concatenate(parts), offsets
-
-    def store(self, th: np.ndarray, runs: Dict[int, tuple], base: bool = False) -> np.ndarray:
-        """Keep the residuals (and for a base point the runs) of a parameter vector."""
-        k = self.key(th)
-        self.cache[k], self.offsets[k] = self.residuals(runs)
-        if base:
-            self.series[k] = runs
-        return self.cache[k]
-
-    def theta(self, u_free: np.ndarray, base: np.ndarray) -> np.ndarray:
-        """Return the full parameter vector for the free parameters at ``u_free``."""
-        th = base.copy()
-        for k, j in enumerate(self.free):
-            p = self.params[j]
-            th[j] = p.low + float(np.clip(u_free[k], 0.0, 1.0)) * p.span
-        return th
-
-    def steps(self, th: np.ndarray, cols: Sequence[int]) -> List[float]:
-        """Return the forward-difference step (parameter units) of each column; back if at top."""
-        out = []
-        for j in cols:
-            p = self.params[j]
-            h = FD_STEP * p.span
-            out.append(h if th[j] + h <= p.high else -h)
-        return out
-
-    def evaluate(self, thetas: List[np.ndarray]) -> List[np.ndarray]:
-        """Return the residuals of each parameter vector (cached); the first is a base point."""
-        todo = {self.key(th): th for th in thetas if self.key(th) not in self.cache}
-        if todo:
-            out = self.ev.run(list(todo.values()), [self.fit_idx] * len(todo))
-            for (k, th), runs in zip(todo.items(), out):
-                self.store(th, runs, base=k == self.key(thetas[0]))
-        return [self.cache[self.key(th)] for th in thetas]
-
-    def jacobian(self, th: np.ndarray, cols: Sequence[int]) -> Tuple[np.ndarray, np.ndarray]:
-        """Return r(th) and the columns of dr/du (per unit of the bounds)."""
-        hs = self.steps(th, cols)
-        shifted = []
-        for j, h in zip(cols, hs):
-            s = th.copy()
-            s[j] += h
-            shifted.append(s)
-        rs = self.evaluate([th] + shifted)
-        J = np.empty((rs[0].size, len(cols)))
-        for k, (j, h) in enumerate(zip(cols, hs)):
-            J[:, k] = (rs[1 + k] - rs[0]) / (h / self.params[j].span)
-        return rs[0], J
-
-    # ----------------------------------------------- least_squares callbacks
-    def fun(self, u: np.ndarray, base: np.ndarray) -> np.ndarray:
-        """Return the residuals at ``u`` (least_squares' fun)."""
-        th = self.theta(u, base)
-        self.calls += 1
-        if self.key(th) not in self.cache:
-            if self.previous == 'jac':
-                # least_squares asks for the Jacobian at every point it accepts: evaluate
-                # its columns with the point, all runs in parallel at once
-                self.jacobian(th, self.free)
-            else:
-                # the point before was rejected (fun twice in a row): this one may be too
-                self.evaluate([th])
-        self.previous = 'fun'
-        r = self.cache[self.key(th)]
-        cost = 0.5 * float(np.dot(r, r))
-        self.on_progress(f'  evaluation {self.calls}: cost {cost:.6g}, '
-                         + ', '.join(f'{self.params[j].key.rsplit(".", 1)[-1]} '
-                                     f'{th[j]:.4g}' for j in self.free)
-                         + f' ({time.perf_counter() - self.t0:.0f} s)')
-        return r
-
-    def jac(self, u: np.ndarray, base: np.ndarray) -> np.ndarray:
-        """Return the Jacobian at ``u`` (least_squares' jac)."""
-        self.previous = 'jac'
-        return self.jacobian(self.theta(u, base), self.free)[1]
-
-
-def _split(r: np.ndarray, windows: Dict[int, Windows], fit_idx: Sequence[int]) -> list:
-    """Return the residual vector cut into its series (one per log and thermocouple)."""
-    parts, offset = [], 0
-    for li in fit_idx:
-        for idx in windows[li].index:
-            parts.append(r[offset:offset + idx.size])
-            offset += idx.size
-    return parts
-
-
 def calibrate(fit_logs: Sequence[LogData], cfg: Config, keys: Sequence[str], *,
               validate_logs: Sequence[LogData] = (), config_source: str = 'given',
               jobs: int = 1, client=None,
@@ -258,179 +123,279 @@ def calibrate(fit_logs: Sequence[LogData], cfg: Config, keys: Sequence[str], *,
     go to ``client`` (a ``distributed.Client``) when given, else to ``jobs``
     forked processes.
     """
-    from scipy.optimize import least_squares
-
     say = on_progress or (lambda text: None)
     t_start = time.perf_counter()
-    calib = cfg.calibration
-    keys = fit_keys(cfg, keys)
-    params = []
-    for key in keys:
-        low, high = calib.bounds[key]
-        nominal = float(config_value(cfg, key))
-        params.append(ParameterFit(key=key, low=low, high=high, nominal=nominal, value=nominal))
+    params = _nominal_parameters(cfg, fit_keys(cfg, keys))
     logs = list(fit_logs) + list(validate_logs)
-    n_fit = len(fit_logs)
-    if not n_fit:
+    if not fit_logs:
         raise CalibrationError('no log to fit on')
-    fit_idx, all_idx = list(range(n_fit)), list(range(len(logs)))
     nominal = np.array([p.nominal for p in params])
-    n_par = len(params)
-    ev = Evaluator(logs, [run_config(cfg, log) for log in logs], keys, jobs, client)
+    evaluator = Evaluator(logs, [run_config(cfg, log) for log in logs], [p.key for p in params],
+                          jobs, client)
     try:
-        # one batch: nominal runs of every log (their step grid sets the windows), the
-        # Jacobian at the nominal values, and the fit logs started 1 K warmer
-        say(f'nominal runs of {len(logs)} log(s), {n_par} Jacobian column(s) and the start '
-            'temperature on the fit logs')
-        problem = _Problem(ev, fit_idx, {}, params, calib, say)
-        hs = problem.steps(nominal, range(n_par))
-        sets = [nominal] + [nominal + h * np.eye(n_par)[j] for j, h in enumerate(hs)]
-        runs = ev.run(sets + [nominal], [all_idx] + [fit_idx] * (n_par + 1),
-                      [{}] * (n_par + 1) + [{'start_offset_K': 1.0}])
-        lag0 = {li: lagged_run(runs[0][li], calib) for li in all_idx}
-        windows = {li: make_windows(logs[li], lag0[li][0], calib.residual_interval_s)
-                   for li in all_idx}
-        for li in all_idx:
-            if not windows[li].size:
-                raise CalibrationError(f'{logs[li].name}: no thermocouple reading inside the '
-                                       'span of the model run')
-        problem.windows = windows
-        for li in fit_idx:
-            t1, y1 = lagged_run(runs[-1][li], calib)
-            problem.offset_cols[li] = residuals(windows[li], t1, y1) \
-                - residuals(windows[li], *lag0[li])
-        rs = [problem.store(th, runs[i], base=i == 0) for i, th in enumerate(sets)]
-        J0 = np.column_stack([(rs[1 + j] - rs[0]) / (hs[j] / p.span)
-                              for j, p in enumerate(params)])
-        # each parameter's largest effect on one thermocouple (K, RMS over a log)
-        for j, p in enumerate(params):
-            best = 0.0
-            for li in fit_idx:
-                dy = (lagged_run(runs[1 + j][li], calib)[1] - lag0[li][1]) * (p.span / hs[j])
-                for c in windows[li].channels:
-                    best = max(best, float(np.sqrt(np.mean(dy[:, CHANNELS.index(c)] ** 2))))
-            p.effect_K = best
-        kept, held, index = screen(J0, np.array([p.effect_K for p in params]),
-                                   calib.min_effect_K, calib.max_collinearity)
-        for j, p in enumerate(params):
-            p.collinearity = float(index[j])
-            if j in held:
-                p.identifiable, p.note = False, held[j]
-                say(f'not identifiable, held at {p.nominal:.4g}: {p.key}: {held[j]}')
-        theta = nominal.copy()
-        free = list(kept)
-        iterations = 0
-        n_eff = math.nan
-        sd: Dict[int, float] = {}
-        while free:
-            problem.free = free
-            u0 = np.array([(theta[j] - params[j].low) / params[j].span for j in free])
-            say(f'fitting {", ".join(params[j].key for j in free)}')
-
-            def progress(intermediate_result):
-                nonlocal iterations
-                iterations += 1
-                say(f'iteration {iterations}: cost {intermediate_result.cost:.6g} '
-                    f'({time.perf_counter() - t_start:.0f} s)')
-
-            base = theta.copy()
-            sol = least_squares(problem.fun, u0, jac=problem.jac, bounds=(0.0, 1.0),
-                                x_scale='jac', method='trf', ftol=1e-4, xtol=1e-4, gtol=1e-8,
-                                max_nfev=calib.max_iterations, args=(base,),
-                                callback=progress)
-            theta = problem.theta(sol.x, base)
-            r, J = problem.jacobian(theta, free)
-            # covariance: s^2 (J^T J)^-1, s^2 the residuals' mean square, inflated for
-            # their autocorrelation by n / n_eff
-            n_eff = effective_samples(_split(r, windows, fit_idx))
-            s2 = float(np.dot(r, r)) / max(r.size - len(free), 1)
-            try:
-                cov = np.linalg.inv(J.T @ J) * s2 * (r.size / n_eff)
-                sd = {j: float(math.sqrt(max(cov[k, k], 0.0))) for k, j in enumerate(free)}
-            except np.linalg.LinAlgError:
-                sd = dict.fromkeys(free, math.inf)
-            worst, worst_ratio = None, calib.max_ci_fraction
-            for j in free:
-                ratio = 2.0 * Z95 * sd[j]          # the interval's share of the bounds
-                if ratio > worst_ratio:
-                    worst, worst_ratio = j, ratio
-            if worst is None:
-                break
-            p = params[worst]
-            p.identifiable = False
-            p.note = (f'its 95 % interval after the fit spans {100 * worst_ratio:.0f} % of its '
-                      f'bounds (> {100 * calib.max_ci_fraction:.0f} %)')
-            say(f'not identifiable, held at {p.nominal:.4g}: {p.key}: {p.note}')
-            theta[worst] = p.nominal
-            free = [j for j in free if j != worst]
-        if free and calib.check_step_s:
-            # the step's own error: the fitted model once at a finer step, and the
-            # parameter shift that implies (one Gauss-Newton step, linearised)
-            say(f'checking the step: the fit logs at {calib.check_step_s:g} s')
-            fine = ev.run([theta], [fit_idx], [{'estimator.step_s': calib.check_step_s}])[0]
-            r_fine, _ = problem.residuals(
-                fine, dataclasses.replace(calib, step_s=calib.check_step_s))
-            r, J = problem.jacobian(theta, free)
-            du = -np.linalg.lstsq(J, r_fine - r, rcond=None)[0]
-            for k, j in enumerate(free):
-                params[j].step_shift = float(du[k] * params[j].span)
-        for j, p in enumerate(params):
-            if not p.identifiable:
-                theta[j] = p.value = p.nominal
-                continue
-            p.value = float(theta[j])
-            half = Z95 * sd.get(j, math.inf) * p.span + abs(p.step_shift)
-            p.ci95 = (max(p.value - half, p.low), min(p.value + half, p.high))
-            edge = 1e-3 * p.span
-            if p.value - p.low < edge or p.high - p.value < edge:
-                p.note = 'ended on a bound: the fit wants it outside; check the bounds'
-        # the calibrated runs: the fit logs' from the cache, the held-out logs' now
-        problem.evaluate([theta])
-        final = dict(problem.series.get(problem.key(theta), {}))
-        need = [li for li in all_idx if li not in final]
-        if need:
-            final.update(ev.run([theta], [need])[0])
-        offsets_before = problem.offsets[problem.key(nominal)]
-        offsets_after = problem.offsets[problem.key(theta)]
-        evaluations = ev.runs
+        problem = FitProblem(evaluator, list(range(len(fit_logs))), {}, params,
+                             cfg.calibration, say)
+        nominal_runs, jac_nominal = _start(problem, logs, nominal)
+        kept = _screen_parameters(params, jac_nominal, cfg.calibration, say)
+        fitted = _fit(problem, nominal, kept, t_start)
+        if fitted.free and cfg.calibration.check_step_s:
+            _check_step(problem, fitted.theta, fitted.free)
+        _set_values(params, fitted)
+        calibrated_runs = _calibrated_runs(problem, fitted.theta, len(logs))
+        offsets_K = (problem.offsets[problem.key(nominal)],
+                     problem.offsets[problem.key(fitted.theta)])
+        evaluations = evaluator.runs
     finally:
-        ev.close()
-    calibrated = with_values(cfg, {p.key: p.value for p in params})
-    log_fits = []
-    for li, log in enumerate(logs):
-        t_nom, y_nom = lag0[li]
-        t_cal, y_cal = lagged_run(final[li], calib)
-        lf = LogFit(log=log, role='fit' if li < n_fit else 'validate', t_model=t_nom,
-                    nominal_C=y_nom, calibrated_C=y_cal, windows=windows[li])
-        # errors as the estimator would run: from the readings' starting temperature
-        lf.start_offset_before_K = offsets_before.get(li, 0.0)
-        lf.start_offset_after_K = offsets_after.get(li, 0.0)
-        lf.before = channel_errors(log, windows[li], t_nom, lf.nominal_C)
-        lf.after = channel_errors(log, windows[li], t_cal, lf.calibrated_C)
-        log_fits.append(lf)
+        evaluator.close()
+    log_fits = _log_fits(logs, len(fit_logs), problem.windows, nominal_runs, calibrated_runs,
+                         offsets_K, cfg.calibration)
     run = CalibrationRun(base_cfg=cfg, config_source=config_source, parameters=params,
-                         logs=log_fits, calibrated_cfg=calibrated, evaluations=evaluations,
-                         iterations=iterations, fit_s=time.perf_counter() - t_start,
-                         n_eff=n_eff, n_residuals=int(rs[0].size))
-    r_before = np.concatenate([_window_errors(lf, 'nominal') for lf in log_fits[:n_fit]])
-    r_after = np.concatenate([_window_errors(lf, 'calibrated') for lf in log_fits[:n_fit]])
-    run.rms_before_K = float(np.sqrt(np.mean(r_before ** 2)))
-    run.rms_after_K = float(np.sqrt(np.mean(r_after ** 2)))
-    for log in logs:
-        run.messages.extend(log.warnings)
-    for lf in log_fits:
-        if abs(lf.start_offset_after_K) >= START_OFFSET_MAX_K:
-            run.messages.append(f'{lf.log.name}: the fitted starting temperature hit its '
-                                f'limit ({lf.start_offset_after_K:+.1f} K): the log did not '
-                                'start uniform')
-    run.calibrated_cfg = dataclasses.replace(calibrated, calibration=dataclasses.replace(
-        calibrated.calibration, result=result_record(run)))
+                         logs=log_fits, calibrated_cfg=with_values(
+                             cfg, {p.key: p.value for p in params}),
+                         evaluations=evaluations, iterations=fitted.iterations,
+                         fit_s=time.perf_counter() - t_start, n_eff=fitted.n_eff,
+                         n_residuals=sum(problem.windows[li].size for li in problem.fit_idx))
+    _summarise(run, logs, len(fit_logs))
     return run
 
 
-def _window_errors(lf: LogFit, which: str) -> np.ndarray:
+def _nominal_parameters(cfg: Config, keys: Sequence[str]) -> List[ParameterFit]:
+    """Return the parameters ``keys`` at their nominal values, with their bounds."""
+    params = []
+    for key in keys:
+        low, high = cfg.calibration.bounds[key]
+        nominal = float(config_value(cfg, key))
+        params.append(ParameterFit(key=key, low=low, high=high, nominal=nominal, value=nominal))
+    return params
+
+
+def _start(problem: FitProblem, logs: Sequence[LogData],
+           nominal: np.ndarray) -> Tuple[Dict[int, tuple], np.ndarray]:
+    """
+    Run the first batch and set the problem up; return the nominal runs and Jacobian there.
+
+    One batch: every log at the nominal values (their step grid sets the
+    residual windows), the Jacobian's columns at the nominal values, and the
+    fit logs started 1 K warmer (the start offset's effect). Each
+    parameter's largest effect is measured on the way. The runs returned are
+    lagged, as the thermocouples read them.
+    """
+    calib, params, fit_idx = problem.calib, problem.params, problem.fit_idx
+    all_idx = list(range(len(logs)))
+    problem.say(f'nominal runs of {len(logs)} log(s), {len(params)} Jacobian column(s) and the '
+                'start temperature on the fit logs')
+    fd_steps = problem.steps(nominal, range(len(params)))
+    sets = [nominal] + [nominal + h * np.eye(len(params))[j] for j, h in enumerate(fd_steps)]
+    runs = problem.evaluator.run(sets + [nominal], [all_idx] + [fit_idx] * (len(params) + 1),
+                                 [{}] * (len(params) + 1) + [{'start_offset_K': 1.0}])
+    nominal_runs = {li: lagged_run(runs[0][li], calib) for li in all_idx}
+    problem.windows = _residual_windows(logs, nominal_runs, calib)
+    warmer_runs = runs[-1]
+    for li in fit_idx:
+        problem.offset_cols[li] = residuals(problem.windows[li],
+                                            *lagged_run(warmer_runs[li], calib)) \
+            - residuals(problem.windows[li], *nominal_runs[li])
+    residuals_at = [problem.store(theta, runs[i], base=i == 0) for i, theta in enumerate(sets)]
+    jac_nominal = np.column_stack([(residuals_at[1 + j] - residuals_at[0]) / (fd_steps[j] / p.span)
+                                   for j, p in enumerate(params)])
+    for j, p in enumerate(params):
+        p.effect_K = _largest_effect(problem, runs[1 + j], nominal_runs, p.span / fd_steps[j])
+    return nominal_runs, jac_nominal
+
+
+def _residual_windows(logs: Sequence[LogData], nominal_runs: Dict[int, tuple],
+                      calib: Calibration) -> Dict[int, Windows]:
+    """Return the residual windows of every log over its nominal run; raise if one has none."""
+    windows = {li: make_windows(log, nominal_runs[li][0], calib.residual_interval_s)
+               for li, log in enumerate(logs)}
+    for li, log in enumerate(logs):
+        if not windows[li].size:
+            raise CalibrationError(f'{log.name}: no thermocouple reading inside the span of the '
+                                   'model run')
+    return windows
+
+
+def _largest_effect(problem: FitProblem, shifted_runs: Dict[int, tuple],
+                    nominal_runs: Dict[int, tuple], per_step: float) -> float:
+    """Return a parameter's largest effect across its bounds on one thermocouple (K, RMS)."""
+    largest = 0.0
+    for li in problem.fit_idx:
+        dy = (lagged_run(shifted_runs[li], problem.calib)[1] - nominal_runs[li][1]) * per_step
+        for c in problem.windows[li].channels:
+            largest = max(largest, float(np.sqrt(np.mean(dy[:, CHANNELS.index(c)] ** 2))))
+    return largest
+
+
+def _screen_parameters(params: List[ParameterFit], jac_nominal: np.ndarray,
+                       calib: Calibration, say: Callable[[str], None]) -> List[int]:
+    """Hold the parameters the Jacobian at the nominal values cannot identify; return the rest."""
+    kept, held, index = screen(jac_nominal, np.array([p.effect_K for p in params]),
+                               calib.min_effect_K, calib.max_collinearity)
+    for j, p in enumerate(params):
+        p.collinearity = float(index[j])
+        if j in held:
+            p.identifiable, p.note = False, held[j]
+            say(f'not identifiable, held at {p.nominal:.4g}: {p.key}: {held[j]}')
+    return kept
+
+
+@dataclass
+class _Fitted:
+    """Where the fit ended: the parameters, which are free, their standard errors."""
+
+    theta: np.ndarray                   # every parameter, the held ones at nominal
+    free: List[int]                     # the parameters fitted
+    sigma_u: Dict[int, float]           # 1 sigma of each, as a share of its bounds
+    n_eff: float                        # effectively independent residuals
+    iterations: int
+
+
+def _fit(problem: FitProblem, nominal: np.ndarray, kept: List[int], t_start: float) -> _Fitted:
+    """
+    Fit the kept parameters; hold any whose interval is too wide and fit the others again.
+
+    The covariance is s^2 (J^T J)^-1, s^2 the residuals' mean square,
+    inflated for their autocorrelation by n / n_eff.
+    """
+    params, calib, say = problem.params, problem.calib, problem.say
+    fitted = _Fitted(theta=nominal.copy(), free=list(kept), sigma_u={}, n_eff=math.nan,
+                     iterations=0)
+
+    def progress(intermediate_result) -> None:
+        fitted.iterations += 1
+        say(f'iteration {fitted.iterations}: cost {intermediate_result.cost:.6g} '
+            f'({time.perf_counter() - t_start:.0f} s)')
+
+    while fitted.free:
+        fitted.theta = _least_squares(problem, fitted.theta, fitted.free, progress)
+        r, jac = problem.jacobian(fitted.theta, fitted.free)
+        fitted.n_eff = effective_samples(problem.split(r))
+        s2 = float(np.dot(r, r)) / max(r.size - len(fitted.free), 1)
+        try:
+            cov = np.linalg.inv(jac.T @ jac) * s2 * (r.size / fitted.n_eff)
+            fitted.sigma_u = {j: float(math.sqrt(max(cov[k, k], 0.0)))
+                              for k, j in enumerate(fitted.free)}
+        except np.linalg.LinAlgError:
+            fitted.sigma_u = dict.fromkeys(fitted.free, math.inf)
+        worst, worst_ratio = None, calib.max_ci_fraction
+        for j in fitted.free:
+            ratio = 2.0 * Z95 * fitted.sigma_u[j]          # the interval's share of the bounds
+            if ratio > worst_ratio:
+                worst, worst_ratio = j, ratio
+        if worst is None:
+            break
+        p = params[worst]
+        p.identifiable = False
+        p.note = (f'its 95 % interval after the fit spans {100 * worst_ratio:.0f} % of its '
+                  f'bounds (> {100 * calib.max_ci_fraction:.0f} %)')
+        say(f'not identifiable, held at {p.nominal:.4g}: {p.key}: {p.note}')
+        fitted.theta[worst] = p.nominal
+        fitted.free = [j for j in fitted.free if j != worst]
+    return fitted
+
+
+def _least_squares(problem: FitProblem, theta: np.ndarray, free: List[int],
+                   progress: Callable) -> np.ndarray:
+    """Return ``theta`` with the ``free`` parameters fitted (trust region, within bounds)."""
+    from scipy.optimize import least_squares
+
+    problem.free = free
+    params = problem.params
+    u_start = np.array([(theta[j] - params[j].low) / params[j].span for j in free])
+    problem.say(f'fitting {", ".join(params[j].key for j in free)}')
+    base = theta.copy()
+    solution = least_squares(problem.fun, u_start, jac=problem.jac, bounds=(0.0, 1.0),
+                             x_scale='jac', method='trf', ftol=1e-4, xtol=1e-4, gtol=1e-8,
+                             max_nfev=problem.calib.max_iterations, args=(base,),
+                             callback=progress)
+    return problem.theta(solution.x, base)
+
+
+def _check_step(problem: FitProblem, theta: np.ndarray, free: List[int]) -> None:
+    """
+    Set each fitted parameter's step shift: the error of the fit's step itself.
+
+    The fitted model runs once at ``calibration.check_step_s``; the shift is
+    the parameter change that implies (one Gauss-Newton step, linearised).
+    """
+    calib = problem.calib
+    problem.say(f'checking the step: the fit logs at {calib.check_step_s:g} s')
+    fine_runs = problem.evaluator.run([theta], [problem.fit_idx],
+                                      [{'estimator.step_s': calib.check_step_s}])[0]
+    r_fine, _ = problem.residuals(fine_runs,
+                                  dataclasses.replace(calib, step_s=calib.check_step_s))
+    r, jac = problem.jacobian(theta, free)
+    du = -np.linalg.lstsq(jac, r_fine - r, rcond=None)[0]
+    for k, j in enumerate(free):
+        problem.params[j].step_shift = float(du[k] * problem.params[j].span)
+
+
+def _set_values(params: List[ParameterFit], fitted: _Fitted) -> None:
+    """Set each parameter's value and 95 % interval (a held one: its nominal value)."""
+    for j, p in enumerate(params):
+        if not p.identifiable:
+            fitted.theta[j] = p.value = p.nominal
+            continue
+        p.value = float(fitted.theta[j])
+        half = Z95 * fitted.sigma_u.get(j, math.inf) * p.span + abs(p.step_shift)
+        p.ci95 = (max(p.value - half, p.low), min(p.value + half, p.high))
+        edge = 1e-3 * p.span
+        if p.value - p.low < edge or p.high - p.value < edge:
+            p.note = 'ended on a bound: the fit wants it outside; check the bounds'
+
+
+def _calibrated_runs(problem: FitProblem, theta: np.ndarray, n_logs: int) -> Dict[int, tuple]:
+    """Return the runs of every log at ``theta``: the fit logs' from the cache, the others new."""
+    problem.evaluate([theta])
+    runs = dict(problem.series.get(problem.key(theta), {}))
+    need = [li for li in range(n_logs) if li not in runs]
+    if need:
+        runs.update(problem.evaluator.run([theta], [need])[0])
+    return runs
+
+
+def _log_fits(logs: Sequence[LogData], n_fit: int, windows: Dict[int, Windows],
+              nominal_runs: Dict[int, tuple], calibrated_runs: Dict[int, tuple],
+              offsets_K: Tuple[Dict[int, float], Dict[int, float]],
+              calib: Calibration) -> List[LogFit]:
+    """Return each log's runs and errors, nominal and calibrated."""
+    log_fits = []
+    for li, log in enumerate(logs):
+        t_nominal, y_nominal = nominal_runs[li]
+        t_calibrated, y_calibrated = lagged_run(calibrated_runs[li], calib)
+        log_fit = LogFit(log=log, role='fit' if li < n_fit else 'validate', t_model=t_nominal,
+                         nominal_C=y_nominal, calibrated_C=y_calibrated, windows=windows[li])
+        # errors as the estimator would run: from the readings' starting temperature
+        log_fit.start_offset_before_K = offsets_K[0].get(li, 0.0)
+        log_fit.start_offset_after_K = offsets_K[1].get(li, 0.0)
+        log_fit.before = channel_errors(log, windows[li], t_nominal, log_fit.nominal_C)
+        log_fit.after = channel_errors(log, windows[li], t_calibrated, log_fit.calibrated_C)
+        log_fits.append(log_fit)
+    return log_fits
+
+
+def _summarise(run: CalibrationRun, logs: Sequence[LogData], n_fit: int) -> None:
+    """Set the fit logs' RMS errors, the warnings and the calibrated configuration's record."""
+    before = np.concatenate([_window_errors(log_fit, 'nominal') for log_fit in run.logs[:n_fit]])
+    after = np.concatenate([_window_errors(log_fit, 'calibrated') for log_fit in
+                            run.logs[:n_fit]])
+    run.rms_before_K = float(np.sqrt(np.mean(before ** 2)))
+    run.rms_after_K = float(np.sqrt(np.mean(after ** 2)))
+    for log in logs:
+        run.messages.extend(log.warnings)
+    for log_fit in run.logs:
+        if abs(log_fit.start_offset_after_K) >= START_OFFSET_MAX_K:
+            run.messages.append(f'{log_fit.log.name}: the fitted starting temperature hit its '
+                                f'limit ({log_fit.start_offset_after_K:+.1f} K): the log did '
+                                'not start uniform')
+    calibrated = run.calibrated_cfg
+    run.calibrated_cfg = dataclasses.replace(calibrated, calibration=dataclasses.replace(
+        calibrated.calibration, result=result_record(run)))
+
+
+def _window_errors(log_fit: LogFit, which: str) -> np.ndarray:
     """Return the window-mean errors (K) of all channels of a log, nominal or calibrated."""
-    y = lf.nominal_C if which == 'nominal' else lf.calibrated_C
-    means = window_means(lf.windows, lf.t_model, y)
-    parts = [means[c] - m for c, m in zip(lf.windows.channels, lf.windows.measured)]
+    y = log_fit.nominal_C if which == 'nominal' else log_fit.calibrated_C
+    means = window_means(log_fit.windows, log_fit.t_model, y)
+    parts = [means[c] - m for c, m in zip(log_fit.windows.channels, log_fit.windows.measured)]
     return np.nan_to_num(np.concatenate(parts)) if parts else np.zeros(0)
