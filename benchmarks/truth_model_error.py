@@ -39,7 +39,7 @@ from wet_eha_thermal.config import load_config, with_values
 from wet_eha_thermal.estimator.core import Estimator
 from wet_eha_thermal.model.kinetics import stage_duty
 from wet_eha_thermal.model.motor import C_TO_K
-from wet_eha_thermal.simulated_rig import SimulatedRig
+from wet_eha_thermal.simulated_rig import log_from_rig, SimulatedRig
 
 GAP = 'motor.stator.frame_contact_gap_m'
 SEAL = 'hydraulics.pump.extra_loss_W'
@@ -93,8 +93,8 @@ def record(job: tuple):
     truth = structured_truth(cfg)
     rig = TapedRig(truth, stage_duty(truth, stage), rate_Hz=50.0, block_s=0.1, seed=stage,
                    point_thermocouples=True)
-    log = cb.log_from_rig(rig, seconds, cfg.calibration, name=f'stage{stage}',
-                          thermocouple_rate_Hz=10.0)
+    log = log_from_rig(rig, seconds, cfg.calibration, name=f'stage{stage}',
+                       thermocouple_rate_Hz=10.0)
     return stage, log, rig.tape, time.process_time() - t0
 
 

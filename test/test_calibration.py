@@ -27,7 +27,7 @@ from wet_eha_thermal.config import (config_from_yaml, ConfigError, default_confi
                                     load_config, with_values)
 from wet_eha_thermal.estimator.core import Estimator
 from wet_eha_thermal.model.kinetics import stage_duty
-from wet_eha_thermal.simulated_rig import SimulatedRig
+from wet_eha_thermal.simulated_rig import log_from_rig, SimulatedRig
 import yaml
 
 GAP = 'motor.stator.frame_contact_gap_m'
@@ -48,8 +48,8 @@ def _rig_log(stage):
     cfg = nominal_config()
     truth = with_values(cfg, truth_values(cfg))
     rig = SimulatedRig(truth, stage_duty(truth, stage), rate_Hz=50.0, block_s=0.1, seed=stage)
-    return cb.log_from_rig(rig, SECONDS, cfg.calibration, name=f'stage{stage}',
-                           thermocouple_rate_Hz=10.0)
+    return log_from_rig(rig, SECONDS, cfg.calibration, name=f'stage{stage}',
+                        thermocouple_rate_Hz=10.0)
 
 
 @pytest.fixture(scope='module')
@@ -281,6 +281,15 @@ def test_command_end_to_end(bags, tmp_path, capsys):
     # the replay takes the calibrated file as any configuration
     plan = rp.plan_replay(bags[6], config_path=out / 'calibrated.yaml')
     assert plan.cfg.hydraulics.pump.extra_loss_W == seal
+
+
+def test_a_topic_mapped_to_two_thermocouples_feeds_both(bags):
+    config = rp.choose_config(open_bag(bags[3]), None)
+    topic = '/eha/measured/chamber_a'
+    log = cb.load_log(bags[3], config, config[0].calibration, {'measured/chamber_b': topic})
+    assert log.thermocouples['chamber_a'][0].size > 0
+    for a, b in zip(log.thermocouples['chamber_a'], log.thermocouples['chamber_b']):
+        assert np.array_equal(a, b)
 
 
 def _without_thermocouples(bag, path):

@@ -164,6 +164,19 @@ def test_foreign_topic_names_mapped_by_option(bag, result, tmp_path):
     assert math.isclose(mapped.stamp_s[-1], result.stamp_s[-1])
 
 
+def test_a_topic_mapped_to_several_names_feeds_each(bag, result):
+    # each name reads the topic it is mapped to, whatever else reads it too
+    plan = rp.plan_replay(bag, mapping={'speed_rad_s': '/eha/current',
+                                        'measured/frame': '/eha/ambient'})
+    assert plan.inputs['current_A'] == plan.inputs['speed_rad_s'] == '/eha/current'
+    shared = rp.replay(plan, output_rate_Hz=50.0)
+    received = {name: h['received'] for name, h in shared.health.items()}
+    assert received['speed_rad_s'] == received['current_A'] == \
+        result.health['current_A']['received'] > 0
+    assert shared.measured['frame'][0].size == \
+        plan.info.topics['/eha/ambient'].message_count > 0
+
+
 def test_replay_plan_falls_back_for_a_missing_input(bag, tmp_path):
     partial = tmp_path / 'no_speed.mcap'
     info = open_bag(bag)

@@ -33,6 +33,7 @@ import numpy as np
 from . import replay as rp
 from .bag.reader import is_bag
 from .estimator.alerts import Level
+from .outputs import atomic, markdown_table, save_figure, write_text
 from .ros import topics
 
 #: How long to wait for a scheduler to answer, and for a worker to join it (s).
@@ -227,16 +228,12 @@ def write_summary(rows: Sequence[Dict[str, object]], out: Path) -> List[Path]:
     """Write campaign.csv, campaign.md and campaign.png into ``out``; return their paths."""
     out.mkdir(parents=True, exist_ok=True)
     paths = [out / 'campaign.csv', out / 'campaign.md', out / 'campaign.png']
-    tmp = rp.partial(paths[0])
-    with open(tmp, 'w', newline='') as f:
+    with atomic(paths[0]) as tmp, open(tmp, 'w', newline='') as f:
         # repr of every float: the figures read back exactly
         writer = csv.DictWriter(f, columns(rows), restval='')
         writer.writeheader()
         writer.writerows(rows)
-    tmp.replace(paths[0])
-    tmp = rp.partial(paths[1])
-    tmp.write_text('\n'.join(summary_lines(rows, paths[2].name)) + '\n')
-    tmp.replace(paths[1])
+    write_text(paths[1], '\n'.join(summary_lines(rows, paths[2].name)) + '\n')
     plot(rows, paths[2])
     return paths
 
@@ -253,25 +250,22 @@ def summary_lines(rows: Sequence[Dict[str, object]], image: str) -> List[str]:
              f'{count["ok"]} replayed, {count["truncated"]} replayed up to a damage, '
              f'{count["failed"]} failed. Temperatures in degC, margin in K (limit minus '
              'estimate, the least over the limited estimates), times at or above an alert '
-             'level in s; every figure at full precision in campaign.csv.', '',
-             '| log | status | duration s | ' + ' | '.join(f'peak {n}' for n in SHOWN_PEAKS)
-             + ' | min margin | ' + ' | '.join(level.name for level in ALERT_LEVELS) + ' |',
-             '| --- ' * (6 + len(SHOWN_PEAKS)) + '|']
-    for r in rows:
-        of = f' ({r["min_margin_of"]})' if 'min_margin_of' in r else ''
-        margin = _cell(r, 'min_margin_K') + of
-        lines.append(f'| {r["name"]} | {r["status"]} | {_cell(r, "duration_s")} | '
-                     + ' | '.join(_cell(r, f'peak_{n}_C') for n in SHOWN_PEAKS)
-                     + f' | {margin} | '
-                     + ' | '.join(_cell(r, f'time_{level.name.lower()}_s')
-                                  for level in ALERT_LEVELS) + ' |')
+             'level in s; every figure at full precision in campaign.csv.', '']
+    lines += markdown_table(
+        ['log', 'status', 'duration s'] + [f'peak {n}' for n in SHOWN_PEAKS] + ['min margin']
+        + [level.name for level in ALERT_LEVELS],
+        ([r['name'], r['status'], _cell(r, 'duration_s')]
+         + [_cell(r, f'peak_{n}_C') for n in SHOWN_PEAKS]
+         + [_cell(r, 'min_margin_K') + (f' ({r["min_margin_of"]})' if 'min_margin_of' in r
+                                        else '')]
+         + [_cell(r, f'time_{level.name.lower()}_s') for level in ALERT_LEVELS]
+         for r in rows))
     tcs = [tc for tc in topics.THERMOCOUPLES if any(f'{tc}_max_abs_K' in r for r in rows)]
     lines += ['', '## Estimate minus thermocouple: max abs / bias (K)', '']
     if tcs:
-        lines += ['| log | ' + ' | '.join(tcs) + ' |', '| --- ' * (1 + len(tcs)) + '|']
-        lines += [f'| {r["name"]} | ' + ' | '.join(
+        lines += markdown_table(['log'] + tcs, ([r['name']] + [
             f'{r[f"{tc}_max_abs_K"]:.2f} / {r[f"{tc}_bias_K"]:+.2f}'
-            if f'{tc}_max_abs_K' in r else '' for tc in tcs) + ' |' for r in rows]
+            if f'{tc}_max_abs_K' in r else '' for tc in tcs] for r in rows))
     else:
         lines.append('No log holds a thermocouple topic.')
     problems = [r for r in rows if r['reason']]
@@ -305,4 +299,4 @@ def plot(rows: Sequence[Dict[str, object]], path: Path) -> Path:
     axes[1].axhline(0.0, color='k', lw=0.6)
     axes[1].set_xticks(x, [r['name'] for r in rows], rotation=60, ha='right', fontsize=7)
     axes[0].set_title(f'Replay campaign of {len(rows)} logs (orange: truncated)')
-    return rp.save_figure(fig, path, plt)
+    return save_figure(fig, path)

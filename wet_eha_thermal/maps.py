@@ -19,6 +19,7 @@ from .config import Config
 from .model.motor import C_TO_K, MotorInputs, WetMotor
 from .model.oil import get_oil
 from .model.validity import ValidityLog
+from .outputs import atomic, save_figure
 
 TEMPERATURES = ('winding_mean', 'winding_hotspot', 'frame', 'magnet', 'airgap_oil_outlet',
                 'motor_oil_outlet')
@@ -100,7 +101,7 @@ def format_table(points: List[MapPoint], sweep: str) -> str:
 def write_csv(points: List[MapPoint], path: Path) -> None:
     """Write every point of both sweeps to one CSV file."""
     rows = [p.row() for p in points]
-    with open(path, 'w', newline='') as f:
+    with atomic(path) as tmp, open(tmp, 'w', newline='') as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
@@ -141,6 +142,4 @@ def plot_maps(points: List[MapPoint], path: Path, title: str) -> None:
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
     fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)

@@ -28,13 +28,15 @@ import math
 import os
 from pathlib import Path
 import time
-from typing import Callable, Dict, List, Mapping, Optional, Sequence
+from typing import Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
-from .bag.reader import BagError, BagInfo, iter_column_blocks, open_bag, TEMPERATURE
+from .bag.reader import (BagError, BagInfo, Columns, iter_column_blocks, open_bag,
+                         TEMPERATURE)
 from .config import Config, config_from_yaml, default_config_path, load_config, with_values
 from .estimator.core import Estimator, INPUTS, sensor_inputs
+from .outputs import atomic, markdown_table, save_figure, write_text
 from .ros import topics
 
 #: Metadata record in which the recorder stores the estimator's configuration YAML.
@@ -46,6 +48,18 @@ OUTPUT_ESTIMATES = topics.ESTIMATES
 
 class ReplayError(ValueError):
     """A bag or a topic mapping that cannot be replayed; the message says why."""
+
+
+@dataclass
+class Samples:
+    """One block of a bag by what it feeds: stamps (s) and values, in SI units and degC."""
+
+    inputs: Dict[str, Tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+    # stamps, readings (degC) and the variances the messages give (K^2)
+    thermocouples: Dict[str, Tuple[np.ndarray, np.ndarray, np.ndarray]] = field(
+        default_factory=dict)
+    ambient: Tuple[np.ndarray, np.ndarray] = (np.zeros(0), np.zeros(0))
+    first_s: Optional[float] = None            # the earliest stamp of the block
 
 
 @dataclass
@@ -69,6 +83,31 @@ class ReplayPlan:
         if self.ambient is not None:
             specs[self.ambient] = TEMPERATURE
         return specs
+
+    def route(self, block: Dict[str, Columns], origin_ns: int = 0) -> Samples:
+        """
+        Return a block of decoded columns (:func:`iter_column_blocks`) by what each topic feeds.
+
+        Stamps are seconds from ``origin_ns``. Every name mapped to a topic
+        gets its samples; thermocouples in the order of the block's topics.
+        """
+        samples = Samples()
+        for topic, columns in block.items():
+            if not len(columns):
+                continue
+            t = (columns.time_ns - origin_ns).astype(np.float64) * 1e-9
+            samples.first_s = float(t[0]) if samples.first_s is None \
+                else min(samples.first_s, float(t[0]))
+            for name, input_topic in self.inputs.items():
+                if input_topic == topic:
+                    samples.inputs[name] = (t, next(iter(columns.values.values())))
+            if topic == self.ambient:
+                samples.ambient = (t, columns.values['temperature'])
+            for tc, tc_topic in self.thermocouples.items():
+                if tc_topic == topic:
+                    samples.thermocouples[tc] = (t, columns.values['temperature'],
+                                                 columns.values['variance'])
+        return samples
 
 
 def choose_config(info: BagInfo, config_path: Optional[os.PathLike]) -> tuple:
@@ -250,7 +289,6 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
     inputs_plot = {name: _Decimator(plot_interval_s) for name in plan.inputs}
     t_wall = time.perf_counter()
     first_s: Optional[float] = None
-    by_topic = {topic: name for name, topic in plan.inputs.items()}
     size = max(os.path.getsize(plan.info.path), 1)
     done_bytes = [0]
     # the next block is read and decoded on the other core while the model steps
@@ -267,29 +305,19 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
                     + [max(e.uncertainty_K.values()), e.alert_level, len(e.stale)]))
 
     for block in blocks:
-        series = {}
-        ambient = (np.zeros(0), np.zeros(0))
-        for topic, columns in block.items():
-            if not len(columns):
-                continue
-            t = columns.time_ns * 1e-9
-            first_s = float(t[0]) if first_s is None else min(first_s, float(t[0]))
-            if topic in by_topic:
-                name = by_topic[topic]
-                series[name] = (t, next(iter(columns.values.values())))
-                inputs_plot[name].add(*series[name])
-            elif topic == plan.ambient:
-                ambient = (t, columns.values['temperature'])
-            else:
-                for tc, tc_topic in plan.thermocouples.items():
-                    if tc_topic == topic:
-                        measured[tc][0].append(t)
-                        measured[tc][1].append(columns.values['temperature'])
-                        # for the live correction (and the display): each reading is used
-                        # by stamp, so the whole block may go in before the steps
-                        for stamp, value in zip(t.tolist(),
-                                                columns.values['temperature'].tolist()):
-                            est.add_measured(tc, stamp, value)
+        samples = plan.route(block)
+        if samples.first_s is not None:
+            first_s = samples.first_s if first_s is None else min(first_s, samples.first_s)
+        series, ambient = samples.inputs, samples.ambient
+        for name, (t, v) in series.items():
+            inputs_plot[name].add(t, v)
+        for tc, (t, v, _) in samples.thermocouples.items():
+            measured[tc][0].append(t)
+            measured[tc][1].append(v)
+            # for the live correction (and the display): each reading is used by stamp, so
+            # the whole block may go in before the steps
+            for stamp, value in zip(t.tolist(), v.tolist()):
+                est.add_measured(tc, stamp, value)
         # an ambient reading applies from its stamp on, as it does live: feed the inputs
         # up to each reading, step, then take it
         cuts = {name: np.searchsorted(t, ambient[0], side='right')
@@ -337,11 +365,6 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
 
 
 # ------------------------------------------------------------------ outputs
-def partial(path: Path) -> Path:
-    """Return the name ``path`` is written under until it is complete."""
-    return path.with_name(path.name + '.partial')
-
-
 def write_csv(result: ReplayResult, path: Path) -> Path:
     """Write the estimates (degC) with stamps, uncertainty and alert level; return the path."""
     header = ['stamp_s'] + [f'{n}_C' for n in OUTPUT_ESTIMATES] + [
@@ -349,10 +372,9 @@ def write_csv(result: ReplayResult, path: Path) -> Path:
     table = np.column_stack([result.stamp_s] + [result.temperatures_C[n]
                                                 for n in OUTPUT_ESTIMATES]
                             + [result.sigma_K, result.alert_level, result.stale_inputs])
-    tmp = partial(path)
     fmt = ['%.6f'] + ['%.4f'] * len(OUTPUT_ESTIMATES) + ['%.3f', '%d', '%d']
-    np.savetxt(tmp, table, fmt=fmt, delimiter=',', header=','.join(header), comments='')
-    tmp.replace(path)
+    with atomic(path) as tmp:
+        np.savetxt(tmp, table, fmt=fmt, delimiter=',', header=','.join(header), comments='')
     return path
 
 
@@ -363,12 +385,10 @@ def write_mcap(result: ReplayResult, path: Path) -> Path:
     from std_msgs.msg import String
     from .bag.writer import BagWriter
 
-    tmp = partial(path)
-    if tmp.exists():
-        tmp.unlink()
     cfg_yaml = result.plan.config_yaml
-    with BagWriter(tmp, metadata={CONFIG_METADATA: {CONFIG_METADATA_KEY: cfg_yaml,
-                                                    'source': result.plan.config_source}}) as w:
+    metadata = {CONFIG_METADATA: {CONFIG_METADATA_KEY: cfg_yaml,
+                                  'source': result.plan.config_source}}
+    with atomic(path) as tmp, BagWriter(tmp, metadata=metadata) as w:
         qos = QoSProfile(depth=10)
         names = {n: f'{topics.ESTIMATE_PREFIX}/{n}' for n in OUTPUT_ESTIMATES}
         for topic in names.values():
@@ -385,7 +405,6 @@ def write_mcap(result: ReplayResult, path: Path) -> Path:
                 w.write(topic, msg, ns)
         for stamp, text in result.alert_events:
             w.write(topics.ALERT_TOPIC, String(data=text), int(round(stamp * 1e9)))
-    tmp.replace(path)
     return path
 
 
@@ -445,7 +464,7 @@ def write_report(result: ReplayResult, out_dir: Path) -> Path:
         ax.grid(alpha=0.3)
     axes[-1, 0].set_xlabel('time since the first estimate [min]')
     fig.suptitle(f'inputs of {result.plan.info.path.name}')
-    images.append(save_figure(fig, out_dir / 'inputs.png', plt))
+    images.append(save_figure(fig, out_dir / 'inputs.png'))
 
     fig, ax = plt.subplots(figsize=(10, 5))
     for name in ('winding_hotspot', 'winding_mean', 'magnet', 'frame', 'pump_case', 'oil'):
@@ -464,7 +483,7 @@ def write_report(result: ReplayResult, out_dir: Path) -> Path:
     ax.set_ylabel('temperature [degC]')
     ax.legend(fontsize=7, ncol=2)
     ax.grid(alpha=0.3)
-    images.append(save_figure(fig, out_dir / 'temperatures.png', plt))
+    images.append(save_figure(fig, out_dir / 'temperatures.png'))
 
     errors = thermocouple_errors(result)
     if errors:
@@ -477,7 +496,7 @@ def write_report(result: ReplayResult, out_dir: Path) -> Path:
         ax.set_ylabel('estimate - thermocouple [K]')
         ax.legend(fontsize=7)
         ax.grid(alpha=0.3)
-        images.append(save_figure(fig, out_dir / 'errors.png', plt))
+        images.append(save_figure(fig, out_dir / 'errors.png'))
 
     fig, ax = plt.subplots(figsize=(10, 2.2))
     ax.step(t_min, result.alert_level, where='post')
@@ -485,7 +504,7 @@ def write_report(result: ReplayResult, out_dir: Path) -> Path:
     ax.set_xlabel('time [min]')
     ax.set_title('alert level')
     ax.grid(alpha=0.3)
-    images.append(save_figure(fig, out_dir / 'alerts.png', plt))
+    images.append(save_figure(fig, out_dir / 'alerts.png'))
 
     lines = [f'# Replay of {result.plan.info.path.name}', '',
              f'- configuration: {result.plan.config_source}',
@@ -496,25 +515,26 @@ def write_report(result: ReplayResult, out_dir: Path) -> Path:
              f'({result.speed_x:.0f}x real time)']
     if result.truncated:
         lines.append(f'- **the bag is truncated**: replayed what could be read ({result.problem})')
-    lines += ['', '## Temperatures at the end and at their peak (degC)', '',
-              '| estimate | end | peak |', '| --- | --- | --- |']
-    lines += [f'| {n} | {v[-1]:.1f} | {np.max(v):.1f} |'
-              for n, v in result.temperatures_C.items()]
+    lines += ['', '## Temperatures at the end and at their peak (degC)', '']
+    lines += markdown_table(('estimate', 'end', 'peak'),
+                            ((n, f'{v[-1]:.1f}', f'{np.max(v):.1f}')
+                             for n, v in result.temperatures_C.items()))
     lines += ['', '## Estimate minus thermocouple (K)', '']
     if errors:
-        lines += ['| thermocouple | estimate | samples | max abs | RMS | bias |',
-                  '| --- | --- | --- | --- | --- | --- |']
-        lines += [f'| {tc} | {e["estimate"]} | {e["n"]} | {e["max_abs_K"]:.2f} | '
-                  f'{e["rms_K"]:.2f} | {e["bias_K"]:+.2f} |' for tc, e in errors.items()]
+        lines += markdown_table(
+            ('thermocouple', 'estimate', 'samples', 'max abs', 'RMS', 'bias'),
+            ((tc, e['estimate'], e['n'], f'{e["max_abs_K"]:.2f}', f'{e["rms_K"]:.2f}',
+              f'{e["bias_K"]:+.2f}') for tc, e in errors.items()))
     else:
         lines.append('The bag holds no thermocouple topics.')
     lines += ['', '## Alerts', '']
     lines += [f'- {s - t0:9.1f} s: {text}' for s, text in result.alert_events] or ['- none']
-    lines += ['', '## Input health', '', '| input | received | accepted | rejected |',
-              '| --- | --- | --- | --- |']
-    for name, h in result.health.items():
-        rejected = h['non_finite'] + h['out_of_range'] + h['backwards'] + h['late']
-        lines.append(f'| {name} | {h["received"]} | {h["accepted"]} | {rejected} |')
+    lines += ['', '## Input health', '']
+    lines += markdown_table(
+        ('input', 'received', 'accepted', 'rejected'),
+        ((name, h['received'], h['accepted'],
+          h['non_finite'] + h['out_of_range'] + h['backwards'] + h['late'])
+         for name, h in result.health.items()))
     implausible = ', '.join(f'{k} {v}' for k, v in result.implausible.items())
     lines += ['', f'Implausible steps: {implausible}']
     lines += ['', '## Live correction', '']
@@ -528,28 +548,13 @@ def write_report(result: ReplayResult, out_dir: Path) -> Path:
         heats = ', '.join(f'{k} {v:.2f} W' for k, v in c['disturbance_W'].items()) or 'none'
         lines += [f'On: {c["updates"]} updates; learned heats at the end: {heats}. The errors '
                   'above compare the corrected estimates with the thermocouples that '
-                  'corrected them.', '',
-                  '| thermocouple | status | received | used | gated | stale | dropped |',
-                  '| --- | --- | --- | --- | --- | --- | --- |']
-        lines += [f'| {tc} | {h["status"]} | {h["received"]} | {h["used"]} | {h["gated"]} | '
-                  f'{h["stale_events"]} | {h["dropped_events"]} |'
-                  for tc, h in c['thermocouples'].items()]
+                  'corrected them.', '']
+        lines += markdown_table(
+            ('thermocouple', 'status', 'received', 'used', 'gated', 'stale', 'dropped'),
+            ((tc, h['status'], h['received'], h['used'], h['gated'], h['stale_events'],
+              h['dropped_events']) for tc, h in c['thermocouples'].items()))
     lines += [''] + [f'![{p.stem}]({p.name})' for p in images]
-    report = out_dir / 'report.md'
-    tmp = partial(report)
-    tmp.write_text('\n'.join(lines) + '\n')
-    tmp.replace(report)
-    return report
-
-
-def save_figure(fig, path: Path, plt) -> Path:
-    """Save a matplotlib figure as the PNG ``path`` (via a partial name) and close it."""
-    fig.tight_layout()
-    tmp = path.with_name(path.stem + '.partial.png')
-    fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    tmp.replace(path)
-    return path
+    return write_text(out_dir / 'report.md', '\n'.join(lines) + '\n')
 
 
 def parse_mapping(items: Sequence[str]) -> Dict[str, str]:

@@ -20,6 +20,7 @@ import numpy as np
 from .config import Config
 from .model.eha import OIL_OUTPUTS
 from .model.motor import C_TO_K
+from .outputs import atomic, save_figure
 
 #: Temperatures of the table, in print order.
 TABLE = ('winding_mean', 'winding_hotspot', 'frame', 'magnet', 'airgap_oil_outlet',
@@ -310,7 +311,7 @@ def write_csv(result, path: Path) -> List[str]:
     cols.update(result.inputs)
     cols.update({heat_column(k): v for k, v in result.heat_W.items()})
     names = list(cols)
-    with open(path, 'w', newline='') as f:
+    with atomic(path) as tmp, open(tmp, 'w', newline='') as f:
         writer = csv.writer(f)
         writer.writerow(names)
         for i in range(len(result.time_s)):
@@ -429,6 +430,4 @@ def plot(result, cfg: Config, path: Path, title: str,
     ax.set_xlabel(f'time ({unit})')
     ax.set_xlim(0.0, x[-1])
     fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
