@@ -1,16 +1,16 @@
 """
 Calibration on bench logs: a known truth recovered, identifiability, outputs, CLI, bad input.
 
-The truth rig is the issue's: the reference rig with a 30 % larger frame-yoke
-contact gap (so 30 % more contact resistance) and a 20 W seal loss into the
-pump case oil. The logs are made in memory by the simulated rig with a 0.1 s
-truth step and 50 Hz samples (measured: within 0.05 K of the 20 ms, 1 kHz rig
-over 300 s of stage 3), thermocouples at 10 Hz with their 0.2 K noise and 1 s
-lag. Every log is 600 s: long enough for the winding to rise 10-25 K and the
-contact gap to show (winding minus frame), short enough that stage 1, which
-runs away within the hour under the truth and costs three times the other
-stages per model run, stays at about 65 degC; at 600 s the nominal model is
-already 2.1 K off the held-out stage-4 winding.
+The truth rig (docs/calibration.md, Measured on a known truth): the reference
+rig with a 30 % larger frame-yoke contact gap (so 30 % more contact resistance)
+and a 20 W seal loss into the pump case oil. The logs are made in memory by the
+simulated rig with a 0.1 s truth step and 50 Hz samples (measured: within 0.05
+K of the 20 ms, 1 kHz rig over 300 s of stage 3), thermocouples at 10 Hz with
+their 0.2 K noise and 1 s lag. Every log is 600 s: long enough for the winding
+to rise 10-25 K and the contact gap to show (winding minus frame), short enough
+that stage 1, which runs away within the hour under the truth and costs three
+times the other stages per model run, stays at about 65 degC; at 600 s the
+nominal model is already 2.1 K off the held-out stage-4 winding.
 """
 
 import math
@@ -70,7 +70,7 @@ def test_recovers_the_truth_within_10_percent(run):
               f'95 % interval {p.ci95[0]:.4g} .. {p.ci95[1]:.4g}, step shift '
               f'{p.step_shift:+.3g}')
         assert p.identifiable
-        # the issue's tolerance; measured -2 % (gap) and +0.3 % (seal). What remains is the
+        # the required tolerance; measured -2 % (gap) and +0.3 % (seal). What remains is the
         # fit step's own error (1 s is half of stage 2's period: up to 0.4 K on the oil)
         # and the sensor noise; without the fitted start offset the seal came out 5 % low
         assert abs(p.value - truth[key]) < 0.10 * truth[key]
@@ -87,7 +87,7 @@ def test_held_out_winding_error_drops_below_1_5_K(run):
     for lf in run.logs[3:]:
         print('\n'.join([f'{lf.log.name}:'] + cb.error_table(lf)))
     assert [lf.role for lf in run.logs] == ['fit'] * 3 + ['validate'] * 3
-    # the issue's target: 1.5 degC max on the held-out stages (10 s means; measured 0.1-0.2 K,
+    # the required accuracy: 1.5 degC max on the held-out stages (10 s means; measured 0.1-0.2 K,
     # and below 0.9 K against every single reading, whose noise is 0.2 K)
     assert max(after.values()) < 1.5
     assert max(lf.after['winding']['max_abs_raw_K'] for lf in run.logs[3:]) < 1.5
