@@ -14,9 +14,9 @@ from wet_eha_thermal.simulation import compile_model
 import yaml
 
 
-# These start ROS nodes that find each other by discovery and time them; at import they set
-# ROS_DOMAIN_ID for their subprocesses. One xdist worker runs them one after another, as a
-# serial run does, so two of them never share a domain or the cores' slack at once.
+# These start ROS nodes that find each other by discovery, and time them. One xdist worker
+# runs them one after another, as a serial run does: never two at once on the cores' slack.
+# Each has a domain of its own (test/ros_domains.py).
 ROS_GRAPH_MODULES = ('test_estimator_node.py', 'test_live.py', 'test_player.py',
                      'test_recorder.py')
 
@@ -43,6 +43,23 @@ def compiled_model():
     otherwise time out on that alone.
     """
     compile_model(load_config())
+
+
+@pytest.fixture(scope='module', autouse=True)
+def ros_domain_env(request):
+    """
+    Set ``ROS_DOMAIN_ID`` to the module's ``DOMAIN_ID`` while a ROS module runs.
+
+    Its subprocesses and the nodes its code starts without a context then
+    join its domain; at import a module would set it for all the others.
+    """
+    domain = getattr(request.module, 'DOMAIN_ID', None)
+    if domain is None:
+        yield
+        return
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv('ROS_DOMAIN_ID', str(domain))
+        yield
 
 
 @pytest.fixture(scope='module')

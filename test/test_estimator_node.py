@@ -26,6 +26,7 @@ from rclpy.experimental import EventsExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 from rclpy.task import Future
+from ros_domains import claim_domain
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64, String
@@ -36,9 +37,8 @@ from wet_eha_thermal.ros import topics
 from wet_eha_thermal.ros.estimator_node import EstimatorNode
 import yaml
 
-# our own domain, this machine only; set before rclpy.init (and inherited by the subprocesses)
-DOMAIN_ID = 100 + os.getpid() % 100
-os.environ['ROS_DOMAIN_ID'] = str(DOMAIN_ID)
+# this module's own domain, this machine only; conftest puts it in ROS_DOMAIN_ID while it runs
+DOMAIN_ID = claim_domain()
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 
 ROOT = Path(__file__).resolve().parents[1]

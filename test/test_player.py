@@ -21,6 +21,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from rclpy.task import Future
 from rclpy.time import Time
+from ros_domains import claim_domain
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64, String
@@ -31,9 +32,8 @@ from wet_eha_thermal.ros.estimator_node import EstimatorNode
 from wet_eha_thermal.ros.player import (LOOP_GAP_NS, main, message_class, PlayerNode,
                                         recorded_qos, shift_header_stamp)
 
-# our own domain (not test_estimator_node's 100..199), this machine only; set before rclpy.init
-DOMAIN_ID = 200 + os.getpid() % 30
-os.environ['ROS_DOMAIN_ID'] = str(DOMAIN_ID)
+# this module's own domain, this machine only; conftest puts it in ROS_DOMAIN_ID while it runs
+DOMAIN_ID = claim_domain()
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -28,6 +28,7 @@ from rclpy.experimental import EventsExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 from rclpy.task import Future
+from ros_domains import claim_domain
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import get_typestore, Stores
 from rosgraph_msgs.msg import Clock
@@ -40,9 +41,8 @@ from wet_eha_thermal.ros import recorder_node, topics
 from wet_eha_thermal.ros.recorder_node import RecorderNode
 import yaml
 
-# our own domain, this machine only; set before rclpy.init (and inherited by the subprocess)
-DOMAIN_ID = 200 + os.getpid() % 30
-os.environ['ROS_DOMAIN_ID'] = str(DOMAIN_ID)
+# this module's own domain, this machine only; conftest puts it in ROS_DOMAIN_ID while it runs
+DOMAIN_ID = claim_domain()
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 
 ROOT = Path(__file__).resolve().parents[1]
