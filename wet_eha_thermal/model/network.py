@@ -425,13 +425,13 @@ class ThermalNetwork:
         """Return the exact zero-order-hold matrices of a step, cached while coefficients hold."""
         if not dt_s > 0.0:
             raise NetworkError(f'time step {dt_s} s must be > 0')
-        A, B = self._reduce()[:2]
         # steps taken from sample times differ in the last bits: within 1 ppm they are
         # one step (the state moves by 1e-6 of a step's change at most), discretised
         # at the step rounded to 1 ns, so that the matrices do not depend on which of
         # them came first (apply_changes may discretise ahead of a step)
         if self._disc is not None and abs(self._disc.dt_s - dt_s) <= 1e-6 * dt_s:
-            return self._disc
+            return self._disc        # (dropped with the reduced matrices it was made of)
+        A, B = self._reduce()[:2]
         dt_s = round(dt_s, 9) or dt_s
         self.discretise_count += 1
         # Ad = e^{A dt}; F1 = int_0^dt e^{As} ds = A^-1 (Ad - I) and
