@@ -561,10 +561,16 @@ def full_temperatures(dynamic, algebraic, out_x, out_w, x, w):
     ``dynamic`` and ``algebraic`` index the nodes with and without heat
     capacity; an algebraic node's temperature is ``out_x x + out_w w``.
     """
+    return _scatter_temperatures(dynamic, algebraic, out_x, x, out_w @ w)
+
+
+@jit
+def _scatter_temperatures(dynamic, algebraic, out_x, x, from_inputs):
+    """Return all node temperatures (K): the states ``x``, and ``out_x x + from_inputs``."""
     T = np.empty(dynamic.size + algebraic.size)
     T[dynamic] = x
     if algebraic.size:
-        T[algebraic] = out_x @ x + out_w @ w
+        T[algebraic] = out_x @ x + from_inputs
     return T
 
 
@@ -582,5 +588,6 @@ def zoh_step(Ad, Bd, Mx, Mw, out_x, out_w, dynamic, algebraic, x, w):
     """
     x_new = Ad @ x + Bd @ w
     x_mean = Mx @ x + Mw @ w
-    return (x_new, full_temperatures(dynamic, algebraic, out_x, out_w, x_new, w),
-            full_temperatures(dynamic, algebraic, out_x, out_w, x_mean, w))
+    from_inputs = out_w @ w        # the algebraic nodes' share of the inputs, once for both
+    return (x_new, _scatter_temperatures(dynamic, algebraic, out_x, x_new, from_inputs),
+            _scatter_temperatures(dynamic, algebraic, out_x, x_mean, from_inputs))
