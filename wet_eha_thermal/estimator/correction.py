@@ -266,6 +266,25 @@ class ThermalCorrection:
             g.frozen_since = None
         self._last_t0 = None
 
+    def warm_up(self, model: EHAModel, dt: float) -> None:
+        """
+        Run the filter's kernels once, on a throw-away covariance, after a step of ``model``.
+
+        Compiles them (or loads numba's cache) before a live start, where the
+        filter would otherwise first run at the first usable reading; the
+        filter's own state is not touched.
+        """
+        P = self.P
+        try:
+            self._start()
+            self._predict(model, dt)
+            row = self._H_weighted[0]
+            Ph = self.P @ row
+            var = float(row @ Ph) + 1.0
+            joseph_update(self.P, Ph / var, Ph, var)
+        finally:
+            self.P = P
+
     # ------------------------------------------------------------------ step
     def step(self, model: EHAModel, t0: float, t1: float, dt: float,
              eps: float) -> Optional[Dict[str, float]]:
@@ -444,7 +463,7 @@ class ThermalCorrection:
         g.ok_run = 0
         k = Ph / var
         delta += k * innovation
-        joseph_update(P, k, Ph, var)
+        joseph_update(P, k, Ph, var)          # Joseph form, in place
         h.used += 1
         self.updates += 1
 

@@ -427,6 +427,8 @@ class WetMotor:
         """
         T = self.T if T is None else T
         w = np.asarray(u.speed_rad_s, dtype=float).reshape(-1)
+        # R(T) at the present winding temperatures: cheap, and the winding is what
+        # a filtered coefficient would lag most
         power, re_bb_max = motor_losses(
             float(u.current_sq_mean_A2), w, T, self.idx_copper, self.idx_gap,
             self._case_pressure_Pa, self._copper_weight, self.yoke_mass, self.teeth_mass,
@@ -451,7 +453,8 @@ class WetMotor:
         """
         T = self.T if T is None else T
         w = np.abs(np.atleast_1d(speed_rad_s))
-        # a simulator asks for the same speeds (for the current) that the losses use
+        # a simulator asks for the same speeds (for the current) that the losses then come
+        # back with when the friction is to be flagged: evaluated and flagged once
         memo = self._friction_memo
         if memo is not None and memo[0] is T and np.array_equal(memo[1], w):
             return memo[2]
@@ -744,8 +747,8 @@ def filter_coefficient_point(speed_rad_s, oil_flow_m3_s, T_K, idx_watch, stages,
     (2 x that) its two stages. ``mode`` FILTER_START sets both to the input;
     FILTER_RUNNING_MEAN moves the first by ``weight`` (dt / age) towards the
     input and the second with it; FILTER_CASCADE moves the first by
-    ``weight`` (1 - exp(-dt / tau)) towards the input and the second by as
-    much towards the first. Returns the second stage's speed and flow, and
+    ``weight`` (1 - exp(-dt / tau)) towards the input and the second by the
+    same weight towards the first. Returns the second stage's speed and flow, and
     the largest move of its temperatures from ``T_refreshed_K`` in units of
     ``watch_scale``.
     """

@@ -446,7 +446,9 @@ class ThermalNetwork:
             raise NetworkError(f'a group of nodes has no path to a boundary: {exc}') from exc
         F1 = scipy.linalg.lu_solve(lu, Ad - eye, check_finite=False)
         F2 = scipy.linalg.lu_solve(lu, F1 - dt_s * eye, check_finite=False)
-        self._disc = Discretisation(dt_s, Ad, F1 @ B, F1 / dt_s, (F2 @ B) / dt_s)
+        # all in C order (lu_solve returns Fortran's): the kernels that take them compile once
+        self._disc = Discretisation(dt_s, Ad, F1 @ B, np.ascontiguousarray(F1) / dt_s,
+                                    (F2 @ B) / dt_s)
         return self._disc
 
     # ---------------------------------------------------------------- solve
