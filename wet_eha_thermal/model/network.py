@@ -425,6 +425,7 @@ class ThermalNetwork:
         """Return the exact zero-order-hold matrices of a step, cached while coefficients hold."""
         if not dt_s > 0.0:
             raise NetworkError(f'time step {dt_s} s must be > 0')
+        self.freeze()
         # steps taken from sample times differ in the last bits: within 1 ppm they are
         # one step (the state moves by 1e-6 of a step's change at most), discretised
         # at the step rounded to 1 ns, so that the matrices do not depend on which of
