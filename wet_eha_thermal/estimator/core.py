@@ -912,9 +912,10 @@ class Estimator:
         if not self.differential:
             return values
         dp = values['dp_Pa']
-        p_acc = np.full_like(dp, self.rest['p_acc_Pa'])
+        p_acc = self.rest['p_acc_Pa']
         return {**values, 'p_a_Pa': p_acc + np.maximum(dp, 0.0),
-                'p_b_Pa': p_acc + np.maximum(-dp, 0.0), 'p_acc_Pa': p_acc}
+                'p_b_Pa': p_acc - np.minimum(dp, 0.0),
+                'p_acc_Pa': np.full(dp.shape, p_acc, dtype=float)}
 
     def prepare(self) -> bool:
         """

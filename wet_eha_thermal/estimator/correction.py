@@ -82,6 +82,7 @@ from typing import Deque, Dict, List, Optional, Tuple
 import numpy as np
 
 from ..config import Config
+from ..model.compiled import jit
 from ..model.eha import EHAModel, OIL_OUTPUTS
 from ..model.motor import C_TO_K
 from ..ros.topics import THERMOCOUPLES
@@ -265,6 +266,25 @@ class ThermalCorrection:
             g.frozen_since = None
         self._last_t0 = None
 
+    def warm_up(self, model: EHAModel, dt: float) -> None:
+        """
+        Run the filter's kernels once, on a throw-away covariance, after a step of ``model``.
+
+        Compiles them (or loads numba's cache) before a live start, where the
+        filter would otherwise first run at the first usable reading; the
+        filter's own state is not touched.
+        """
+        P = self.P
+        try:
+            self._start()
+            self._predict(model, dt)
+            row = self._H_weighted[0]
+            Ph = self.P @ row
+            var = float(row @ Ph) + 1.0
+            joseph_update(self.P, Ph / var, Ph, var)
+        finally:
+            self.P = P
+
     # ------------------------------------------------------------------ step
     def step(self, model: EHAModel, t0: float, t1: float, dt: float,
              eps: float) -> Optional[Dict[str, float]]:
@@ -443,10 +463,7 @@ class ThermalCorrection:
         g.ok_run = 0
         k = Ph / var
         delta += k * innovation
-        # Joseph form (I - k h) P (I - k h)^T + k r k^T, as rank-one terms
-        P -= np.outer(k, Ph)
-        P -= np.outer(Ph, k)
-        P += var * np.outer(k, k)
+        joseph_update(P, k, Ph, var)          # Joseph form, in place
         h.used += 1
         self.updates += 1
 
@@ -465,47 +482,21 @@ class ThermalCorrection:
     def _transition(self, model: EHAModel, dt: float) -> Tuple[np.ndarray, np.ndarray]:
         """Return the step's state transition and the heat capacities of the states."""
         mo, ci = model.motor, model.circuit
-        m, nh, n = self.m, self.nh, self.n
         disc = mo.net.last_disc
-        substeps = mo.last_substeps
-        Ad, Bd = disc.Ad, disc.Bd
-        Phi = np.zeros((n, n))
         # motor: x+ = Ad x + Bd w, copper losses linear in their temperatures (R(T))
         T_cu = mo.T[mo.idx_copper]
         p_cu = mo.power_W[self._src_copper]
         if mo.extra_power_W is not None:          # the learned heat does not follow R(T)
             p_cu = p_cu - mo.extra_power_W[self._src_copper]
         gain = p_cu * self._alpha_cu / (1.0 + self._alpha_cu * (T_cu - (C_TO_K + 20.0)))
-        B_cu = Bd[:, self._col_copper]
-        A = Phi[:m, :m]
-        A[...] = Ad
-        A[:, self._s_copper] += B_cu * gain
-        b_in = Bd[:, self._col_inlet]
-        b_wind = B_cu @ self._w_copper
-        if substeps > 1:                      # not with the estimator's steps (<= 1 s)
-            acc = sum(np.linalg.matrix_power(A, j) for j in range(substeps))
-            A[...] = np.linalg.matrix_power(A, substeps)
-            b_in, b_wind = acc @ b_in, acc @ b_wind
-        Phi[:m, m + self._i_case] = b_in
-        if self._i_wind_d is not None:
-            Phi[:m, self._i_wind_d] = b_wind
         # hydraulics: the circuit's transition over the step, and its responses to the
         # motor outlet's step mean (into the accumulator) and to heat into the case
         Eh, g_acc, g_case, C = ci.last_transition()
-        Mx, Mw = disc.Mx, disc.Mw
-        o = self._s_outlet
-        out_x = Mx[o].copy()
-        out_x[self._s_copper] += Mw[o, self._col_copper] * gain
-        Phi[m:m + nh, :m] = np.outer(g_acc, out_x)
-        Phi[m:m + nh, m:m + nh] = Eh
-        Phi[m:m + nh, m + self._i_case] += g_acc * Mw[o, self._col_inlet]
-        if self._i_case_d is not None:
-            Phi[m:m + nh, self._i_case_d] = g_case
-        if self._i_wind_d is not None:
-            Phi[m:m + nh, self._i_wind_d] = g_acc * float(Mw[o, self._col_copper]
-                                                          @ self._w_copper)
-        for i in range(m + nh, n):
-            Phi[i, i] = 1.0
+        Phi = coupled_transition(
+            disc.Ad, disc.Bd, disc.Mx, disc.Mw, gain, self._s_copper, self._col_copper,
+            self._col_inlet, self._w_copper, self._s_outlet, mo.last_substeps, Eh, g_acc,
+            g_case, self._i_case, -1 if self._i_case_d is None else self._i_case_d,
+            -1 if self._i_wind_d is None else self._i_wind_d, self.n)
         cap = np.concatenate([mo.net.coefficients_in_use()[2][self.dynamic], C])
         return Phi, cap
 
@@ -513,23 +504,10 @@ class ThermalCorrection:
         """Propagate the covariance through the step just made."""
         Phi, cap = self._transition(model, dt)
         s = self.settings
-        P = self.P
-        nt = self.m + self.nh
-        # process noise at the start of the step: white heat-rate error per node
-        idx = np.arange(nt)
-        P[idx, idx] += s.heat_noise_W ** 2 * dt / cap ** 2
-        if self.nd:
-            di = np.arange(nt, self.n)
-            P[di, di] += self._d_rate2 * dt
-        P = Phi @ P @ Phi.T
-        P += P.T
-        P *= 0.5
-        for j, i in enumerate(range(nt, self.n)):    # a disturbance never exceeds its prior
-            if P[i, i] > self._d_prior[j]:
-                f = math.sqrt(self._d_prior[j] / P[i, i])
-                P[i, :] *= f
-                P[:, i] *= f
-        self.P = P
+        # process noise at the start of the step: white heat-rate error per node, and the
+        # disturbances' random walks
+        noise = np.concatenate([s.heat_noise_W ** 2 * dt / cap ** 2, self._d_rate2 * dt])
+        self.P = propagate_covariance(self.P, Phi, noise, self._d_prior)
 
     def _write_back(self, model: EHAModel, delta: np.ndarray) -> None:
         """Put the corrected state into the model, every dependent value consistent."""
@@ -610,3 +588,93 @@ class ThermalCorrection:
                 'disturbance_W': dict(zip(self.disturbance_names, self.d.tolist())),
                 'thermocouples': {name: h.status for name, h in self.tcs.items()
                                   if h.received}}
+
+
+@jit
+def coupled_transition(Ad, Bd, Mx, Mw, copper_gain, s_copper, col_copper, col_inlet, w_copper,
+                       s_outlet, substeps, Eh, g_acc, g_case, i_case, i_case_d, i_wind_d, n):
+    """
+    Return the transition (n x n) of the filter's state over one step of the coupled model.
+
+    Motor: the step's zero-order-hold matrices ``Ad``, ``Bd`` (``substeps``
+    equal sub-steps of them) and its mean ``Mx``, ``Mw``, the copper sources'
+    columns ``col_copper`` of ``Bd`` fed back through ``copper_gain`` (dP/dT,
+    W/K) into the copper states ``s_copper``, the oil inlet's column
+    ``col_inlet`` (the pump case temperature, hydraulic node ``i_case``);
+    ``w_copper`` the winding disturbance's split over the copper sources,
+    ``s_outlet`` the motor outlet's state. Hydraulics: the circuit's
+    transition ``Eh`` and its responses ``g_acc`` (to the motor outlet's step
+    mean) and ``g_case`` (to heat into the case, W). ``i_case_d`` and
+    ``i_wind_d``: the state index of the case and the winding disturbance
+    (-1: none); the disturbances walk, their rows are the identity.
+    """
+    m, nh = Ad.shape[0], Eh.shape[0]
+    Phi = np.zeros((n, n))
+    B_cu = np.ascontiguousarray(Bd[:, col_copper])
+    A = Ad.copy()
+    for j in range(s_copper.size):
+        A[:, s_copper[j]] += B_cu[:, j] * copper_gain[j]
+    b_in = Bd[:, col_inlet].copy()
+    b_wind = B_cu @ w_copper
+    if substeps > 1:                      # not with the estimator's steps (<= 1 s)
+        acc = np.zeros_like(A)
+        for j in range(substeps):
+            acc += np.linalg.matrix_power(A, j)
+        A = np.linalg.matrix_power(A, substeps)
+        b_in, b_wind = acc @ b_in, acc @ b_wind
+    Phi[:m, :m] = A
+    Phi[:m, m + i_case] = b_in
+    if i_wind_d >= 0:
+        Phi[:m, i_wind_d] = b_wind
+    out_x = Mx[s_outlet].copy()
+    for j in range(s_copper.size):
+        out_x[s_copper[j]] += Mw[s_outlet, col_copper[j]] * copper_gain[j]
+    Phi[m:m + nh, :m] = np.outer(g_acc, out_x)
+    Phi[m:m + nh, m:m + nh] = Eh
+    Phi[m:m + nh, m + i_case] += g_acc * Mw[s_outlet, col_inlet]
+    if i_case_d >= 0:
+        Phi[m:m + nh, i_case_d] = g_case
+    if i_wind_d >= 0:
+        Phi[m:m + nh, i_wind_d] = g_acc * np.dot(Mw[s_outlet][col_copper], w_copper)
+    for i in range(m + nh, n):
+        Phi[i, i] = 1.0
+    return Phi
+
+
+@jit
+def propagate_covariance(P, Phi, noise, prior):
+    """
+    Return the covariance after a step: Phi (P + diag(noise)) Phi^T, symmetrised, capped.
+
+    ``noise`` the variance added to each state at the start of the step;
+    the last ``prior.size`` states are the disturbances, whose variance never
+    exceeds their ``prior`` (their rows and columns are scaled down to it).
+    """
+    n = P.shape[0]
+    Q = P.copy()
+    for i in range(n):
+        Q[i, i] += noise[i]
+    Q = Phi @ Q @ Phi.T
+    Q = (Q + Q.T) * 0.5           # (not in place: Q.T is a view of Q)
+    for j in range(prior.size):       # a disturbance never exceeds its prior
+        i = n - prior.size + j
+        if Q[i, i] > prior[j]:
+            f = np.sqrt(prior[j] / Q[i, i])
+            Q[i, :] *= f
+            Q[:, i] *= f
+    return Q
+
+
+@jit
+def joseph_update(P, k, Ph, var):
+    """
+    Update the covariance ``P`` in place for one scalar measurement, in Joseph form.
+
+    (I - k h) P (I - k h)^T + k r k^T written as rank-one terms: ``Ph`` is
+    P h^T, ``var`` = h P h^T + r the innovation's variance and ``k`` = Ph / var
+    the gain.
+    """
+    n = k.size
+    for i in range(n):
+        for j in range(n):
+            P[i, j] = P[i, j] - k[i] * Ph[j] - Ph[i] * k[j] + var * (k[i] * k[j])

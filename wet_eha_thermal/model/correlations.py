@@ -262,7 +262,7 @@ def _bilgen_boulos_regime_index(re):
 
 
 @functools.lru_cache(maxsize=16)
-def _airgap_friction_factors(r_rotor: float, r_bore: float, L: float) -> tuple:
+def airgap_friction_factors(r_rotor: float, r_bore: float, L: float) -> tuple:
     """
     Return the geometric factors of :func:`airgap_friction` for one airgap (cached).
 
@@ -347,24 +347,31 @@ def airgap_friction(rho, mu, omega, r_rotor, r_bore, L, log: Optional[ValidityLo
     w = np.abs(omega)
     try:      # a machine's dimensions come back every call: their factors are cached
         couette_geo, re_geo, gap_ratio, gap_in_data, g03, bb_rho, ta_per_re2 = \
-            _airgap_friction_factors(r_rotor, r_bore, L)
+            airgap_friction_factors(r_rotor, r_bore, L)
     except TypeError:           # array dimensions (not hashable)
         couette_geo, re_geo, gap_ratio, gap_in_data, g03, bb_rho, ta_per_re2 = \
-            _airgap_friction_factors.__wrapped__(r_rotor, r_bore, L)
+            airgap_friction_factors.__wrapped__(r_rotor, r_bore, L)
     power, regime, re = airgap_friction_power(rho, mu, w, couette_geo, re_geo, g03, bb_rho,
                                               ta_per_re2)
-    if log is not None:
-        # only where Bilgen-Boulos set the torque
-        bb = np.not_equal(regime, 0)
-        if bb.any():
-            check(log, 'Bilgen-Boulos airgap friction', 'Re_d', np.asarray(re)[bb],
-                  0.0, BILGEN_BOULOS_RE_MAX,
-                  'Couette Reynolds number above the data of Bilgen and Boulos (1973)')
-        if not gap_in_data:     # (a ratio inside the data is never flagged)
-            check(log, 'Bilgen-Boulos airgap friction', 'delta/r1', gap_ratio,
-                  *BILGEN_BOULOS_GAP_RATIO,
-                  'gap ratio outside the data of Bilgen and Boulos (1973)')
+    check_airgap_friction(log, regime, re, gap_ratio, gap_in_data)
     return _scalar(power), _scalar(regime)
+
+
+def check_airgap_friction(log: Optional[ValidityLog], regime, re, gap_ratio,
+                          gap_in_data: bool) -> None:
+    """Flag in ``log`` what :func:`airgap_friction` evaluated outside the data it rests on."""
+    if log is None:
+        return
+    # only where Bilgen-Boulos set the torque
+    bb = np.not_equal(regime, 0)
+    if bb.any():
+        check(log, 'Bilgen-Boulos airgap friction', 'Re_d', np.asarray(re)[bb],
+              0.0, BILGEN_BOULOS_RE_MAX,
+              'Couette Reynolds number above the data of Bilgen and Boulos (1973)')
+    if not gap_in_data:     # (a ratio inside the data is never flagged)
+        check(log, 'Bilgen-Boulos airgap friction', 'delta/r1', gap_ratio,
+              *BILGEN_BOULOS_GAP_RATIO,
+              'gap ratio outside the data of Bilgen and Boulos (1973)')
 
 
 @jit
@@ -373,7 +380,7 @@ def airgap_friction_power(rho, mu, w, couette_geo, re_geo, g03, bb_rho, ta_per_r
     Return the ``(power W, regime, Re_d)`` of :func:`airgap_friction`; no checks.
 
     ``w`` is |omega| (rad/s); the geometric factors are those of
-    :func:`_airgap_friction_factors`. Arrays broadcast as in numpy.
+    :func:`airgap_friction_factors`. Arrays broadcast as in numpy.
     """
     p_couette = 4.0 * np.pi * (mu * (w * w)) * couette_geo
     # Re_d = w * re_per_w; write w^3 Re^-n = w^(3-n) re_per_w^-n (no 0 ** negative).

@@ -276,22 +276,13 @@ class EHAModel:
     def _substeps(self, seg: tuple, q_motor: float) -> SubSteps:
         """Return the circuit's sub-steps from the flows kernel's sums; move the case buffer."""
         h, x_end, flow, work, vdp, p_mid, fric, q_ext = seg
-        act = self.cfg.hydraulics.actuator
-        ci = self.circuit
-        x = np.empty(h.size + 1)
-        x[0] = self._last[1]
-        x[1:] = x_end
         buffer = np.empty(h.size + 1)
         buffer[0] = self.case_buffer_m3
-        for k in range(h.size):
-            self.case_buffer_m3 += self._case_change(float(q_ext[k]), q_motor, float(h[k]))
+        for k, (q_k, h_k) in enumerate(zip(q_ext.tolist(), h.tolist())):
+            self.case_buffer_m3 += self._case_change(q_k, q_motor, h_k)
             buffer[k + 1] = self.case_buffer_m3
-        vol = np.empty((h.size + 1, len(OIL_NODES)))
-        vol[:] = ci.oil_volumes
-        vol[:, _CHAMBER_A] = act.dead_volume_m3 + self.area * (act.half_stroke_m + x)
-        vol[:, _CHAMBER_B] = act.dead_volume_m3 + self.area * (act.half_stroke_m - x)
-        vol[:, _CASE] += buffer          # the case holds what the accumulator gives
-        vol[:, _ACC] -= buffer
+        vol = substep_volumes(self._last[1], x_end, buffer, self.circuit.oil_volumes,
+                              self._geometry)
         return SubSteps(h, flow, work, vdp, p_mid, fric, vol)
 
     # --------------------------------------------------------------- outputs
@@ -514,3 +505,26 @@ def segment_sums(t, x, dts, F, FdP, vdp_int, P, fric_W, q_ext, substep_s):
         fric[j] = np.dot(fric_W[a:b], w) / h[j]
         q[j] = np.dot(q_ext[a:b], w) / h[j]
     return h, x_end, flow, work, vdp, p_mid, fric, q
+
+
+@jit
+def substep_volumes(x0, x_end, case_buffer, oil_volumes, geometry):
+    """
+    Return the volume (m^3) of every oil node at the sub-step boundaries (one row each).
+
+    ``x0`` the actuator position (m) at the start and ``x_end`` at the end of
+    each sub-step; ``case_buffer`` the case oil above its nominal volume
+    (m^3) at each boundary, which the accumulator gives; ``oil_volumes`` the
+    nominal volumes; ``geometry`` as :func:`step_flows_kernel` takes it.
+    """
+    area, _, _, _, dead_volume, half_stroke = geometry
+    x = np.empty(x_end.size + 1)
+    x[0] = x0
+    x[1:] = x_end
+    vol = np.empty((x.size, oil_volumes.size))
+    vol[:] = oil_volumes
+    vol[:, _CHAMBER_A] = dead_volume + area * (half_stroke + x)
+    vol[:, _CHAMBER_B] = dead_volume + area * (half_stroke - x)
+    vol[:, _CASE] += case_buffer          # the case holds what the accumulator gives
+    vol[:, _ACC] -= case_buffer
+    return vol

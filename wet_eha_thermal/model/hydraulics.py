@@ -308,7 +308,9 @@ class HydraulicCircuit:
             rhs = E[:n, [_ACC, _CASE]].copy()
             rhs[[_ACC, _CASE], [0, 1]] -= 1.0
             gam = np.linalg.solve(M[:n, :n], rhs)
-            self._last_transition = (E[:n, :n], gam[:, 0] * (motor_rate * dt / C[_ACC]),
+            # in C order, as the sub-steps' transition: the filter's kernel takes either
+            self._last_transition = (np.ascontiguousarray(E[:n, :n]),
+                                     gam[:, 0] * (motor_rate * dt / C[_ACC]),
                                      gam[:, 1] * (dt / C[_CASE]), C)
         return self._last_transition
 

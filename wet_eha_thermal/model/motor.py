@@ -22,14 +22,18 @@ from typing import Dict, NamedTuple, Optional, Tuple, Union
 import numpy as np
 
 from . import correlations as corr
+from .compiled import jit
 from .losses import copper_resistance, electrical_frequency, steinmetz_loss_density
 from .mellor import add_cylinder
 from .network import ThermalNetwork
-from .oil import Oil
+from .oil import density as oil_density, kinematic_viscosity as oil_nu, Oil
 from .validity import ValidityLog
 from ..config import Motor
 
 C_TO_K = 273.15
+#: how :func:`filter_coefficient_point` moves the filter: start at the input, the running
+#: mean of the first time constant, or the two cascaded first-order stages
+FILTER_START, FILTER_RUNNING_MEAN, FILTER_CASCADE = range(3)
 
 
 def _mean(a, axis: Optional[int] = None):
@@ -101,6 +105,18 @@ class WetMotor:
         self.net = ThermalNetwork()
         self._build()
         self.net.freeze()
+        # the constants of the losses kernel (see motor_losses)
+        wd, st, ro = cfg.winding, cfg.stator, cfg.rotor
+        self._copper_weight = wd.phases * self.copper_share
+        self._copper_law = (float(wd.phase_resistance_20C_ohm), float(wd.copper_tempco_1_K))
+        self._iron = tuple(float(v) for v in (
+            cfg.pole_pairs, st.hysteresis_coeff_W_kgHzT, st.steinmetz_exponent,
+            st.eddy_coeff_W_kgHz2T2, st.yoke_flux_density_T, st.teeth_flux_density_T))
+        couette, re_geo, self._gap_ratio, self._gap_in_data, g03, bb_rho, ta_per_re2 = \
+            corr.airgap_friction_factors(ro.outer_radius_m, st.bore_radius_m, self.dz)
+        self._gap_factors = tuple(float(v) for v in (couette, re_geo, g03, bb_rho, ta_per_re2))
+        # the books' links to ambient (the frame's, then the end caps'), ends in [T; T_b]
+        self._ambient_ends = self.net.link_ends(self._to_ambient_ids)
         self.net.hold_changes = defer_refresh
         self.x: Optional[np.ndarray] = None
         self.T: Optional[np.ndarray] = None
@@ -112,7 +128,10 @@ class WetMotor:
         self.refresh_dT_K = refresh_dT_K
         self.max_substep_s = max_substep_s
         self.coefficient_filter_s = coefficient_filter_s
-        self._filter_state: Optional[list] = None
+        # the coefficient filter's two stages: mean |speed| (rad/s), flow (m^3/s), the
+        # temperatures idx_watch (K); and those temperatures at the last refresh
+        self._filter_state: Optional[np.ndarray] = None
+        self._T_refreshed = np.zeros(self.idx_watch.size)
         self._friction_memo: Optional[tuple] = None
         self._case_pressure_Pa = 0.0
         self.refresh_count = 0
@@ -399,43 +418,50 @@ class WetMotor:
         return natural_convection(Ts_K, T_amb_K, 2 * fr.outer_radius_m, log=self.log,
                                   law=fr.natural_convection) + h_rad
 
-    def _coefficient_point(self, dt_s: float, u: MotorInputs):
-        """Return the (temperatures, inputs) that set the coefficients, filtered if asked."""
-        raw = np.concatenate([[_mean(np.abs(u.speed_rad_s)), u.oil_flow_m3_s],
-                              self.T[self.idx_watch]])
+    def _coefficient_point(self, dt_s: float, u: MotorInputs) -> Tuple[float, float, float]:
+        """
+        Advance the coefficient filter by ``dt_s`` (s); return the filtered speed and flow.
+
+        Returns (speed rad/s, flow m^3/s, drift): the drift is the largest
+        move of the (filtered) watched temperatures since the last refresh,
+        in units of their thresholds (meaningless before the first refresh).
+        """
         tau = self.coefficient_filter_s
         if self._filter_state is None or tau <= 0.0:
-            self._filter_state = [raw, raw]
+            mode, weight = FILTER_START, 1.0
+            self._filter_state = np.empty((2, self.idx_watch.size + 2))
             self._filter_age_s = dt_s
         elif self._filter_age_s < tau:
             # first time constant: the running mean since the start, so the state does
             # not depend on how long the first step was
-            age = self._filter_age_s + dt_s
-            f = self._filter_state[0] + (raw - self._filter_state[0]) * (dt_s / age)
-            self._filter_state = [f, f]
-            self._filter_age_s = age
+            self._filter_age_s += dt_s
+            mode, weight = FILTER_RUNNING_MEAN, dt_s / self._filter_age_s
         else:
-            a = -np.expm1(-dt_s / tau)
-            f1, f2 = self._filter_state
-            f1 = f1 + a * (raw - f1)
-            self._filter_state = [f1, f2 + a * (f1 - f2)]
-        f = self._filter_state[1]
+            mode, weight = FILTER_CASCADE, -math.expm1(-dt_s / tau)
+        return filter_coefficient_point(
+            np.asarray(u.speed_rad_s, dtype=float).reshape(-1), float(u.oil_flow_m3_s),
+            self.T, self.idx_watch, self._filter_state, mode, weight, self._T_refreshed,
+            self.watch_scale)
+
+    def _refresh_point(self, speed_rad_s: float, flow_m3_s: float,
+                       u: MotorInputs) -> Tuple[np.ndarray, MotorInputs]:
+        """Return the (temperatures, inputs) that set the coefficients: filtered, if asked."""
         T = self.T.copy()
-        T[self.idx_watch] = f[2:]
+        T[self.idx_watch] = self._filter_state[1, 2:]
         # u with the filtered speed and flow (dataclasses.replace, without its overhead)
-        return T, MotorInputs(current_sq_mean_A2=u.current_sq_mean_A2, speed_rad_s=f[0],
-                              oil_inlet_K=u.oil_inlet_K, oil_flow_m3_s=f[1],
+        return T, MotorInputs(current_sq_mean_A2=u.current_sq_mean_A2, speed_rad_s=speed_rad_s,
+                              oil_inlet_K=u.oil_inlet_K, oil_flow_m3_s=flow_m3_s,
                               ambient_K=u.ambient_K, case_pressure_Pa=u.case_pressure_Pa)
 
-    def _refresh_due(self, T: np.ndarray, u: MotorInputs) -> bool:
+    def _refresh_due(self, speed_rad_s: float, flow_m3_s: float, drift: float,
+                     u: MotorInputs) -> bool:
         """Tell whether a temperature or an input moved too far since the last refresh."""
         if self._refreshed_at is None:
             return True
         w0, q0, tin0, tamb0, p0 = self._refreshed_at
-        drift = (np.abs(T[self.idx_watch] - self._T_refreshed) / self.watch_scale).max()
         return (drift > self.refresh_dT_K
-                or abs(float(u.speed_rad_s) - w0) > 0.01 * max(w0, 5.0)
-                or abs(u.oil_flow_m3_s - q0) > 0.01 * max(q0, 1e-8)
+                or abs(speed_rad_s - w0) > 0.01 * max(w0, 5.0)
+                or abs(flow_m3_s - q0) > 0.01 * max(q0, 1e-8)
                 or abs(u.oil_inlet_K - tin0) > 0.2 or abs(u.ambient_K - tamb0) > 0.5
                 or abs(u.case_pressure_Pa - p0) > 1e5)
 
@@ -449,29 +475,22 @@ class WetMotor:
         mean speed would be wrong); copper resistance and oil viscosity are
         taken at the present temperatures ``T`` (default: the model's).
         """
-        w = np.abs(np.atleast_1d(u.speed_rad_s))
-        wd = self.cfg.winding
+        T = self.T if T is None else T
+        w = np.asarray(u.speed_rad_s, dtype=float).reshape(-1)
         # R(T) at the present winding temperatures: cheap, and the winding is what
         # a filtered coefficient would lag most
-        p_cu = u.current_sq_mean_A2 * wd.phases * self.copper_share * copper_resistance(
-            wd.phase_resistance_20C_ohm, wd.copper_tempco_1_K,
-            (self.T if T is None else T)[self.idx_copper])
-        d_yoke, d_teeth = self._core_loss_density(w)
-        return np.concatenate([p_cu, self.yoke_mass * _mean(d_yoke),
-                               self.teeth_mass * _mean(d_teeth),
-                               _mean(self.airgap_friction_W(w, T), axis=0)])
-
-    def _core_loss_density(self, speed_rad_s: np.ndarray):
-        """Return the Steinmetz loss per kg (W/kg) of yoke and teeth at each speed sample."""
-        st = self.cfg.stator
-        f = electrical_frequency(speed_rad_s, self.cfg.pole_pairs)
-        return tuple(steinmetz_loss_density(f, b, st.hysteresis_coeff_W_kgHzT,
-                                            st.steinmetz_exponent, st.eddy_coeff_W_kgHz2T2)
-                     for b in (st.yoke_flux_density_T, st.teeth_flux_density_T))
+        power, re_bb_max = motor_losses(
+            float(u.current_sq_mean_A2), w, T, self.idx_copper, self.idx_gap,
+            self._case_pressure_Pa, self._copper_weight, self.yoke_mass, self.teeth_mass,
+            self._copper_law, self._iron, self._gap_factors, self.oil.laws)
+        if re_bb_max > corr.BILGEN_BOULOS_RE_MAX or not self._gap_in_data:
+            self.airgap_friction_W(w, T)     # the friction again, to flag it in the log
+        return power
 
     def core_loss_W(self, speed_rad_s) -> np.ndarray:
         """Return the total stator core loss (W) at each speed sample."""
-        d_yoke, d_teeth = self._core_loss_density(np.abs(np.atleast_1d(speed_rad_s)))
+        d_yoke, d_teeth = core_loss_density(
+            np.abs(np.asarray(speed_rad_s, dtype=float).reshape(-1)), self._iron)
         return self.yoke_mass.sum() * d_yoke + self.teeth_mass.sum() * d_teeth
 
     def airgap_friction_W(self, speed_rad_s, T: Optional[np.ndarray] = None) -> np.ndarray:
@@ -482,22 +501,16 @@ class WetMotor:
         the model's present ones): the gap oil swings by about a kelvin within
         a duty cycle, and friction follows it.
         """
-        st, ro = self.cfg.stator, self.cfg.rotor
         T = self.T if T is None else T
         w = np.abs(np.atleast_1d(speed_rad_s))
-        # a simulator asks for the same speeds (for the current) that the losses use
+        # a simulator asks for the same speeds (for the current) that the losses then come
+        # back with when the friction is to be flagged: evaluated and flagged once
         memo = self._friction_memo
         if memo is not None and memo[0] is T and np.array_equal(memo[1], w):
             return memo[2]
-        T_gap = T[self.idx_gap]
-        p = self._case_pressure_Pa
-        rho = self.oil.density(T_gap, p)
-        mu = self.oil.kinematic_viscosity(T_gap, p) * rho     # the dynamic viscosity
-        out, _ = corr.airgap_friction(rho, mu, w[:, None], ro.outer_radius_m, st.bore_radius_m,
-                                      self.dz, log=self.log)
-        shape = (w.shape[0], self.idx_gap.size)
-        if np.shape(out) != shape:
-            out = np.broadcast_to(out, shape)
+        out, regime, re = gap_friction(w.astype(float), T[self.idx_gap], self._case_pressure_Pa,
+                                       self._gap_factors, self.oil.laws)
+        corr.check_airgap_friction(self.log, regime, re, self._gap_ratio, self._gap_in_data)
         self._friction_memo = (T, w, out)
         return out
 
@@ -588,9 +601,9 @@ class WetMotor:
             # changes held by defer_refresh in the previous step come into use, discretised
             # before this step's refresh (which is then held in turn)
             self.net.apply_changes(h)
-            T_c, u_c = self._coefficient_point(h, u)
-            if exact or self._refresh_due(T_c, u_c):
-                self.refresh(T_c, u_c)
+            speed, flow, drift = self._coefficient_point(h, u)
+            if exact or self._refresh_due(speed, flow, drift, u):
+                self.refresh(*self._refresh_point(speed, flow, u))
                 if exact:
                     self.net.use_new_coefficients()
             self.power_W = self.losses(u)
@@ -599,7 +612,10 @@ class WetMotor:
             x_new, T_new, T_mean = self.net.step_temperatures(self.x, h, Tb, self.power_W)
             self._book(h, x_new - self.x, T_mean, u, Tb)
             # the mean over the sub-steps (summed from zero, as 0 + x is x)
-            self.T_mean = T_mean / substeps if k == 0 else self.T_mean + T_mean / substeps
+            if substeps == 1:
+                self.T_mean = T_mean
+            else:
+                self.T_mean = T_mean / substeps if k == 0 else self.T_mean + T_mean / substeps
             self.x = x_new
             self.T = T_new
         return self.T
@@ -618,14 +634,15 @@ class WetMotor:
               Tb: np.ndarray) -> None:
         """Add one step's energies (J) to the ledger, with the coefficients the step used."""
         g, m_cp, cap = self.net.coefficients_in_use()
-        # only the links to ambient: the frame's, then the end caps'
-        flows = self.net.link_heat_flows(T_mean, Tb, self._to_ambient_ids)
-        n_frame = len(self.ambient_links)
+        losses, stored, to_ambient, to_oil = step_energies(
+            h, self.power_W, dx, cap, self.net.dynamic, T_mean, Tb, g, self._to_ambient_ids,
+            self._ambient_ends, len(self.ambient_links), float(m_cp[self.adv[0]]),
+            int(self.idx_oil[-1]), float(u.oil_inlet_K))
         e = self.energy_J
-        e['losses'] += float(self.power_W.sum()) * h
-        e['stored'] += float(np.dot(cap[self.net.dynamic], dx))
-        e['to_ambient'] += float(flows[:n_frame].sum() + flows[n_frame:].sum()) * h
-        e['to_oil'] += float(m_cp[self.adv[0]] * (T_mean[self.idx_oil[-1]] - u.oil_inlet_K)) * h
+        e['losses'] += losses
+        e['stored'] += stored
+        e['to_ambient'] += to_ambient
+        e['to_oil'] += to_oil
 
     # --------------------------------------------------------------- outputs
     def temperature(self, name: str, T: Optional[np.ndarray] = None) -> float:
@@ -672,3 +689,132 @@ class WetMotor:
     def state_count(self) -> int:
         """Count the states (nodes with heat capacity)."""
         return int(self.net.dynamic.size)
+
+
+@jit
+def core_loss_density(speed_abs_rad_s, iron):
+    """
+    Return the Steinmetz loss per kg (W/kg) of the yoke and of the teeth at each speed (rad/s).
+
+    ``iron``: pole pairs, k_h (W/(kg Hz T^alpha)), alpha, k_e (W/(kg Hz^2
+    T^2)), flux density (T) of the yoke and of the teeth.
+    """
+    pole_pairs, k_h, alpha, k_e, b_yoke, b_teeth = iron
+    f = electrical_frequency(speed_abs_rad_s, pole_pairs)
+    return (steinmetz_loss_density(f, b_yoke, k_h, alpha, k_e),
+            steinmetz_loss_density(f, b_teeth, k_h, alpha, k_e))
+
+
+@jit
+def gap_friction(speed_abs_rad_s, T_gap_K, p_Pa, gap, laws):
+    """
+    Return the oil friction (W) of each airgap section at each speed (samples x sections).
+
+    The oil at the sections' temperatures ``T_gap_K`` (K) and ``p_Pa``;
+    ``gap``: the factors (couette, re_per_rho_w, g03, bb_rho, ta_per_re2) of
+    :func:`~.correlations.airgap_friction_factors` for one section; ``laws``:
+    the oil's. Returns (power W, regime, Re_d) as
+    :func:`~.correlations.airgap_friction_power`.
+    """
+    rho = oil_density(T_gap_K, p_Pa, laws)
+    mu = oil_nu(T_gap_K, p_Pa, laws) * rho     # the dynamic viscosity
+    couette, re_geo, g03, bb_rho, ta_per_re2 = gap
+    return corr.airgap_friction_power(rho, mu, speed_abs_rad_s.reshape(-1, 1), couette, re_geo,
+                                      g03, bb_rho, ta_per_re2)
+
+
+@jit
+def motor_losses(current_sq_mean_A2, speed_rad_s, T_K, idx_copper, idx_gap, case_pressure_Pa,
+                 copper_weight, yoke_mass_kg, teeth_mass_kg, copper_law, iron, gap, laws):
+    """
+    Return the source powers (W) of :meth:`WetMotor.losses` and the largest Bilgen-Boulos Re_d.
+
+    Copper: ``current_sq_mean_A2`` (A^2) x ``copper_weight`` (phases x each
+    source's share of the conductor length) x R(T) at the temperatures (K)
+    of the nodes ``idx_copper`` of ``T_K``, ``copper_law`` the phase
+    resistance at 20 degC (ohm) and its tempco (1/K); core: the yoke's and
+    the teeth's masses (kg) x their Steinmetz loss per kg (``iron``, see
+    :func:`core_loss_density`); friction (:func:`gap_friction`) at the
+    nodes ``idx_gap`` and ``case_pressure_Pa``. Core loss and friction are
+    means over the speed samples (rad/s). The Re_d returned is the largest
+    where Bilgen-Boulos set the friction (0 where it set none): what the
+    validity log would flag.
+    """
+    w = np.abs(speed_rad_s)
+    n_cu, n_fe = idx_copper.size, yoke_mass_kg.size
+    power = np.empty(n_cu + 2 * n_fe + idx_gap.size)
+    power[:n_cu] = current_sq_mean_A2 * copper_weight * copper_resistance(
+        copper_law[0], copper_law[1], T_K[idx_copper])
+    d_yoke, d_teeth = core_loss_density(w, iron)
+    power[n_cu:n_cu + n_fe] = yoke_mass_kg * (d_yoke.sum() / w.size)
+    power[n_cu + n_fe:n_cu + 2 * n_fe] = teeth_mass_kg * (d_teeth.sum() / w.size)
+    friction, regime, re = gap_friction(w, T_K[idx_gap], case_pressure_Pa, gap, laws)
+    power[n_cu + 2 * n_fe:] = friction.sum(axis=0) / w.size
+    re_bb_max = 0.0
+    for k in range(re.size):
+        if regime.flat[k] != 0 and re.flat[k] > re_bb_max:
+            re_bb_max = re.flat[k]
+    return power, re_bb_max
+
+
+@jit
+def step_energies(dt_s, power_W, dx, capacity, dynamic, T_mean, boundary_K, conductance,
+                  ambient_ids, ambient_ends, n_frame, inlet_rate_W_K, outlet, inlet_K):
+    """
+    Return a step's energies (J): generated, stored, to ambient, carried off by the oil.
+
+    Over ``dt_s`` (s): the sources' ``power_W`` (W); the states' change ``dx``
+    (K) times their heat capacities (``capacity`` J/K of every node, the
+    states at ``dynamic``); the heat through the links ``ambient_ids`` of
+    ``conductance`` (W/K) at the step-mean temperatures ``T_mean`` (K) and
+    ``boundary_K`` (their ends index [T; T_b], the frame's ``n_frame``
+    first, then the end caps'); the enthalpy flow ``inlet_rate_W_K`` (m c_p,
+    W/K) from ``inlet_K`` (K) to the mean of node ``outlet``.
+    """
+    n = T_mean.size
+    to_frame = 0.0
+    to_caps = 0.0
+    for k in range(ambient_ids.size):
+        a, b = ambient_ends[k, 0], ambient_ends[k, 1]
+        dT = ((T_mean[a] if a < n else boundary_K[a - n])
+              - (T_mean[b] if b < n else boundary_K[b - n]))
+        if k < n_frame:
+            to_frame += conductance[ambient_ids[k]] * dT
+        else:
+            to_caps += conductance[ambient_ids[k]] * dT
+    return (power_W.sum() * dt_s, np.dot(capacity[dynamic], dx), (to_frame + to_caps) * dt_s,
+            inlet_rate_W_K * (T_mean[outlet] - inlet_K) * dt_s)
+
+
+@jit
+def filter_coefficient_point(speed_rad_s, oil_flow_m3_s, T_K, idx_watch, stages, mode, weight,
+                             T_refreshed_K, watch_scale):
+    """
+    Move the coefficient filter by one step, in place; return (speed, flow, drift).
+
+    The filter's input is [mean |speed| (rad/s), ``oil_flow_m3_s``, the
+    temperatures (K) of the nodes ``idx_watch`` of ``T_K``]; ``stages``
+    (2 x that) its two stages. ``mode`` FILTER_START sets both to the input;
+    FILTER_RUNNING_MEAN moves the first by ``weight`` (dt / age) towards the
+    input and the second with it; FILTER_CASCADE moves the first by
+    ``weight`` (1 - exp(-dt / tau)) towards the input and the second by the
+    same weight towards the first. Returns the second stage's speed and flow, and
+    the largest move of its temperatures from ``T_refreshed_K`` in units of
+    ``watch_scale``.
+    """
+    raw = np.empty(idx_watch.size + 2)
+    raw[0] = np.abs(speed_rad_s).sum() / speed_rad_s.size
+    raw[1] = oil_flow_m3_s
+    raw[2:] = T_K[idx_watch]
+    f1, f2 = stages[0], stages[1]
+    if mode == FILTER_START:
+        f1[:] = raw
+        f2[:] = raw
+    elif mode == FILTER_RUNNING_MEAN:
+        f1 += (raw - f1) * weight
+        f2[:] = f1
+    else:
+        f1 += weight * (raw - f1)
+        f2 += weight * (f1 - f2)
+    drift = (np.abs(f2[2:] - T_refreshed_K) / watch_scale).max()
+    return f2[0], f2[1], drift

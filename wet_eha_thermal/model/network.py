@@ -36,6 +36,8 @@ from scipy.linalg.lapack import dgbtrf, dgbtrs
 import scipy.sparse
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
+from .compiled import jit
+
 Ref = Union[str, int]
 
 
@@ -398,8 +400,9 @@ class ThermalNetwork:
                 raise NetworkError(f'algebraic nodes cannot be eliminated (gbtrs info {info})')
             sol = np.empty_like(sol_band)
             sol[order] = sol_band
-            out_x = -sol[:, :m]   # T_a = out_x x + out_w w
-            out_w = sol[:, m:]
+            # T_a = out_x x + out_w w (in C order, as the step's kernel takes them)
+            out_x = np.ascontiguousarray(-sol[:, :m])
+            out_w = np.ascontiguousarray(sol[:, m:])
             K_red = K[:m, :m] - K[:m, m:] @ sol[:, :m]
             W_red = W[:m] - K[:m, m:] @ out_w
         else:
@@ -422,13 +425,14 @@ class ThermalNetwork:
         """Return the exact zero-order-hold matrices of a step, cached while coefficients hold."""
         if not dt_s > 0.0:
             raise NetworkError(f'time step {dt_s} s must be > 0')
-        A, B = self._reduce()[:2]
+        self.freeze()
         # steps taken from sample times differ in the last bits: within 1 ppm they are
         # one step (the state moves by 1e-6 of a step's change at most), discretised
         # at the step rounded to 1 ns, so that the matrices do not depend on which of
         # them came first (apply_changes may discretise ahead of a step)
         if self._disc is not None and abs(self._disc.dt_s - dt_s) <= 1e-6 * dt_s:
-            return self._disc
+            return self._disc        # (dropped with the reduced matrices it was made of)
+        A, B = self._reduce()[:2]
         dt_s = round(dt_s, 9) or dt_s
         self.discretise_count += 1
         # Ad = e^{A dt}; F1 = int_0^dt e^{As} ds = A^-1 (Ad - I) and
@@ -443,7 +447,9 @@ class ThermalNetwork:
             raise NetworkError(f'a group of nodes has no path to a boundary: {exc}') from exc
         F1 = scipy.linalg.lu_solve(lu, Ad - eye, check_finite=False)
         F2 = scipy.linalg.lu_solve(lu, F1 - dt_s * eye, check_finite=False)
-        self._disc = Discretisation(dt_s, Ad, F1 @ B, F1 / dt_s, (F2 @ B) / dt_s)
+        # all in C order (lu_solve returns Fortran's): the kernels that take them compile once
+        self._disc = Discretisation(dt_s, Ad, F1 @ B, np.ascontiguousarray(F1) / dt_s,
+                                    (F2 @ B) / dt_s)
         return self._disc
 
     # ---------------------------------------------------------------- solve
@@ -494,10 +500,9 @@ class ThermalNetwork:
         """
         disc = self.discretise(dt_s)
         self.last_disc = disc         # the matrices of this step, for a state estimator
-        w = self.inputs(boundary_K, power_W)
-        x_new = disc.Ad @ x + disc.Bd @ w
-        x_mean = disc.Mx @ x + disc.Mw @ w
-        return x_new, self._full_temperatures(x_new, w), self._full_temperatures(x_mean, w)
+        _, _, d, a, out_x, out_w = self._reduce()
+        return zoh_step(disc.Ad, disc.Bd, disc.Mx, disc.Mw, out_x, out_w, d, a, x,
+                        self.inputs(boundary_K, power_W))
 
     def temperatures(self, x: np.ndarray, boundary_K, power_W) -> np.ndarray:
         """Return the full node-temperature vector (K) from states and inputs."""
@@ -506,11 +511,7 @@ class ThermalNetwork:
     def _full_temperatures(self, x: np.ndarray, w: np.ndarray) -> np.ndarray:
         """Return the full node-temperature vector (K) from states and the input vector."""
         _, _, d, a, out_x, out_w = self._reduce()
-        T = np.empty(self.n)
-        T[d] = x
-        if a.size:
-            T[a] = out_x @ x + out_w @ w
-        return T
+        return full_temperatures(d, a, out_x, out_w, x, w)
 
     def initial_state(self, T_full: np.ndarray) -> np.ndarray:
         """Pick the states out of a full temperature vector."""
@@ -543,8 +544,53 @@ class ThermalNetwork:
         ends = self._ends[ids]
         return g[ids] * (values[ends[:, 0]] - values[ends[:, 1]])
 
+    def link_ends(self, ids) -> np.ndarray:
+        """Return the two ends of each conductance link ``ids`` as indices into [T; T_b]."""
+        self.freeze()
+        return self._ends[ids].copy()
+
     def heat_flow(self, T_full: np.ndarray, boundary_K, a: str, b: str) -> float:
         """Return the heat flow (W) from ``a`` to ``b`` through the link joining them."""
         k = self.link_id(a, b)
         flow = float(self.link_heat_flows(T_full, boundary_K)[k])
         return flow if self._links[k][0] == a else -flow
+
+
+@jit
+def full_temperatures(dynamic, algebraic, out_x, out_w, x, w):
+    """
+    Return the temperatures (K) of all nodes from the states ``x`` (K) and the inputs ``w``.
+
+    ``dynamic`` and ``algebraic`` index the nodes with and without heat
+    capacity; an algebraic node's temperature is ``out_x x + out_w w``.
+    """
+    return _scatter_temperatures(dynamic, algebraic, out_x, x, out_w @ w)
+
+
+@jit
+def _scatter_temperatures(dynamic, algebraic, out_x, x, from_inputs):
+    """Return all node temperatures (K): the states ``x``, and ``out_x x + from_inputs``."""
+    T = np.empty(dynamic.size + algebraic.size)
+    T[dynamic] = x
+    if algebraic.size:
+        T[algebraic] = out_x @ x + from_inputs
+    return T
+
+
+@jit
+def zoh_step(Ad, Bd, Mx, Mw, out_x, out_w, dynamic, algebraic, x, w):
+    """
+    Return one exact zero-order-hold step: new states, node temperatures at its end, and mean.
+
+    ``Ad``, ``Bd``, ``Mx``, ``Mw``: the step's :class:`Discretisation`;
+    ``out_x``, ``out_w``: the algebraic nodes' output map; ``x`` the states (K)
+    at the start, ``w`` the inputs held over the step (boundary K, source W).
+    Returns (states K at the end, all node temperatures K at the end, all
+    node temperatures K averaged over the step). One compiled call: a step of
+    a few small matrix products costs less than their calls from Python.
+    """
+    x_new = Ad @ x + Bd @ w
+    x_mean = Mx @ x + Mw @ w
+    from_inputs = out_w @ w        # the algebraic nodes' share of the inputs, once for both
+    return (x_new, _scatter_temperatures(dynamic, algebraic, out_x, x_new, from_inputs),
+            _scatter_temperatures(dynamic, algebraic, out_x, x_mean, from_inputs))
