@@ -21,6 +21,8 @@ MODULES = (correlations, oil, mellor)
 NO_EXAMPLE = {
     'correlations.airgap_friction_power': 'compiled kernel of airgap_friction (its examples)',
     'correlations.laminar_turbulent_nusselt': 'compiled kernel of pipe_internal_nusselt',
+    'correlations.airgap_friction_factors': "airgap_friction's geometry constants (its examples)",
+    'correlations.check_airgap_friction': 'flags the validity of airgap_friction; no value',
     'oil.density': 'the law of Oil.density without checks (its example)',
     'oil.kinematic_viscosity': 'the law of Oil.kinematic_viscosity without checks',
     'oil.specific_heat': 'the law of Oil.specific_heat without checks',
