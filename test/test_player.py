@@ -125,8 +125,14 @@ class Probe:
     def spin(self, seconds):
         self.executor.spin_until_future_complete(self._never, timeout_sec=seconds)
 
-    def play(self, bag, *args, stop_after_s=None, timeout_s=30.0):
-        """Run the player on ``bag`` while spinning; return (exit status, stderr)."""
+    def play(self, bag, *args, stop_when=None, timeout_s=30.0):
+        """
+        Run the player on ``bag`` while spinning; return (exit status, stderr).
+
+        With ``stop_when`` the player gets SIGTERM once that returns true (or
+        at ``timeout_s``): its start-up, discovery included, takes from half a
+        second to several on a busy machine, so a fixed wait would be a race.
+        """
         env = dict(os.environ, OPENBLAS_NUM_THREADS='1', PYTHONUNBUFFERED='1')
         proc = subprocess.Popen(
             [sys.executable, '-m', 'wet_eha_thermal.ros.player', str(bag), '--wait-subscribers',
@@ -135,9 +141,10 @@ class Probe:
         start = time.monotonic()
         while proc.poll() is None and time.monotonic() - start < timeout_s:
             self.spin(0.01)
-            if stop_after_s is not None and time.monotonic() - start > stop_after_s:
+            if stop_when is not None and (stop_when()
+                                          or time.monotonic() - start > timeout_s - 1.0):
                 proc.send_signal(signal.SIGTERM)
-                stop_after_s = None
+                stop_when = None
         try:
             _, err = proc.communicate(timeout=10)
         except subprocess.TimeoutExpired:
@@ -232,10 +239,17 @@ def test_loop_with_offset_keeps_time_increasing_and_stops_on_sigterm(context, tm
     bag = write_bag(tmp_path / 'short.mcap', 0.5)
     info = open_bag(bag)
     span_ns = info.end_time_ns - info.start_time_ns
+    p_a_topic = topics.INPUT_TOPICS['p_a_Pa']
+    n = info.topics[p_a_topic].message_count
     probe = Probe(context, bag)
+
+    def into_pass_three():
+        return (len(probe.raw.get(p_a_topic, ())) > 2 * n and probe.clock_ns
+                and probe.clock_ns[-1] > info.end_time_ns + span_ns)
+
     try:
         rc, err = probe.play(bag, '--rate', '2', '--loop', '--loop-offset', '--quiet',
-                             stop_after_s=4.5)
+                             stop_when=into_pass_three)
     finally:
         probe.close()
     assert rc == 0 and 'Traceback' not in err, err
@@ -243,9 +257,7 @@ def test_loop_with_offset_keeps_time_increasing_and_stops_on_sigterm(context, tm
     assert all(b >= a for a, b in zip(clock, clock[1:]))
     assert clock[-1] > info.end_time_ns + span_ns             # at least two passes
     # pass 2: the header stamps are shifted by the span and the gap, the rest is unchanged
-    p_a_topic = topics.INPUT_TOPICS['p_a_Pa']
     p_a = probe.raw[p_a_topic]
-    n = info.topics[p_a_topic].message_count
     assert len(p_a) > 2 * n
     first, second = (deserialize_message(p_a[i], FluidPressure)
                      for i in (0, n))
