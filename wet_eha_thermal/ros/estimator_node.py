@@ -204,6 +204,7 @@ class EstimatorNode(Node):
         # rejected counts at the last diagnostics
         self._diag_prev = dict.fromkeys(self.est.inputs, 0)
         self._implausible_prev = 0
+        # the topic of every input and of every thermocouple (measured/<name>), as subscribed
         self.topic_names: Dict[str, str] = {}
 
         # inputs, raw: decoded here in a fraction of rclpy's deserialisation
@@ -222,7 +223,9 @@ class EstimatorNode(Node):
         self.create_subscription(Temperature, self._topic(topics.AMBIENT_TOPIC),
                                  self._on_ambient, in_qos)
         for tc in topics.THERMOCOUPLES:
-            self.create_subscription(Temperature, self._topic(f'{topics.MEASURED_PREFIX}/{tc}'),
+            key = f'{topics.MEASURED_PREFIX}/{tc}'
+            self.topic_names[key] = self._topic(key)
+            self.create_subscription(Temperature, self.topic_names[key],
                                      functools.partial(self._on_measured, tc), in_qos)
         self.create_subscription(String, self._topic(topics.ACK_TOPIC), self._on_ack,
                                  QoSProfile(depth=10))
@@ -560,10 +563,6 @@ class EstimatorNode(Node):
             implausible = sum(est.implausible_counts.values())
             new_implausible = implausible - self._implausible_prev
             self._implausible_prev = implausible
-            topic_of = dict(self.topic_names)
-            topic_of.update({f'{topics.MEASURED_PREFIX}/{tc}':
-                             self._topic(f'{topics.MEASURED_PREFIX}/{tc}')
-                             for tc in topics.THERMOCOUPLES})
             counters = diagnostics.NodeCounters(
                 hardware_id=self.hardware_id, published=self.published,
                 model_errors=self.model_errors,
@@ -578,7 +577,7 @@ class EstimatorNode(Node):
                 DiagnosticStatus(level=bytes([s.level]), name=f'wet_eha_thermal: {s.name}',
                                  message=s.message, hardware_id=self.hardware_id,
                                  values=[KeyValue(key=k, value=str(v)) for k, v in s.values])
-                for s in diagnostics.statuses(est, counters, now_ns * 1e-9, topic_of,
+                for s in diagnostics.statuses(est, counters, now_ns * 1e-9, self.topic_names,
                                               new_rejected, new_implausible)]
             self.diag_pub.publish(arr)
             if self.view is not None:
