@@ -214,9 +214,14 @@ def run(client, bags: Sequence[Path], out: Path, options: rp.ReplayOptions,
 
 
 # ------------------------------------------------------------------ summary
+def thermocouples(rows: Sequence[Dict[str, object]]) -> List[str]:
+    """Return the thermocouples that any log of ``rows`` has errors of, in the rig's order."""
+    return [tc for tc in topics.THERMOCOUPLES if any(f'{tc}_max_abs_K' in r for r in rows)]
+
+
 def columns(rows: Sequence[Dict[str, object]]) -> List[str]:
     """Return the columns of campaign.csv: the figures, then the thermocouples any log has."""
-    tcs = [tc for tc in topics.THERMOCOUPLES if any(f'{tc}_max_abs_K' in r for r in rows)]
+    tcs = thermocouples(rows)
     return (['name', 'status', 'duration_s', 'messages']
             + [f'peak_{n}_C' for n in rp.OUTPUT_ESTIMATES] + ['min_margin_K', 'min_margin_of']
             + [f'time_{level.name.lower()}_s' for level in ALERT_LEVELS]
@@ -260,7 +265,7 @@ def summary_lines(rows: Sequence[Dict[str, object]], image: str) -> List[str]:
                                         else '')]
          + [_cell(r, f'time_{level.name.lower()}_s') for level in ALERT_LEVELS]
          for r in rows))
-    tcs = [tc for tc in topics.THERMOCOUPLES if any(f'{tc}_max_abs_K' in r for r in rows)]
+    tcs = thermocouples(rows)
     lines += ['', '## Estimate minus thermocouple: max abs / bias (K)', '']
     if tcs:
         lines += markdown_table(['log'] + tcs, ([r['name']] + [
