@@ -27,7 +27,6 @@ from typing import Callable, Dict, Iterator, Optional, Tuple
 
 import numpy as np
 
-from .calibration.logs import channel_ranges, CHANNELS, LogBuilder, LogData
 from .config import Calibration, Config
 from .estimator.core import sensor_inputs, sensor_signal
 from .model.eha import EHAModel
@@ -206,12 +205,16 @@ def write_rig_bag(path: os.PathLike, rig: SimulatedRig, seconds: float, *,
 
 
 def log_from_rig(rig, seconds: float, calib: Calibration, name: str = 'rig',
-                 thermocouple_rate_Hz: float = 1.0) -> LogData:
+                 thermocouple_rate_Hz: float = 1.0):
     """
     Record ``seconds`` of a :class:`SimulatedRig` straight into a calibration's LogData.
 
     The same averaging as a bag gets, without writing one (tests, studies).
     """
+    # here, not at the top: the rig's ROS node imports this module and has no use for the
+    # calibration package
+    from .calibration.logs import channel_ranges, CHANNELS, LogBuilder
+
     builder = LogBuilder(name, rig.inputs, calib, channel_ranges(rig.cfg))
     h = 1.0 / calib.average_rate_Hz
     tcs: Dict[str, Tuple[list, list]] = {c: ([], []) for c in CHANNELS}
