@@ -52,7 +52,8 @@ def fraction(doc: str = '', **kw):
     return spec(0.0, 1.0, low_open=True, doc=doc, **kw)
 
 
-def _range_text(meta: dict) -> str:
+def range_text(meta: dict) -> str:
+    """Return a field's allowed range as an interval, e.g. ``(0, 1]`` or ``(-inf, 300]``."""
     lo, hi = meta['low'], meta['high']
     left = '(' if meta['low_open'] or lo is None else '['
     right = ')' if meta['high_open'] or hi is None else ']'
@@ -76,7 +77,7 @@ def _check_value(key: str, value: Any, tp: Any, meta: dict) -> Any:
     if tp is int:
         if isinstance(value, bool) or not isinstance(value, int):
             raise ConfigError(f'{key} = {value!r}: expected a whole number in '
-                              f'{_range_text(meta)}')
+                              f'{range_text(meta)}')
     elif tp is float:
         if isinstance(value, str):
             # YAML 1.1 (PyYAML) reads 2.0e4, without an exponent sign, as text
@@ -85,11 +86,11 @@ def _check_value(key: str, value: Any, tp: Any, meta: dict) -> Any:
             except ValueError:
                 pass
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(f'{key} = {value!r}: expected a number in {_range_text(meta)}')
+            raise ConfigError(f'{key} = {value!r}: expected a number in {range_text(meta)}')
         value = float(value)
         if not math.isfinite(value):
             raise ConfigError(f'{key} = {value!r}: expected a finite number in '
-                              f'{_range_text(meta)}')
+                              f'{range_text(meta)}')
     elif tp is str:
         if not isinstance(value, str):
             raise ConfigError(f'{key} = {value!r}: expected text')
@@ -115,7 +116,7 @@ def _check_value(key: str, value: Any, tp: Any, meta: dict) -> Any:
     bad_lo = lo is not None and (value <= lo if meta['low_open'] else value < lo)
     bad_hi = hi is not None and (value >= hi if meta['high_open'] else value > hi)
     if bad_lo or bad_hi:
-        raise ConfigError(f'{key} = {value!r}: out of range; allowed {_range_text(meta)}')
+        raise ConfigError(f'{key} = {value!r}: out of range; allowed {range_text(meta)}')
     return value
 
 

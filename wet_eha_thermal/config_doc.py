@@ -17,7 +17,7 @@ import sys
 import typing
 from typing import Any, List, Optional
 
-from .config import _range_text, Config, config_dir, ConfigError, load_config
+from .config import Config, config_dir, ConfigError, load_config, range_text
 
 INTRO = """\
 # Configuration reference
@@ -68,7 +68,7 @@ def _allowed_text(meta: dict) -> str:
         return ', '.join(f'`{c}`' for c in meta['choices'])
     if meta.get('low') is None and meta.get('high') is None:
         return ''
-    return _range_text(meta)
+    return range_text(meta)
 
 
 def _value_text(value: Any) -> str:
