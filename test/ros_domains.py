@@ -13,7 +13,7 @@ import os
 from pathlib import Path
 import tempfile
 
-FIRST, LAST = 150, 229      # Fast DDS takes domains 0..232; live's probes start from 100
+FIRST, LAST = 150, 229      # Fast DDS takes domains 0..232 (live probes 100..232 for an idle one)
 _held = []                  # the open lock files: closing one would release its domain
 
 
