@@ -37,10 +37,11 @@ import time
 
 from mcap.reader import make_reader
 import numpy as np
+from rclpy.serialization import serialize_message
 from sensor_msgs.msg import FluidPressure
 from std_msgs.msg import Float64
 from wet_eha_thermal.bag.reader import FLOAT64, FLUID_PRESSURE, iter_column_blocks, read_columns
-from wet_eha_thermal.bag.writer import BagWriter
+from wet_eha_thermal.bag.writer import BagWriter, qos_profiles
 from wet_eha_thermal.ros.topics import input_qos, INPUT_TOPICS
 
 RATE_HZ = 1000
@@ -70,7 +71,7 @@ def log_times(first: int, stop: int) -> np.ndarray:
 
 def write_bag(path: Path, minutes: float) -> dict:
     samples = int(minutes * 60 * RATE_HZ)
-    qos = input_qos('sensor_data')
+    qos = qos_profiles(input_qos('sensor_data'))
     float_msg, pressure_msg = Float64(), FluidPressure()
     pressure_msg.header.frame_id = FRAME_ID
     pressure_msg.variance = 25.0
@@ -85,13 +86,13 @@ def write_bag(path: Path, minutes: float) -> dict:
                 for k, (topic, (type_name, _)) in enumerate(TOPICS.items()):
                     if type_name == FLOAT64:
                         float_msg.data = values[k][j]
-                        bag.write(topic, float_msg, log_ns)
+                        bag.write(topic, serialize_message(float_msg), log_ns)
                     else:
                         stamp_ns = log_ns - STAMP_LEAD_NS
                         pressure_msg.header.stamp.sec = stamp_ns // 1_000_000_000
                         pressure_msg.header.stamp.nanosec = stamp_ns % 1_000_000_000
                         pressure_msg.fluid_pressure = values[k][j]
-                        bag.write(topic, pressure_msg, log_ns)
+                        bag.write(topic, serialize_message(pressure_msg), log_ns)
     elapsed_s = time.perf_counter() - t
     messages = samples * len(TOPICS)
     return {'messages': messages, 'seconds': elapsed_s, 'msg_per_s': messages / elapsed_s,

@@ -24,6 +24,7 @@ from mcap_ros2.decoder import DecoderFactory
 import numpy as np
 import pytest
 from rclpy.qos import qos_profile_sensor_data, QoSProfile
+from rclpy.serialization import serialize_message
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import get_types_from_msg, get_typestore, Stores
 from sensor_msgs.msg import FluidPressure, Temperature
@@ -31,7 +32,8 @@ from std_msgs.msg import Float64, String
 from wet_eha_thermal.bag.reader import (BagError, FLOAT64, FLUID_PRESSURE, iter_column_blocks,
                                         iter_raw, open_bag, read_columns, ROSBAG2_METADATA,
                                         TEMPERATURE)
-from wet_eha_thermal.bag.writer import BagWriter, message_definition
+from wet_eha_thermal.bag.writer import BagWriter, message_definition, offered_qos, qos_profiles
+from wet_eha_thermal.ros import topics
 import yaml
 
 STRING = 'std_msgs/msg/String'
@@ -78,8 +80,9 @@ def write(path, messages, qos=None, **kwargs):
     with BagWriter(path, **kwargs) as bag:
         for topic, type_name, msg, log_ns in messages:
             if topic not in bag.topics:
-                bag.add_topic(topic, type_name, (qos or {}).get(topic))
-            bag.write(topic, msg, log_ns)
+                offered = (qos or {}).get(topic)
+                bag.add_topic(topic, type_name, offered and qos_profiles(offered))
+            bag.write(topic, serialize_message(msg), log_ns)
     return bag
 
 
@@ -213,6 +216,17 @@ def test_round_trip_is_rosbag2_layout(sample_bag):
     assert info.topics['/p'].type_name == FLUID_PRESSURE
 
 
+@pytest.mark.parametrize('ours,rclpy_qos', [
+    ({'depth': 10}, lambda: QoSProfile(depth=10)),
+    ({'durability': 'transient_local', 'depth': 1}, topics.latched_qos),
+    ({'reliability': 'best_effort', 'depth': 100}, lambda: topics.input_qos('sensor_data')),
+    ({'depth': 1000}, lambda: topics.input_qos('reliable', 1000))])
+def test_offered_qos_is_what_rclpy_profiles_give(ours, rclpy_qos):
+    # what the bags written without ROS (replay, simulated rig) claim their publishers offered,
+    # as the YAML the channel stores (no anchors where rclpy's profiles give none)
+    assert yaml.safe_dump(offered_qos(**ours)) == yaml.safe_dump(qos_profiles(rclpy_qos()))
+
+
 def test_read_columns_matches_mcap_ros2(sample_bag, tmp_path):
     path, messages = sample_bag
     # iter_raw is mcap's view of the file
@@ -307,6 +321,7 @@ def test_cut_files_read_up_to_the_cut(sample_bag, tmp_path):
 
 CHILD = """
 import sys, time
+from rclpy.serialization import serialize_message
 from sensor_msgs.msg import FluidPressure
 from std_msgs.msg import Float64
 from wet_eha_thermal.bag.writer import BagWriter
@@ -320,10 +335,10 @@ start, i = time.monotonic(), 0
 while True:
     now_ns = time.time_ns()
     f.data = float(i)
-    bag.write('/f', f, now_ns)
+    bag.write('/f', serialize_message(f), now_ns)
     p.header.stamp.sec, p.header.stamp.nanosec = divmod(now_ns, 1_000_000_000)
     p.fluid_pressure = 1e5 + i
-    bag.write('/p', p, now_ns)
+    bag.write('/p', serialize_message(p), now_ns)
     i += 1
     time.sleep(max(0.0, start + i / 1000 - time.monotonic()))
 """
@@ -360,7 +375,7 @@ def test_idle_writer_flushes_by_wall_time(tmp_path):
     path = tmp_path / 'idle.mcap'
     with BagWriter(path, flush_interval_s=0.2) as bag:
         bag.add_topic('/f', FLOAT64)
-        bag.write('/f', Float64(data=1.5), T0_NS)
+        bag.write('/f', serialize_message(Float64(data=1.5)), T0_NS)
         time.sleep(0.6)  # no further message: the background check closes the chunk
         live = open_bag(path)
         assert live.truncated and live.message_count == 1
@@ -459,7 +474,7 @@ def test_metadata_yaml_is_current_from_the_start(tmp_path):
             if topic not in bag.topics:
                 bag.add_topic(topic, type_name)
             files = len(bag.paths)
-            bag.write(topic, msg, log_ns)
+            bag.write(topic, serialize_message(msg), log_ns)
             if len(bag.paths) > files:                       # the write began a file
                 copy = tmp_path / f'copy_{files}'
                 shutil.copytree(tmp_path / 'run', copy)

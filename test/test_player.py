@@ -18,7 +18,7 @@ import rclpy
 from rclpy.experimental import EventsExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from rclpy.serialization import deserialize_message
+from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.task import Future
 from rclpy.time import Time
 from ros_domains import claim_domain
@@ -26,7 +26,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64, String
 from wet_eha_thermal.bag.reader import FLOAT64, FLUID_PRESSURE, iter_raw, open_bag
-from wet_eha_thermal.bag.writer import BagWriter
+from wet_eha_thermal.bag.writer import BagWriter, qos_profiles
 from wet_eha_thermal.ros import topics
 from wet_eha_thermal.ros.estimator_node import EstimatorNode
 from wet_eha_thermal.ros.player import (LOOP_GAP_NS, main, message_class, PlayerNode,
@@ -56,8 +56,9 @@ def write_bag(path, duration_s):
         for name in INPUTS:
             bag.add_topic(topics.INPUT_TOPICS[name],
                           FLUID_PRESSURE if name in topics.PRESSURE_INPUTS else FLOAT64,
-                          topics.input_qos('reliable', 100))
-        bag.add_topic(topics.ALERT_TOPIC, 'std_msgs/msg/String', topics.latched_qos())
+                          qos_profiles(topics.input_qos('reliable', 100)))
+        bag.add_topic(topics.ALERT_TOPIC, 'std_msgs/msg/String',
+                      qos_profiles(topics.latched_qos()))
         for i in range(round(duration_s * 1e9 / PERIOD_NS) + 1):
             for k, name in enumerate(INPUTS):
                 log_ns = T0_NS + i * PERIOD_NS + k * 10_000
@@ -67,9 +68,10 @@ def write_bag(path, duration_s):
                     msg.header.stamp = _stamp(log_ns)
                 else:
                     msg = Float64(data=value)
-                bag.write(topics.INPUT_TOPICS[name], msg, log_ns)
+                bag.write(topics.INPUT_TOPICS[name], serialize_message(msg), log_ns)
             if i == 20:
-                bag.write(topics.ALERT_TOPIC, String(data=ALERT), T0_NS + i * PERIOD_NS + 90_000)
+                bag.write(topics.ALERT_TOPIC, serialize_message(String(data=ALERT)),
+                          T0_NS + i * PERIOD_NS + 90_000)
     return path
 
 

@@ -380,31 +380,28 @@ def write_csv(result: ReplayResult, path: Path) -> Path:
 
 def write_mcap(result: ReplayResult, path: Path) -> Path:
     """Write the estimates as /eha/estimate/<name> Temperature messages, with the config."""
-    from rclpy.qos import QoSProfile
-    from sensor_msgs.msg import Temperature
-    from std_msgs.msg import String
-    from .bag.writer import BagWriter
+    from .bag import cdr
+    from .bag.writer import BagWriter, offered_qos
 
     cfg_yaml = result.plan.config_yaml
     metadata = {CONFIG_METADATA: {CONFIG_METADATA_KEY: cfg_yaml,
                                   'source': result.plan.config_source}}
+    stamps_ns = np.round(result.stamp_s * 1e9).astype(np.int64)
+    variance = result.sigma_K * result.sigma_K
     with atomic(path) as tmp, BagWriter(tmp, metadata=metadata) as w:
-        qos = QoSProfile(depth=10)
-        names = {n: f'{topics.ESTIMATE_PREFIX}/{n}' for n in OUTPUT_ESTIMATES}
-        for topic in names.values():
-            w.add_topic(topic, TEMPERATURE, qos)
-        w.add_topic(topics.ALERT_TOPIC, 'std_msgs/msg/String', topics.latched_qos())
-        msg = Temperature()
-        msg.header.frame_id = 'eha'
-        for k, stamp in enumerate(result.stamp_s.tolist()):
-            ns = int(round(stamp * 1e9))
-            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(ns, 1_000_000_000)
-            msg.variance = float(result.sigma_K[k]) ** 2
-            for name, topic in names.items():
-                msg.temperature = float(result.temperatures_C[name][k])
-                w.write(topic, msg, ns)
+        messages = []
+        for name in OUTPUT_ESTIMATES:
+            topic = f'{topics.ESTIMATE_PREFIX}/{name}'
+            w.add_topic(topic, TEMPERATURE, offered_qos(depth=10))
+            messages.append((topic, cdr.encode_stamped(
+                stamps_ns, 'eha', np.column_stack([result.temperatures_C[name], variance]))))
+        w.add_topic(topics.ALERT_TOPIC, 'std_msgs/msg/String',
+                    offered_qos(durability='transient_local', depth=1))
+        for k, ns in enumerate(stamps_ns.tolist()):
+            for topic, data in messages:
+                w.write(topic, data[k], ns)
         for stamp, text in result.alert_events:
-            w.write(topics.ALERT_TOPIC, String(data=text), int(round(stamp * 1e9)))
+            w.write(topics.ALERT_TOPIC, cdr.encode_string(text), int(round(stamp * 1e9)))
     return path
 
 

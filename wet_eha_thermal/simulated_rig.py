@@ -155,49 +155,45 @@ def write_rig_bag(path: os.PathLike, rig: SimulatedRig, seconds: float, *,
     same stamp in their header. Thermocouples and ambient come at
     ``thermocouple_rate_Hz`` and 1 Hz.
     """
-    from rclpy.qos import QoSProfile
-    from sensor_msgs.msg import FluidPressure, Temperature
-    from std_msgs.msg import Float64
-    from .bag.writer import BagWriter
+    from .bag import cdr
+    from .bag.writer import BagWriter, offered_qos
     from .ros import topics
 
-    q_in = topics.input_qos('sensor_data')
-    msgs = {name: (FluidPressure() if name in topics.PRESSURE_INPUTS else Float64())
-            for name in rig.inputs}
+    def temperature(value_C: float, sigma_K: float, ns: int) -> bytes:
+        return cdr.encode_stamped(np.array([ns]), '', [[value_C, sigma_K ** 2 if rig.noise
+                                                        else 0.0]])[0]
+
     count = 0
     with BagWriter(path, metadata=metadata) as bag:
         for name in rig.inputs:
-            bag.add_topic(topics.INPUT_TOPICS[name], topics.INPUT_TYPES[name], q_in)
+            # what the sensor_data input QoS offers (topics.input_qos)
+            bag.add_topic(topics.INPUT_TOPICS[name], topics.INPUT_TYPES[name],
+                          offered_qos('best_effort', depth=100))
         for tc in THERMOCOUPLES:
             bag.add_topic(f'{topics.MEASURED_PREFIX}/{tc}', 'sensor_msgs/msg/Temperature',
-                          QoSProfile(depth=10))
-        bag.add_topic(topics.AMBIENT_TOPIC, 'sensor_msgs/msg/Temperature', QoSProfile(depth=10))
-        temp = Temperature()
+                          offered_qos(depth=10))
+        bag.add_topic(topics.AMBIENT_TOPIC, 'sensor_msgs/msg/Temperature', offered_qos(depth=10))
         for k, n_blocks, block, tcs, amb in rig.run(seconds, thermocouple_rate_Hz):
-            stamps = (start_ns + np.round(block['t_s'] * 1e9)).astype(np.int64).tolist()
-            cols = [(topics.INPUT_TOPICS[n], msgs[n], n in topics.PRESSURE_INPUTS,
-                     block[n].tolist()) for n in rig.inputs]
+            stamps_ns = (start_ns + np.round(block['t_s'] * 1e9)).astype(np.int64)
+            cols = [(topics.INPUT_TOPICS[n],
+                     cdr.encode_stamped(stamps_ns, '', np.column_stack(
+                         [block[n], np.zeros_like(block[n])]))
+                     if n in topics.PRESSURE_INPUTS
+                     else [cdr.encode_float64(v) for v in block[n].tolist()])
+                    for n in rig.inputs]
+            stamps = stamps_ns.tolist()
             for j, ns in enumerate(stamps):
-                for topic, msg, pressure, values in cols:
-                    if pressure:
-                        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(ns, 10**9)
-                        msg.fluid_pressure = values[j]
-                    else:
-                        msg.data = values[j]
-                    bag.write(topic, msg, ns)
+                for topic, data in cols:
+                    bag.write(topic, data[j], ns)
             count += len(stamps) * len(cols)
             ns = stamps[-1]
-            temp.header.stamp.sec, temp.header.stamp.nanosec = divmod(ns, 10**9)
             if tcs is not None:
                 for tc, value in tcs.items():
-                    temp.temperature = value
-                    temp.variance = THERMOCOUPLE_SIGMA_K ** 2 if rig.noise else 0.0
-                    bag.write(f'{topics.MEASURED_PREFIX}/{tc}', temp, ns)
+                    bag.write(f'{topics.MEASURED_PREFIX}/{tc}',
+                              temperature(value, THERMOCOUPLE_SIGMA_K, ns), ns)
                     count += 1
             if amb is not None:
-                temp.temperature = amb
-                temp.variance = AMBIENT_SIGMA_K ** 2 if rig.noise else 0.0
-                bag.write(topics.AMBIENT_TOPIC, temp, ns)
+                bag.write(topics.AMBIENT_TOPIC, temperature(amb, AMBIENT_SIGMA_K, ns), ns)
                 count += 1
             if on_progress is not None and k % 500 == 0:
                 on_progress((k + 1) / n_blocks)

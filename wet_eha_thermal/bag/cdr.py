@@ -1,5 +1,5 @@
 """
-The CDR layout of the few message types this package reads without rclpy.
+The CDR layout of the few message types this package reads and writes without rclpy.
 
 A serialised ROS 2 message starts with a 4-byte encapsulation header (00 01:
 plain CDR, little-endian, what rclpy and Fast DDS write on x86 and ARM); each
@@ -10,18 +10,29 @@ field follows, aligned to its size counted from the end of that header.
   (stamp: int32 sec at 0, uint32 nanosec at 4; frame_id: uint32 length with
   its NUL at 8, the bytes from 12), then two float64 aligned to 8.
 
+- std_msgs/String: ``data`` as a uint32 length counting its NUL, the UTF-8
+  bytes, the NUL.
+
 The bag reader gathers these fields with numpy for whole chunks; the live
 estimator node decodes one message at a time with :func:`float64_data` and
-:func:`header_stamp_and_value` (a fraction of rclpy's deserialisation).
+:func:`header_stamp_and_value` (a fraction of rclpy's deserialisation). The
+encoders write what rclpy's ``serialize_message`` writes (byte for byte but
+the alignment padding, which Fast CDR leaves unset and these write as zeros:
+``test/test_cdr.py``), so that replay and the simulated rig write bags
+without ROS and without building a message object per sample.
 """
 
 import struct
-from typing import Tuple
+from typing import List, Tuple
+
+import numpy as np
 
 #: Bytes of the encapsulation header; the fields' alignment counts from its end.
 ENCAPSULATION_BYTES = 4
 #: The encapsulation header of little-endian plain CDR.
 PLAIN_LE = b'\x00\x01'
+#: The whole header as rclpy writes it: the two option bytes are zero.
+_HEADER = PLAIN_LE + b'\x00\x00'
 #: Offsets (after the encapsulation header) of the Header's fields.
 STAMP_SEC_AT, STAMP_NANOSEC_AT, FRAME_ID_LENGTH_AT, FRAME_ID_AT = 0, 4, 8, 12
 
@@ -56,3 +67,48 @@ def header_stamp_and_value(data: bytes) -> Tuple[int, float]:
     length = _U32.unpack_from(data, ENCAPSULATION_BYTES + FRAME_ID_LENGTH_AT)[0]
     value = _F64.unpack_from(data, ENCAPSULATION_BYTES + first_after_header(length))[0]
     return sec * 1_000_000_000 + nanosec, value
+
+
+def encode_float64(value: float) -> bytes:
+    """Return a std_msgs/Float64 holding ``value``, serialised."""
+    return _HEADER + _F64.pack(value)
+
+
+def encode_string(text: str) -> bytes:
+    """Return a std_msgs/String holding ``text``, serialised."""
+    data = text.encode()
+    return _HEADER + _U32.pack(len(data) + 1) + data + b'\x00'
+
+
+def encode_stamped(stamps_ns: np.ndarray, frame_id: str, values: np.ndarray) -> List[bytes]:
+    """
+    Return Header-first messages, serialised: one per stamp (ns), ``values`` after the header.
+
+    ``values`` (one row per stamp) are the message's float64 fields in order:
+    (temperature, variance) of a sensor_msgs/Temperature, (fluid_pressure,
+    variance) of a sensor_msgs/FluidPressure. Built for all stamps at once:
+    what a bag of estimates or of the simulated rig needs.
+    """
+    stamps_ns = np.asarray(stamps_ns, dtype=np.int64)
+    values = np.asarray(values, dtype=np.float64).reshape(stamps_ns.size, -1)
+    name = frame_id.encode()
+    first = ENCAPSULATION_BYTES + first_after_header(len(name) + 1)
+    size = first + 8 * values.shape[1]
+    rows = np.zeros((stamps_ns.size, size), dtype=np.uint8)
+    rows[:, :ENCAPSULATION_BYTES] = np.frombuffer(_HEADER, dtype=np.uint8)
+    sec, nanosec = np.divmod(stamps_ns, 1_000_000_000)
+    head = ENCAPSULATION_BYTES
+    rows[:, head + STAMP_SEC_AT:head + STAMP_NANOSEC_AT] = _columns(sec.astype('<i4'))
+    rows[:, head + STAMP_NANOSEC_AT:head + FRAME_ID_LENGTH_AT] = _columns(nanosec.astype('<u4'))
+    frame = _U32.pack(len(name) + 1) + name
+    rows[:, head + FRAME_ID_LENGTH_AT:head + FRAME_ID_AT + len(name)] = np.frombuffer(
+        frame, dtype=np.uint8)
+    rows[:, first:] = _columns(values.astype('<f8'))
+    blob = rows.tobytes()
+    return [blob[k:k + size] for k in range(0, len(blob), size)]
+
+
+def _columns(array: np.ndarray) -> np.ndarray:
+    """Return the bytes of each row of ``array`` (1-D or 2-D) as the rows of a uint8 array."""
+    array = np.ascontiguousarray(array.reshape(array.shape[0], -1))
+    return array.view(np.uint8).reshape(array.shape[0], -1)

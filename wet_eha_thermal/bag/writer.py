@@ -48,8 +48,6 @@ import time
 from typing import Dict, List, Optional
 
 from mcap.writer import CompressionType, LIBRARY_IDENTIFIER, Writer
-from rclpy.qos import QoSProfile
-from rclpy.serialization import serialize_message
 import yaml
 
 from .reader import ROSBAG2_METADATA, ROSBAG2_METADATA_ROOT
@@ -148,10 +146,13 @@ def _rmw_time(duration) -> Dict[str, int]:
     return {'sec': sec, 'nsec': nsec}
 
 
-def qos_profiles(qos: Optional[QoSProfile]) -> List[dict]:
-    """Return the offered QoS profiles of a topic as rosbag2 (metadata version 9) lists them."""
-    if qos is None:
-        return []  # what rosbag2 stores when it does not know the publishers' QoS
+def qos_profiles(qos) -> List[dict]:
+    """
+    Return an rclpy QoSProfile as rosbag2 (metadata version 9) lists a topic's offered QoS.
+
+    Read by attribute, so this module imports nothing of ROS: the recorder
+    passes what its publishers offer.
+    """
     return [{
         'history': qos.history.short_key,
         'depth': qos.depth,
@@ -165,6 +166,24 @@ def qos_profiles(qos: Optional[QoSProfile]) -> List[dict]:
     }]
 
 
+def offered_qos(reliability: str = 'reliable', durability: str = 'volatile',
+                depth: int = 10) -> List[dict]:
+    """
+    Return the offered QoS of a keep-last publisher, as :func:`qos_profiles` lists it.
+
+    For bags written without ROS (replay's estimates, the simulated rig's
+    logs): rclpy's defaults for the rest (no deadline, lifespan or lease,
+    system-default liveliness).
+    """
+    def zero():  # one dict each: a shared one would be dumped as a YAML anchor and alias
+        return {'sec': 0, 'nsec': 0}
+
+    return [{'history': 'keep_last', 'depth': depth, 'reliability': reliability,
+             'durability': durability, 'deadline': zero(), 'lifespan': zero(),
+             'liveliness': 'system_default', 'liveliness_lease_duration': zero(),
+             'avoid_ros_namespace_conventions': False}]
+
+
 def _yaml(data) -> str:
     return yaml.dump(data, Dumper=_YAML_DUMPER, sort_keys=False,
                      default_flow_style=False).rstrip('\n')
@@ -173,13 +192,13 @@ def _yaml(data) -> str:
 class _Topic:
     """What the bag keeps of a topic: type, definition, hash, QoS and message count."""
 
-    def __init__(self, name: str, type_name: str, qos: Optional[QoSProfile]):
+    def __init__(self, name: str, type_name: str, qos: Optional[List[dict]]):
         package, short = _split_type_name(type_name)
         self.name = name
         self.type_name = f'{package}/msg/{short}'
         self.definition = message_definition(self.type_name)
         self.type_hash = type_hash(self.type_name)
-        self.qos = qos_profiles(qos)
+        self.qos = list(qos or [])  # [] is what rosbag2 stores when it does not know them
         # the channel metadata of every file: dumped once, not at each split (~0.1 ms a topic)
         self.qos_yaml = _yaml(self.qos)
         self.message_count = 0
@@ -290,8 +309,13 @@ class BagWriter:
         self.close()
 
     def add_topic(self, topic: str, msg_type_name: str,
-                  qos: Optional[QoSProfile] = None) -> None:
-        """Declare a topic of type ``msg_type_name`` ('pkg/msg/Type'), offered with ``qos``."""
+                  qos: Optional[List[dict]] = None) -> None:
+        """
+        Declare a topic of type ``msg_type_name`` ('pkg/msg/Type').
+
+        ``qos``: its publishers' offered QoS, as :func:`qos_profiles` or
+        :func:`offered_qos` return them.
+        """
         entry = _Topic(topic, msg_type_name, qos)  # reads the definition outside the lock
         with self._lock:
             self._check_usable()
@@ -300,15 +324,14 @@ class BagWriter:
             self._topics[topic] = entry
             self._register(entry)
 
-    def write(self, topic: str, msg, log_time_ns: int,
+    def write(self, topic: str, data: bytes, log_time_ns: int,
               publish_time_ns: Optional[int] = None) -> None:
         """
-        Write one message: an rclpy message object, or its CDR serialization as bytes.
+        Write one message, serialised (CDR; rclpy's ``serialize_message`` or :mod:`.cdr`).
 
         ``log_time_ns`` is the receive time (rosbag2's recv_timestamp),
         ``publish_time_ns`` the send time (the log time when not given).
         """
-        data = msg if isinstance(msg, (bytes, bytearray, memoryview)) else serialize_message(msg)
         with self._lock:
             self._check_usable()
             entry = self._topics.get(topic)

@@ -72,7 +72,7 @@ from rclpy.exceptions import NameValidationException, ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from wet_eha_thermal.bag.writer import BagWriter, COMPRESSIONS
+from wet_eha_thermal.bag.writer import BagWriter, COMPRESSIONS, qos_profiles
 from wet_eha_thermal.config import ConfigError, default_config_path, load_config
 from wet_eha_thermal.ros import topics
 from wet_eha_thermal.ros.runtime import (accept_whole_numbers, descriptor, EXECUTORS,
@@ -309,7 +309,8 @@ class RecorderNode(Node):
                 self.before_clock += 1
                 return
             if topic not in self.counts:
-                self.writer.add_topic(topic, self.types[topic], self._offered_qos(topic))
+                self.writer.add_topic(topic, self.types[topic],
+                                      qos_profiles(self._offered_qos(topic)))
                 self.counts[topic] = 0
             self.writer.write(topic, data, log_time_ns)
             self.counts[topic] += 1
