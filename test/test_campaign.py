@@ -185,6 +185,16 @@ def test_the_default_local_cluster_reports_failed_logs_and_completes_the_others(
     assert f'- missing (failed, {tmp_path / "missing.mcap"}): cannot open' in report
 
 
+def test_the_local_cluster_runs_with_slower_health_checks():
+    # what keeps Dask's own wake-ups from taking the GIL from the replays: the settings reach
+    # the worker processes, not only the client
+    import dask
+    with campaign.dask_client(workers=1) as client:
+        for key, value in campaign.LOCAL_CLUSTER_CONFIG.items():
+            assert set(client.run(dask.config.get, key).values()) == {value}, key
+            assert client.run_on_scheduler(dask.config.get, key) == value, key
+
+
 def test_a_worker_killed_mid_run_costs_nothing(logs, serial, tmp_path):
     bags = campaign.expand([logs])
     killed = []

@@ -38,6 +38,14 @@ from .ros import topics
 
 #: How long to wait for a scheduler to answer, and for a worker to join it (s).
 CONNECT_TIMEOUT_S = 30.0
+#: Dask settings of the local cluster's processes. A replay holds the GIL for
+#: its whole run, and Dask's defaults wake each process's event loop every
+#: 20 ms (a health check) and sample the system every 0.5 s: each wake-up
+#: takes the GIL from the replay, and the in-process scheduler a share of the
+#: cores the workers use (measured: docs/scaling.md). A stuck loop is still
+#: reported after 3 s, as before.
+LOCAL_CLUSTER_CONFIG = {'distributed.admin.tick.interval': '1s',
+                        'distributed.admin.system-monitor.interval': '5s'}
 #: Estimates shown in campaign.md (campaign.csv has the peak of every one).
 SHOWN_PEAKS = ('winding_hotspot', 'magnet', 'pump_case', 'oil')
 ALERT_LEVELS = (Level.WARN, Level.CRITICAL)
@@ -148,10 +156,10 @@ def dask_client(scheduler: Optional[str] = None, workers: Optional[int] = None):
     :class:`ClusterError` when the scheduler does not answer or no worker
     joins it within :data:`CONNECT_TIMEOUT_S`.
     """
+    import dask
     from dask.system import CPU_COUNT
     from distributed import Client, LocalCluster
 
-    cluster = None
     if scheduler is not None:
         try:
             client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
@@ -164,20 +172,18 @@ def dask_client(scheduler: Optional[str] = None, workers: Optional[int] = None):
             client.close()
             raise ClusterError(f'--scheduler {scheduler}: no worker joined within '
                                f'{CONNECT_TIMEOUT_S:g} s') from None
-    else:
-        # no dashboard; the scheduler's HTTP server (health checks) still starts: on a free
-        # port, not on 8787, which another cluster may hold
-        cluster = LocalCluster(n_workers=workers or CPU_COUNT, threads_per_worker=1,
-                               processes=True, dashboard_address=None,
-                               scheduler_kwargs={'dashboard_address': ':0'},
-                               silence_logs=logging.ERROR)
-        client = Client(cluster)
-    try:
+        with client:
+            yield client
+        return
+    # set while the cluster lives: its scheduler runs in this process, and the nannies pass
+    # the settings to their workers. No dashboard; the scheduler's HTTP server (health
+    # checks) still starts: on a free port, not on 8787, which another cluster may hold
+    with dask.config.set(LOCAL_CLUSTER_CONFIG), \
+            LocalCluster(n_workers=workers or CPU_COUNT, threads_per_worker=1, processes=True,
+                         dashboard_address=None, scheduler_kwargs={'dashboard_address': ':0'},
+                         silence_logs=logging.ERROR) as cluster, \
+            Client(cluster) as client:
         yield client
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
 
 
 def describe(client) -> str:
