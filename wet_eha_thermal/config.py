@@ -691,7 +691,7 @@ class CalibrationResult:
     step_s: float = spec(0.001, 1.0, doc='model step of the fit')
     parameters: Tuple[CalibratedParameter, ...] = spec(doc=(
         'every parameter asked for: fitted, or held at its nominal value'))
-    logs: Tuple[CalibrationLog, ...] = spec(doc='the logs it read, fitted and held out')
+    logs: Tuple[CalibrationLog, ...] = spec(doc='the logs it read: fit and held-out')
     fit_rms_before_K: float = spec(0.0, None, doc='RMS error over the fit logs, nominal')
     fit_rms_after_K: float = spec(0.0, None, doc='the same, calibrated')
 
