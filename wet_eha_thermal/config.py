@@ -162,8 +162,8 @@ class Solid:
 
     k_radial_W_mK: float = positive('radial (in-plane) conductivity')
     k_axial_W_mK: float = positive('axial conductivity')
-    density_kg_m3: float = positive()
-    specific_heat_J_kgK: float = positive()
+    density_kg_m3: float = positive('times the specific heat: the heat capacity per volume')
+    specific_heat_J_kgK: float = positive('specific heat capacity')
 
     @property
     def rho_c_J_m3K(self) -> float:
@@ -175,10 +175,11 @@ class Solid:
 class Frame:
     """Motor frame (housing) over the stack and the end spaces."""
 
-    outer_radius_m: float = positive()
-    inner_radius_m: float = positive()
+    outer_radius_m: float = positive('outer radius of the barrel, whose surface meets the air')
+    inner_radius_m: float = positive('bore of the housing, where the stator sits')
     length_m: float = positive('total axial length, stack plus both end spaces')
-    emissivity: float = spec(0.0, 1.0)
+    emissivity: float = spec(0.0, 1.0, doc=(
+        'of the barrel and end caps, for radiation to ambient (reference rig: est.)'))
     forced_air_htc_W_m2K: Optional[float] = spec(
         0.0, None, low_open=True, default=None,
         doc='fan cooling; null for natural convection plus radiation')
@@ -186,7 +187,7 @@ class Frame:
         choices=('churchill_chu', 'morgan_mcadams'), default='churchill_chu',
         doc='free convection law of the barrel and the end caps: Churchill-Chu (1975), '
             'or the power laws of Morgan (1975, cylinder) and McAdams (1954, plate)')
-    material: Solid
+    material: Solid = spec(doc='housing material, also of the frame over the end spaces')
 
     def check(self, key: str) -> None:
         """Check the frame geometry."""
@@ -198,21 +199,22 @@ class Frame:
 class Stator:
     """Laminated stator: yoke, teeth and the Steinmetz loss data of the steel."""
 
-    outer_radius_m: float = positive()
-    yoke_inner_radius_m: float = positive()
-    bore_radius_m: float = positive()
+    outer_radius_m: float = positive('outer radius of the laminations, in the frame bore')
+    yoke_inner_radius_m: float = positive('inner radius of the yoke: the slot bottoms')
+    bore_radius_m: float = positive('at the tooth tips: the outer wall of the oil-filled airgap')
     tooth_tip_depth_m: float = spec(0.0, None, doc='tooth tips between bore and slot')
     tooth_fraction: float = spec(0.0, 1.0, low_open=True, high_open=True,
                                  doc='share of the tooth annulus that is iron')
-    material: Solid
+    material: Solid = spec(doc='lamination steel; axial conductivity across the laminations')
     hysteresis_coeff_W_kgHzT: float = spec(0.0, None, doc='Steinmetz k_h per kg')
-    steinmetz_exponent: float = spec(1.0, 3.0)
+    steinmetz_exponent: float = spec(1.0, 3.0, doc='Steinmetz alpha of k_h f B^alpha')
     eddy_coeff_W_kgHz2T2: float = spec(0.0, None, doc='Steinmetz k_e per kg')
-    yoke_flux_density_T: float = spec(0.0, 2.5)
-    teeth_flux_density_T: float = spec(0.0, 2.5)
+    yoke_flux_density_T: float = spec(0.0, 2.5, doc='in the yoke: the B of its iron loss')
+    teeth_flux_density_T: float = spec(0.0, 2.5, doc='in the teeth: the B of their iron loss')
     frame_contact_gap_m: float = spec(0.0, 1e-3, low_open=True,
                                       doc='equivalent air gap of the interference fit')
-    contact_gap_conductivity_W_mK: float = positive()
+    contact_gap_conductivity_W_mK: float = positive(
+        'of the gas in that gap: h = conductivity / gap (reference rig: air at about 60 degC)')
 
     def check(self, key: str) -> None:
         """Check the stator geometry."""
@@ -228,21 +230,26 @@ class Stator:
 class Winding:
     """Slot winding and end windings (copper + insulation + impregnation)."""
 
-    phases: int = spec(1, 12)
+    phases: int = spec(1, 12, doc='the copper loss is phases x I^2 R, I the RMS phase current')
     phase_resistance_20C_ohm: float = positive('line to neutral')
-    copper_tempco_1_K: float = spec(0.0, 0.01)
+    copper_tempco_1_K: float = spec(0.0, 0.01, doc=(
+        'temperature coefficient of the resistance: R = R_20 (1 + a (T - 20 degC))'))
     copper_fill: float = fraction('copper share of the slot area')
     k_radial_W_mK: float = positive('slot-equivalent transverse conductivity')
     k_axial_W_mK: float = positive('along the conductors')
-    copper_density_kg_m3: float = positive()
-    copper_specific_heat_J_kgK: float = positive()
-    insulation_density_kg_m3: float = positive()
-    insulation_specific_heat_J_kgK: float = positive()
+    copper_density_kg_m3: float = positive('of the conductors, for the heat capacity')
+    copper_specific_heat_J_kgK: float = positive('of the conductors')
+    insulation_density_kg_m3: float = positive(
+        'of what is not copper (insulation, impregnation), for the heat capacity')
+    insulation_specific_heat_J_kgK: float = positive('of what is not copper')
     end_overhang_m: float = positive('axial length of the end winding, each side')
     end_turn_length_m: float = positive('conductor length of one end turn, each side')
     liner_thickness_m: float = positive('slot liner (and wedge) thickness')
-    liner_conductivity_W_mK: float = positive()
-    insulation_limit_C: float = spec(0.0, 300.0, doc='insulation class limit')
+    liner_conductivity_W_mK: float = positive(
+        'of the slot liner: winding to yoke and teeth through h = conductivity / thickness')
+    insulation_limit_C: float = spec(0.0, 300.0, doc=(
+        'insulation class limit: the winding hot-spot limit of the reports, the forecast and '
+        'the margin current'))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -250,18 +257,20 @@ class Rotor:
     """Surface-mounted PM rotor: sleeve, magnets, core, shaft and their contacts."""
 
     outer_radius_m: float = positive('over the sleeve')
-    sleeve_thickness_m: float = positive()
-    magnet_thickness_m: float = positive()
+    sleeve_thickness_m: float = positive('radial thickness of the retaining sleeve')
+    magnet_thickness_m: float = positive('radial thickness of the magnets, under the sleeve')
     core_inner_radius_m: float = positive('= shaft radius')
-    shaft_length_m: float = positive()
-    sleeve: Solid
-    magnet: Solid
-    core: Solid
-    shaft: Solid
+    shaft_length_m: float = positive(
+        'whole shaft; its ends past the stack reach through the end spaces to the bearings')
+    sleeve: Solid = spec(doc='retaining sleeve (reference rig: Inconel 718, est.)')
+    magnet: Solid = spec(doc='the magnets (reference rig: NdFeB, catalogue values)')
+    core: Solid = spec(doc='rotor core under the magnets')
+    shaft: Solid = spec(doc='the shaft, through the stack and both end spaces')
     sleeve_magnet_htc_W_m2K: float = positive('contact conductance per area')
     magnet_core_htc_W_m2K: float = positive('glue layer')
     core_shaft_htc_W_m2K: float = positive('shrink fit')
-    magnet_limit_C: float = spec(0.0, 400.0)
+    magnet_limit_C: float = spec(0.0, 400.0, doc=(
+        "the magnet grade's limit: the magnet limit of the reports and the forecast"))
 
     def check(self, key: str) -> None:
         """Check that the rotor layers fit inside each other."""
@@ -278,11 +287,12 @@ class EndSpaces:
     htc_still_W_m2K: float = positive('oil convection with the rotor at rest')
     htc_speed_coeff: float = spec(0.0, None,
                                   doc='h = h_still + coeff * v_tip^0.8, v_tip in m/s')
-    cap_thickness_m: float = positive()
-    cap_material: Solid
+    cap_thickness_m: float = positive('axial thickness of each end cap (reference rig: est.)')
+    cap_material: Solid = spec(doc='end caps (reference rig: aluminium alloy)')
     cap_frame_htc_W_m2K: float = positive('bolted joint, per area of the frame end face')
     bearing_radius_m: float = positive('bearing seat radius in the end cap')
-    bearing_conductance_W_K: float = positive()
+    bearing_conductance_W_K: float = positive(
+        'through each bearing, shaft end to end cap (reference rig: est.)')
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -290,16 +300,20 @@ class Motor:
     """The wet motor: geometry, materials, contacts and discretisation."""
 
     slices: int = spec(1, 50, doc='axial Mellor slices of the stack')
-    pole_pairs: int = spec(1, 50)
-    slots: int = spec(3, 200)
-    stack_length_m: float = positive()
+    pole_pairs: int = spec(1, 50, doc=(
+        'rotor pole pairs: the iron loss frequency is pole_pairs x speed / (2 pi)'))
+    slots: int = spec(3, 200, doc=(
+        "stator slots: the tooth pitch, and the slot sides that carry the winding's heat to "
+        'the teeth'))
+    stack_length_m: float = positive('axial length of the laminated stack (the active length)')
     torque_constant_Nm_A: float = positive('per A RMS phase current')
-    max_continuous_current_A: float = positive()
-    frame: Frame
-    stator: Stator
-    winding: Winding
-    rotor: Rotor
-    end_spaces: EndSpaces
+    max_continuous_current_A: float = positive(
+        "continuous rating, A RMS (datasheet): the estimator's margin-current search starts there")
+    frame: Frame = spec(doc='the housing over the stack and the end spaces')
+    stator: Stator = spec(doc='the laminated stator core')
+    winding: Winding = spec(doc='slot winding and end windings')
+    rotor: Rotor = spec(doc='rotor and shaft')
+    end_spaces: EndSpaces = spec(doc='the oil-filled spaces between the stack and the end caps')
 
     def check(self, key: str) -> None:
         """Check that the parts fit together."""
@@ -326,12 +340,14 @@ class Motor:
 class Shell:
     """Solid shell of a hydraulic component, lumped: heat capacity and two convective areas."""
 
-    mass_kg: float = positive()
-    specific_heat_J_kgK: float = positive()
+    mass_kg: float = positive('times the specific heat: the heat capacity')
+    specific_heat_J_kgK: float = positive('of the shell material')
     oil_htc_W_m2K: float = positive('oil side')
-    oil_area_m2: float = positive('oil side, per oil volume it wets')
+    oil_area_m2: float = positive(
+        "oil side: the pump's is shared by case and ports (60/20/20 %, est.); the actuator's "
+        'is per chamber')
     air_htc_W_m2K: float = positive('air side, convection plus radiation')
-    air_area_m2: float = positive()
+    air_area_m2: float = positive('outer surface, to ambient')
 
     @property
     def capacity_J_K(self) -> float:
@@ -343,7 +359,7 @@ class Shell:
 class Pump:
     """Bidirectional axial piston pump without shaft seal (case drains through the motor)."""
 
-    displacement_m3_rev: float = positive()
+    displacement_m3_rev: float = positive('geometric displacement per shaft revolution')
     internal_leak_coeff_m3: float = spec(0.0, None, doc='Q = C dp / mu, port to port')
     external_leak_coeff_m3: float = spec(0.0, None, doc='Q = C dp / mu, port to case')
     viscous_friction_coeff: float = spec(0.0, None, doc='C_v of T_loss = C_v mu D w')
@@ -354,19 +370,21 @@ class Pump:
         'constant heat into the case oil that the friction law lacks (a shaft seal, say); '
         'fit it from bench logs'))
     port_volume_m3: float = positive('each port (inlet/outlet)')
-    case_volume_m3: float = positive()
-    shell: Shell
+    case_volume_m3: float = positive(
+        "oil in the pump case: the external leakage fills it, the motor's cooling flow drains it")
+    shell: Shell = spec(doc='the pump body (reference rig: aluminium)')
 
 
 @dataclass(frozen=True, kw_only=True)
 class Actuator:
     """Double-rod (balanced) cylinder."""
 
-    bore_m: float = positive()
-    rod_m: float = positive()
+    bore_m: float = positive('cylinder bore diameter')
+    rod_m: float = positive(
+        'rod diameter, both sides: the flow is pi (bore^2 - rod^2) / 4 times the rod speed')
     half_stroke_m: float = positive('travel each side of centre')
     dead_volume_m3: float = positive('each chamber at centre stroke minus the swept part')
-    shell: Shell
+    shell: Shell = spec(doc='the cylinder body (reference rig: steel)')
 
     @property
     def area_m2(self) -> float:
@@ -382,21 +400,23 @@ class Actuator:
 class Accumulator:
     """Gas-charged accumulator holding the low-pressure side (the pump case drains to it)."""
 
-    oil_volume_m3: float = positive()
-    pressure_Pa: float = positive('working pressure of the low-pressure side')
-    precharge_Pa: float = positive()
-    shell: Shell
+    oil_volume_m3: float = positive('oil held in the accumulator')
+    pressure_Pa: float = positive(
+        'working pressure of the low-pressure side (also the low side of a differential sensor)')
+    precharge_Pa: float = positive(
+        'gas precharge (datasheet); the model does not use it: the low side is at pressure_Pa')
+    shell: Shell = spec(doc='the accumulator body (reference rig: steel)')
 
 
 @dataclass(frozen=True, kw_only=True)
 class Lines:
     """The two pump-actuator lines (identical)."""
 
-    length_m: float = positive()
-    bore_m: float = positive()
-    wall_m: float = positive()
-    wall_density_kg_m3: float = positive()
-    wall_specific_heat_J_kgK: float = positive()
+    length_m: float = positive('each line, pump to actuator')
+    bore_m: float = positive('inner diameter')
+    wall_m: float = positive('wall thickness')
+    wall_density_kg_m3: float = positive('of the tube wall, for its heat capacity')
+    wall_specific_heat_J_kgK: float = positive('of the tube wall')
     air_htc_W_m2K: float = positive('outside, natural convection plus radiation')
 
 
@@ -404,10 +424,10 @@ class Lines:
 class Hydraulics:
     """Hydraulic circuit of the EHA."""
 
-    pump: Pump
-    actuator: Actuator
-    accumulator: Accumulator
-    lines: Lines
+    pump: Pump = spec(doc='the pump, its two ports and its case')
+    actuator: Actuator = spec(doc='the cylinder and its two chambers')
+    accumulator: Accumulator = spec(doc='the low-pressure side')
+    lines: Lines = spec(doc='the two lines between the pump ports and the chambers')
     substep_s: float = spec(1e-4, 10.0, default=0.05, doc=(
         'longest sub-step of the oil volumes inside a model step: their flows, volumes and '
         'pressure work swing within a duty cycle, and a step mean misplaces that heat'))
@@ -429,10 +449,13 @@ class MapsJob:
     sweep_current_A: float = positive('current held during the speed sweep')
     currents_A: Tuple[float, ...] = spec(0.0, 1e3, doc='current sweep')
     sweep_speed_rpm: float = spec(0.0, 1e5, doc='speed held during the current sweep')
-    oil_inlet_C: float = spec(-54.0, 200.0)
+    oil_inlet_C: float = spec(-54.0, 200.0, doc=(
+        'oil entering the motor (maps --oil-inlet-C overrides it)'))
     oil_flow_L_min: float = positive('leakage flow through the motor')
-    case_pressure_Pa: float = spec(0.0, 5e7)
-    ambient_C: float = spec(-60.0, 150.0)
+    case_pressure_Pa: float = spec(0.0, 5e7, doc=(
+        "of the oil in the motor, for the oil's density and viscosity"))
+    ambient_C: float = spec(-60.0, 150.0, doc=(
+        'air around the motor (maps --ambient-C overrides it)'))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -457,24 +480,28 @@ class Channels:
     pressures when ``estimator.pressure_inputs`` is ``differential``.
     """
 
-    current_A: Channel
-    speed_rad_s: Channel
-    p_a_Pa: Channel
-    p_b_Pa: Channel
-    p_acc_Pa: Channel
-    dp_Pa: Channel
-    position_m: Channel
+    current_A: Channel = spec(doc='motor phase current, RMS')
+    speed_rad_s: Channel = spec(doc='motor shaft speed, signed')
+    p_a_Pa: Channel = spec(doc='pressure of actuator port A')
+    p_b_Pa: Channel = spec(doc='pressure of actuator port B')
+    p_acc_Pa: Channel = spec(doc='accumulator pressure')
+    dp_Pa: Channel = spec(doc='port A minus port B, from one differential sensor')
+    position_m: Channel = spec(doc=(
+        'LVDT rod position: 0 at centre stroke, positive as chamber A fills'))
 
 
 @dataclass(frozen=True, kw_only=True)
 class AlertLevels:
     """Warn and critical thresholds of one estimated temperature."""
 
-    warn_C: float = spec(-60.0, 400.0)
-    critical_C: float = spec(-60.0, 400.0)
-    hysteresis_K: float = spec(0.0, 50.0)
-    min_duration_s: float = spec(0.0, 3600.0)
-    latch: bool = spec(default=True)
+    warn_C: float = spec(-60.0, 400.0, doc=(
+        'the estimate at or above this for min_duration_s raises WARN'))
+    critical_C: float = spec(-60.0, 400.0, doc='the same for CRITICAL')
+    hysteresis_K: float = spec(0.0, 50.0, doc=(
+        'a level clears below its threshold minus this; a dip within it keeps the pickup timer'))
+    min_duration_s: float = spec(0.0, 3600.0, doc=(
+        'how long the estimate must stay at or above a threshold to raise its level'))
+    latch: bool = spec(default=True, doc='a raised level stays reported until acknowledged')
 
     def check(self, key: str) -> None:
         """Check warn is below critical."""
@@ -485,9 +512,9 @@ class AlertLevels:
 class Alerts:
     """Alert thresholds of the estimated temperatures (limits: docs/model.md, reference rig)."""
 
-    winding_hotspot: AlertLevels
-    magnet: AlertLevels
-    oil: AlertLevels
+    winding_hotspot: AlertLevels = spec(doc='the hottest winding node')
+    magnet: AlertLevels = spec(doc='the hottest magnet slice')
+    oil: AlertLevels = spec(doc="the hottest oil volume, the motor's or the circuit's")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -503,13 +530,15 @@ class Thermocouple:
 class Thermocouples:
     """The rig's thermocouples (``ros.topics.THERMOCOUPLES``) and the trust in each."""
 
-    winding: Thermocouple = field(default_factory=Thermocouple)
-    frame: Thermocouple = field(default_factory=Thermocouple)
-    pump_inlet: Thermocouple = field(default_factory=Thermocouple)
-    pump_case: Thermocouple = field(default_factory=Thermocouple)
-    chamber_a: Thermocouple = field(default_factory=Thermocouple)
-    chamber_b: Thermocouple = field(default_factory=Thermocouple)
-    motor_oil_outlet: Thermocouple = field(default_factory=Thermocouple)
+    winding: Thermocouple = spec(default_factory=Thermocouple, doc=(
+        'in the winding: one point, read as the winding mean'))
+    frame: Thermocouple = spec(default_factory=Thermocouple, doc='on the motor frame')
+    pump_inlet: Thermocouple = spec(default_factory=Thermocouple, doc='in the pump inlet oil')
+    pump_case: Thermocouple = spec(default_factory=Thermocouple, doc='in the pump case oil')
+    chamber_a: Thermocouple = spec(default_factory=Thermocouple, doc='in actuator chamber A')
+    chamber_b: Thermocouple = spec(default_factory=Thermocouple, doc='in actuator chamber B')
+    motor_oil_outlet: Thermocouple = spec(default_factory=Thermocouple,
+                                          doc='in the oil leaving the motor')
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -522,7 +551,8 @@ class Correction:
     """
 
     enabled: bool = spec(default=False, doc='false: thermocouples are displayed, never used')
-    thermocouples: Thermocouples = field(default_factory=Thermocouples)
+    thermocouples: Thermocouples = spec(default_factory=Thermocouples, doc=(
+        'which rig thermocouples correct the model, and the noise of each'))
     heat_noise_W: float = spec(0.0, 1000.0, default=0.5, doc=(
         'process noise: white heat-rate error into every node with heat capacity, 1 sigma '
         'of its mean over 1 s (W)'))
@@ -567,20 +597,25 @@ class EstimatorSettings:
     step_s: float = spec(0.001, 1.0, doc='model step in sample time')
     block_rate_Hz: float = spec(1.0, 5000.0, doc='grid on which samples are averaged per step')
     ambient_C: float = spec(-60.0, 150.0, doc='used until an ambient temperature arrives')
-    coefficient_filter_s: float = spec(0.0, 600.0)
+    coefficient_filter_s: float = spec(0.0, 600.0, doc=(
+        "the speed, oil flow and temperatures that set the motor's coefficients pass two "
+        'low-pass stages of this time constant; the losses do not'))
     model_uncertainty_K: float = spec(0.0, 50.0, doc='1-sigma model uncertainty (est.)')
     stale_uncertainty_K_per_s: float = spec(0.0, 10.0,
                                             doc='added per second an input is on fallback')
     forecast_window_s: float = spec(1.0, 3600.0, doc='recent duty repeated by the forecast')
-    forecast_horizon_s: float = spec(60.0, 86400.0)
-    forecast_step_s: float = spec(0.1, 60.0)
+    forecast_horizon_s: float = spec(60.0, 86400.0, doc=(
+        'how far ahead the forecast looks for the time to each limit'))
+    forecast_step_s: float = spec(0.1, 60.0, doc=(
+        'first step of a forecast; doubled while the state moves under 0.5 K a step, up to '
+        'forecast_window_s'))
     forecast_period_s: float = spec(1.0, 3600.0, doc='a new forecast starts this often')
     forecast_substep_s: float = spec(1e-4, 10.0, default=0.25, doc=(
         "longest sub-step of the oil volumes in the forecast (the estimator's is "
         'hydraulics.substep_s): its duty is one mean sample per model step'))
     pressure_inputs: str = spec(choices=('ports', 'differential'), doc=(
         'ports: absolute pressures of port A, port B and the accumulator; differential: '
-        'one p_A - p_B sensor, the low side at the accumulator precharge pressure'))
+        'one p_A - p_B sensor, the low side at hydraulics.accumulator.pressure_Pa'))
     max_future_s: float = spec(0.0, 86400.0, default=0.5, doc=(
         'a sample stamped further ahead of the receiving clock is rejected (counted as '
         'future): a clock glitch of the source never moves the model'))
@@ -596,9 +631,10 @@ class EstimatorSettings:
     buffer_samples: int = spec(1024, 100000000, default=131072, doc=(
         'samples kept per input until the model steps past them; beyond, new samples are '
         'dropped and counted (overflow)'))
-    channels: Channels
-    alerts: Alerts
-    correction: Correction = field(default_factory=Correction)
+    channels: Channels = spec(doc='timeout and plausible range of each sensor input')
+    alerts: Alerts = spec(doc='warn and critical thresholds of the estimated temperatures')
+    correction: Correction = spec(default_factory=Correction, doc=(
+        "the rig's thermocouples correct the model; without it, open loop"))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -608,8 +644,9 @@ class CalibratedParameter:
     key: str = spec(doc='dotted key of the thermal-model parameter')
     nominal: float = spec(doc="value before the calibration (the key's unit)")
     value: float = spec(doc='value after it: the nominal when the data could not identify it')
-    ci95_low: Optional[float] = spec(default=None, doc='95 % interval; null when not fitted')
-    ci95_high: Optional[float] = spec(default=None)
+    ci95_low: Optional[float] = spec(default=None, doc=(
+        'low end of the 95 % interval; null when not fitted'))
+    ci95_high: Optional[float] = spec(default=None, doc='high end of it; null when not fitted')
     identifiable: bool = spec(doc='false: the logs do not determine it; held at the nominal')
     step_shift: float = spec(default=0.0, doc=(
         'the change a finer model step implies (linearised); inside the interval'))
@@ -632,8 +669,9 @@ class CalibrationLog:
     """A log a calibration used: where it was and what it was (to tell if it changed)."""
 
     path: str = spec(doc='as given on the command line')
-    role: str = spec(choices=('fit', 'validate'))
-    size_bytes: int = spec(0, None)
+    role: str = spec(choices=('fit', 'validate'), doc=(
+        'fit: the parameters were fitted to it; validate: held out, only compared'))
+    size_bytes: int = spec(0, None, doc='total size of its files')
     sha256: str = spec(doc='hex digest of the file; empty for data made in memory')
     duration_s: float = spec(0.0, None, doc='span of the inputs used')
 
@@ -651,8 +689,9 @@ class CalibrationResult:
     created_utc: str = spec(doc='ISO 8601')
     base_config: str = spec(doc='the configuration the fit started from')
     step_s: float = spec(0.001, 1.0, doc='model step of the fit')
-    parameters: Tuple[CalibratedParameter, ...] = spec()
-    logs: Tuple[CalibrationLog, ...] = spec()
+    parameters: Tuple[CalibratedParameter, ...] = spec(doc=(
+        'every parameter asked for: fitted, or held at its nominal value'))
+    logs: Tuple[CalibrationLog, ...] = spec(doc='the logs it read: fit and held-out')
     fit_rms_before_K: float = spec(0.0, None, doc='RMS error over the fit logs, nominal')
     fit_rms_after_K: float = spec(0.0, None, doc='the same, calibrated')
 

@@ -112,11 +112,16 @@ def _summary(cls: type) -> str:
     return text + (f' Loading also checks {_checks(cls)}.' if _checks(cls) else '')
 
 
+def _meaning(f: dataclasses.Field) -> str:
+    """Return a field's description as a table cell."""
+    return f.metadata.get('doc', '').replace('|', '\\|')
+
+
 def _row(f: dataclasses.Field, tp: Any, values: List[str]) -> str:
     """Return the table row of one field: key, type, allowed, default, values, meaning."""
     meta = dict(f.metadata)
     cells = [f'`{f.name}`', _type_text(tp, meta), _allowed_text(meta), _default_text(f),
-             *values, meta.get('doc', '').replace('|', '\\|')]
+             *values, _meaning(f)]
     return '| ' + ' | '.join(cells) + ' |'
 
 
@@ -149,10 +154,13 @@ def _section(cls: type, key: str, values: List[Any], names: List[str], optional:
             _summary(cls), '']
     group = _group_of(cls)
     if group is not None:
-        # alike subsections (one per input, per thermocouple): their keys once, then the values
+        # alike subsections (one per input, per thermocouple): what each one is, their keys
+        # once, then the values
         members = [f.name for f in dataclasses.fields(cls)]
-        out += [f'Each of {", ".join(f"`{m}`" for m in members)} is a `{group.__name__}` '
-                'section. ' + _summary(group), '']
+        out += [f'Each of these keys is a section `{group.__name__}`:', '', '| key | meaning |',
+                '| --- | --- |']
+        out += [f'| `{f.name}` | {_meaning(f)} |' for f in dataclasses.fields(cls)]
+        out += ['', _summary(group), '']
         out += _header([])
         hints = typing.get_type_hints(group)
         out += [_row(f, hints[f.name], []) for f in dataclasses.fields(group)]
