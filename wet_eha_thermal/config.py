@@ -501,7 +501,7 @@ class Thermocouple:
 
 @dataclass(frozen=True, kw_only=True)
 class Thermocouples:
-    """The rig's thermocouples (``ros.topics.THERMOCOUPLES``) and the trust in each."""
+    """The rig's thermocouples (``interface.THERMOCOUPLES``) and the trust in each."""
 
     winding: Thermocouple = field(default_factory=Thermocouple)
     frame: Thermocouple = field(default_factory=Thermocouple)

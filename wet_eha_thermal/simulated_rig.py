@@ -29,10 +29,10 @@ import numpy as np
 
 from .config import Calibration, Config
 from .estimator.core import sensor_inputs, sensor_signal
+from .interface import THERMOCOUPLES
 from .model.eha import EHAModel
 from .model.kinetics import Duty, KineticModel, ThermalFeedback
 from .model.motor import C_TO_K
-from .ros.topics import THERMOCOUPLES
 from .simulation import feedback
 
 #: Length of one kinetics block and one truth-model step (s).
@@ -159,23 +159,24 @@ def write_rig_bag(path: os.PathLike, rig: SimulatedRig, seconds: float, *,
     from sensor_msgs.msg import FluidPressure, Temperature
     from std_msgs.msg import Float64
     from .bag.writer import BagWriter
-    from .ros import topics
+    from . import interface
+    from .ros.topics import input_qos
 
-    q_in = topics.input_qos('sensor_data')
-    msgs = {name: (FluidPressure() if name in topics.PRESSURE_INPUTS else Float64())
+    q_in = input_qos('sensor_data')
+    msgs = {name: (FluidPressure() if name in interface.PRESSURE_INPUTS else Float64())
             for name in rig.inputs}
     count = 0
     with BagWriter(path, metadata=metadata) as bag:
         for name in rig.inputs:
-            bag.add_topic(topics.INPUT_TOPICS[name], topics.INPUT_TYPES[name], q_in)
+            bag.add_topic(interface.INPUT_TOPICS[name], interface.INPUT_TYPES[name], q_in)
         for tc in THERMOCOUPLES:
-            bag.add_topic(f'{topics.MEASURED_PREFIX}/{tc}', 'sensor_msgs/msg/Temperature',
+            bag.add_topic(f'{interface.MEASURED_PREFIX}/{tc}', 'sensor_msgs/msg/Temperature',
                           QoSProfile(depth=10))
-        bag.add_topic(topics.AMBIENT_TOPIC, 'sensor_msgs/msg/Temperature', QoSProfile(depth=10))
+        bag.add_topic(interface.AMBIENT_TOPIC, 'sensor_msgs/msg/Temperature', QoSProfile(depth=10))
         temp = Temperature()
         for k, n_blocks, block, tcs, amb in rig.run(seconds, thermocouple_rate_Hz):
             stamps = (start_ns + np.round(block['t_s'] * 1e9)).astype(np.int64).tolist()
-            cols = [(topics.INPUT_TOPICS[n], msgs[n], n in topics.PRESSURE_INPUTS,
+            cols = [(interface.INPUT_TOPICS[n], msgs[n], n in interface.PRESSURE_INPUTS,
                      block[n].tolist()) for n in rig.inputs]
             for j, ns in enumerate(stamps):
                 for topic, msg, pressure, values in cols:
@@ -192,12 +193,12 @@ def write_rig_bag(path: os.PathLike, rig: SimulatedRig, seconds: float, *,
                 for tc, value in tcs.items():
                     temp.temperature = value
                     temp.variance = THERMOCOUPLE_SIGMA_K ** 2 if rig.noise else 0.0
-                    bag.write(f'{topics.MEASURED_PREFIX}/{tc}', temp, ns)
+                    bag.write(f'{interface.MEASURED_PREFIX}/{tc}', temp, ns)
                     count += 1
             if amb is not None:
                 temp.temperature = amb
                 temp.variance = AMBIENT_SIGMA_K ** 2 if rig.noise else 0.0
-                bag.write(topics.AMBIENT_TOPIC, temp, ns)
+                bag.write(interface.AMBIENT_TOPIC, temp, ns)
                 count += 1
             if on_progress is not None and k % 500 == 0:
                 on_progress((k + 1) / n_blocks)

@@ -82,10 +82,10 @@ from typing import Deque, Dict, List, Optional, Tuple
 import numpy as np
 
 from ..config import Config
+from ..interface import THERMOCOUPLES
 from ..model.compiled import jit
 from ..model.eha import EHAModel, OIL_OUTPUTS
 from ..model.motor import C_TO_K
-from ..ros.topics import THERMOCOUPLES
 
 #: Readings outside this range (degC) are rejected as implausible values.
 READING_RANGE_C = (-60.0, 400.0)
