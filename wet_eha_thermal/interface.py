@@ -62,6 +62,7 @@ ESTIMATES = ('winding_mean', 'winding_hotspot', 'frame', 'magnet', 'airgap_oil_o
              'motor_oil_outlet', 'pump_case', 'pump_outlet', 'chamber_a', 'chamber_b',
              'accumulator', 'oil')
 #: thermocouples of the reference rig (docs/model.md) and the estimate each one measures
+#: (an output of :mod:`wet_eha_thermal.model.quantities`)
 THERMOCOUPLES = {'winding': 'winding_mean', 'frame': 'frame', 'pump_inlet': 'pump_outlet',
                  'pump_case': 'pump_case', 'chamber_a': 'chamber_a', 'chamber_b': 'chamber_b',
                  'motor_oil_outlet': 'motor_oil_outlet'}

@@ -23,29 +23,26 @@ every step, and no oil takes a path the rig does not have.
 """
 
 from dataclasses import dataclass
-from typing import Dict, Optional
+from typing import Dict, List, Optional, Sequence
 
 import numpy as np
 
 from . import fluid_power as fp
 from .compiled import jit
-from .hydraulics import (ACCUMULATOR, CASE, CHAMBER_A, CHAMBER_B, HydraulicCircuit,
-                         LEAK_A_TO_B, LEAK_A_TO_CASE, LEAK_B_TO_A, LEAK_B_TO_CASE,
-                         LINE_A, LINE_A_ACTUATOR_END, LINE_A_ACTUATOR_END_BACK,
-                         LINE_A_PUMP_END, LINE_A_PUMP_END_BACK, LINE_B, LINE_B_ACTUATOR_END,
-                         LINE_B_ACTUATOR_END_BACK, LINE_B_PUMP_END, LINE_B_PUMP_END_BACK,
-                         MAKE_UP_A, MAKE_UP_B, N_OIL, PORT_A, PORT_B, PUMP_INTO_A, PUMP_INTO_B,
-                         StepFlows, SubSteps)
+from .hydraulics import (ACCUMULATOR, CASE, CHAMBER_A, CHAMBER_B, HydraulicCircuit, LEAK_A_TO_B,
+                         LEAK_A_TO_CASE, LEAK_B_TO_A, LEAK_B_TO_CASE, LINE_A, LINE_A_ACTUATOR_END,
+                         LINE_A_ACTUATOR_END_BACK, LINE_A_PUMP_END, LINE_A_PUMP_END_BACK, LINE_B,
+                         LINE_B_ACTUATOR_END, LINE_B_ACTUATOR_END_BACK, LINE_B_PUMP_END,
+                         LINE_B_PUMP_END_BACK, MAKE_UP_A, MAKE_UP_B, N_OIL, NODES, PORT_A, PORT_B,
+                         PUMP_INTO_A, PUMP_INTO_B, StepFlows, SubSteps)
 from .motor import MotorInputs, WetMotor
 from .oil import density as oil_density, get_oil, kinematic_viscosity as oil_nu, Oil
+from .quantities import coupled_outputs, QuantityMap
 from .validity import ValidityLog
 from ..config import Config
 
 #: the case oil may fall this far below its nominal volume (a fraction), never further
 CASE_BUFFER_FLOOR = 0.75
-#: the oil volumes whose hottest value is the ``oil`` output, checked against the oil limit
-OIL_OUTPUTS = ('airgap_oil_outlet', 'motor_oil_outlet', 'pump_case', 'chamber_a', 'chamber_b',
-               'accumulator')
 
 
 @dataclass
@@ -92,6 +89,13 @@ class EHAModel:
                               max_substep_s=1.0, coefficient_filter_s=coefficient_filter_s,
                               defer_refresh=defer_refresh)
         self.circuit = HydraulicCircuit(cfg.hydraulics, self.oil)
+        # the outputs are evaluated on the motor's node temperatures, then the circuit's
+        net = self.motor.net
+        circuit_value = {name: net.n + i for i, name in enumerate(NODES)}
+        #: the named states (those of :attr:`state`) and the outputs over them
+        self.quantities = QuantityMap(
+            net.state_names + list(NODES), coupled_outputs(self.motor),
+            lambda name: circuit_value[name] if name in circuit_value else net.index(name))
         h = cfg.hydraulics
         self.area = h.actuator.area_m2
         self.d_rad = fp.displacement_per_rad(h.pump.displacement_m3_rev)
@@ -287,25 +291,29 @@ class EHAModel:
     # --------------------------------------------------------------- outputs
     def outputs(self) -> Dict[str, float]:
         """
-        Return the named temperatures (K); ``oil`` is the hottest oil.
+        Return the outputs of :func:`~.quantities.coupled_outputs`, in K.
 
         The motor's are those of the present state; the hydraulic nodes' those
         the circuit reports (:attr:`HydraulicCircuit.T_report`: the last
         step's means when it was sub-stepped).
         """
-        out = dict(self.motor.outputs())
+        return self.quantities.values(self._output_values(), self._port_a_high())
+
+    def output_states(self, names: Sequence[str]) -> List[int]:
+        """Return the state each single-state output takes now (the hottest one of a max)."""
+        return self.quantities.states_taken(names, self._output_values(), self._port_a_high())
+
+    def _output_values(self) -> np.ndarray:
+        """Return the temperatures the outputs are evaluated on: motor nodes, then circuit (K)."""
         ci = self.circuit
-        named = ci.named(self.T_hyd if ci.T_report is None else ci.T_report)
-        out.update({'pump_case': named['case'], 'pump_port_a': named['port_a'],
-                    'pump_port_b': named['port_b'], 'chamber_a': named['chamber_a'],
-                    'chamber_b': named['chamber_b'], 'accumulator': named['accumulator'],
-                    'line_a': named['line_a'], 'line_b': named['line_b'],
-                    'pump_shell': named['pump_shell'], 'actuator_shell': named['actuator_shell']})
-        if self._last is not None:
-            p = self._last[3]
-            out['pump_outlet'] = named['port_a'] if p[0] >= p[1] else named['port_b']
-        out['oil'] = max(out[k] for k in OIL_OUTPUTS)
-        return out
+        return np.concatenate([self.motor.T, self.T_hyd if ci.T_report is None else ci.T_report])
+
+    def _port_a_high(self) -> Optional[bool]:
+        """Return whether port A is the pump's outlet (the higher pressure; None: no sample)."""
+        if self._last is None:
+            return None
+        p = self._last[3]
+        return bool(p[PORT_A] >= p[PORT_B])
 
     def energy(self) -> Dict[str, float]:
         """

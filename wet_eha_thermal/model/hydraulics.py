@@ -360,10 +360,6 @@ class HydraulicCircuit:
             self._T_alpha += -np.expm1(-dt_s / self.alpha_T_filter_s) * (T_oil - self._T_alpha)
         return self.oil.alpha_p * self._T_alpha
 
-    def named(self, T: np.ndarray) -> Dict[str, float]:
-        """Return the node temperatures (K) by name."""
-        return dict(zip(NODES, T.tolist()))
-
 
 @jit
 def node_sources(alpha_T, dt_s, work_W, volume_dp_m3Pa, pump_friction_W, is_pump, link_down,
