@@ -29,7 +29,7 @@ from rclpy.task import Future
 from ros_domains import claim_domain
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, Temperature
-from std_msgs.msg import Float64, String
+from std_msgs.msg import Float64, Float64MultiArray, String
 from test_foxglove_view import Client
 from wet_eha_thermal import interface
 from wet_eha_thermal.config import default_config_path
@@ -220,6 +220,16 @@ def test_latched_alert_and_acknowledge(context, tmp_path):
         hot = late[-1]['quantities']['winding_hotspot']
         assert hot['reported'] == 'WARN' and not hot['acknowledged']
         assert 'winding_hotspot WARN' in late[-1]['message']
+        # the state's names are latched too: one per element of the state
+        names, states = [], []
+        rig.probe.create_subscription(String, interface.STATE_NAMES_TOPIC,
+                                      lambda m: names.append(json.loads(m.data)),
+                                      topics.latched_qos())
+        rig.probe.create_subscription(Float64MultiArray, interface.STATE_TOPIC, states.append, 10)
+        assert rig.feed(3.0, until=lambda: names and states)
+        assert names[0]['unit'] == 'K' and len(names[0]['names']) == len(states[-1].data)
+        assert 'case' in names[0]['names']
+        assert interface.STATE_NAMES_TOPIC in states[-1].layout.dim[0].label
         # acknowledging changes the summary: still active, now acknowledged
         n = len(late)
         rig.ack_pub.publish(String(data='winding_hotspot'))

@@ -71,7 +71,7 @@ def _messages():
 
     def state(k):
         msg = Float64MultiArray(data=[300.0 + k, 301.5, -2.0])
-        msg.layout.dim = [MultiArrayDimension(label='state_K: motor[0:2], hydraulic[2:3]',
+        msg.layout.dim = [MultiArrayDimension(label='state_K: names on /eha/state_names',
                                               size=3, stride=3)]
         return msg
 
@@ -154,8 +154,10 @@ def _equal(ros, decoded):
 
 def test_records_every_field_qos_and_config(context, tmp_path):
     probe = rclpy.create_node('recorder_test_probe', context=context)
-    # the alert summary is latched: published before the recorder exists, it is recorded
-    latched = {interface.ALERT_TOPIC: String(data='{"level": 1, "message": "oil WARN"}')}
+    # the alert summary and the state's names are latched: published before the recorder
+    # exists, they are recorded
+    latched = {interface.ALERT_TOPIC: String(data='{"level": 1, "message": "oil WARN"}'),
+               interface.STATE_NAMES_TOPIC: String(data='{"unit": "K", "names": ["case"]}')}
     for topic, msg in latched.items():
         probe.create_publisher(String, topic, topics.latched_qos()).publish(msg)
     output = tmp_path / 'rec' / 'run'

@@ -21,11 +21,12 @@ or the clock when the stamp is zero.
 
 Outputs of the estimator: /eha/estimate/<name> (sensor_msgs/Temperature, degC,
 variance = uncertainty^2) for every name in ``ESTIMATES``; /eha/state
-(std_msgs/Float64MultiArray: the model's state vector in K, layout labels name
-the blocks); /diagnostics (diagnostic_msgs/DiagnosticArray, 1 Hz); /eha/alerts
-(std_msgs/String holding JSON, transient-local so a late subscriber gets the
-last one); acknowledgements on /eha/alerts/ack (std_msgs/String: a quantity, or
-empty for all).
+(std_msgs/Float64MultiArray: the model's state vector in K) with the name of
+each element on /eha/state_names (std_msgs/String holding JSON, transient-local:
+the names do not change within a run); /diagnostics
+(diagnostic_msgs/DiagnosticArray, 1 Hz); /eha/alerts (std_msgs/String holding
+JSON, transient-local so a late subscriber gets the last one); acknowledgements
+on /eha/alerts/ack (std_msgs/String: a quantity, or empty for all).
 
 The estimator, the offline tools and the ROS nodes take these names from
 here; :mod:`.ros.topics` adds what needs rclpy (QoS profiles, publishing).
@@ -52,6 +53,9 @@ AMBIENT_TOPIC = f'{PREFIX}/ambient'
 MEASURED_PREFIX = f'{PREFIX}/measured'
 ESTIMATE_PREFIX = f'{PREFIX}/estimate'
 STATE_TOPIC = f'{PREFIX}/state'
+#: latched std_msgs/String JSON {"unit": "K", "names": [...]}: one name per element of
+#: the state (the model's :attr:`~wet_eha_thermal.model.eha.EHAModel.quantities`)
+STATE_NAMES_TOPIC = f'{PREFIX}/state_names'
 ALERT_TOPIC = f'{PREFIX}/alerts'
 ACK_TOPIC = f'{PREFIX}/alerts/ack'
 #: latched std_msgs/String JSON of each node that is ready ({"node", "ready", ...}); the

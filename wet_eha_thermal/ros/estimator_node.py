@@ -240,6 +240,12 @@ class EstimatorNode(Node):
         self._temperature_msg.header.frame_id = self.frame_id
         self.state_pub = self.create_publisher(Float64MultiArray,
                                                self._topic(interface.STATE_TOPIC), out_qos)
+        # the name of each element of the state, once and latched: they do not change in a run
+        names_topic = self._topic(interface.STATE_NAMES_TOPIC)
+        self.state_names_pub = self.create_publisher(String, names_topic, topics.latched_qos())
+        self.state_names_pub.publish(String(data=json.dumps(
+            {'unit': 'K', 'names': list(self.est.model.quantities.state_names)})))
+        self._state_label = f'state_K: names on {names_topic}'
         self.alert_pub = self.create_publisher(String, self._topic(interface.ALERT_TOPIC),
                                                topics.latched_qos())
         self.diag_pub = self.create_publisher(DiagnosticArray, interface.DIAGNOSTICS_TOPIC,
@@ -522,11 +528,9 @@ class EstimatorNode(Node):
     def _publish_state(self) -> None:
         """Publish the model's state vector (after the estimates: no consumer waits on it)."""
         state = self.est.model.state
-        n_motor = state.size - self.est.model.circuit.n
         arr = Float64MultiArray()
-        arr.layout.dim = [MultiArrayDimension(
-            label=f'state_K: motor[0:{n_motor}], hydraulic[{n_motor}:{state.size}]',
-            size=state.size, stride=state.size)]
+        arr.layout.dim = [MultiArrayDimension(label=self._state_label, size=state.size,
+                                              stride=state.size)]
         arr.data = state.astype(float).tolist()
         self.state_pub.publish(arr)
 

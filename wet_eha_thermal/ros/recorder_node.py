@@ -5,9 +5,9 @@ Node ``eha_recorder``. It subscribes at start to every topic the twin uses
 (``topic_prefix`` replaces ``/eha``; see :mod:`wet_eha_thermal.interface`):
 each estimator input of ``INPUT_TOPICS`` (all of them: three pressures and
 the differential one), the ambient temperature, the thermocouples, the
-estimates, the state, the alerts (transient local, so the last summary
-published before the recorder started is recorded too), the
-acknowledgements and /diagnostics (its own status included). ``extra_topics``
+estimates, the state, the state's names and the alerts (both transient
+local, so what was published before the recorder started is recorded too),
+the acknowledgements and /diagnostics (its own status included). ``extra_topics``
 names further topics, subscribed once they appear in the ROS graph, with
 their type and a QoS adapted to their publishers as rosbag2 does (reliable
 and transient local only when every publisher is).
@@ -16,7 +16,7 @@ QoS of the fixed subscriptions: the sensor topics (inputs, ambient,
 thermocouples) take ``qos`` (sensor_data, best effort, hears every
 publisher; or reliable, which hears only reliable publishers but loses
 nothing they send); the outputs and acknowledgements are reliable; the
-alerts reliable and transient local. Depth ``qos_depth``.
+alerts and the state's names reliable and transient local. Depth ``qos_depth``.
 
 Messages are taken raw (CDR bytes, never deserialised) and written with
 :class:`~wet_eha_thermal.bag.writer.BagWriter`; a topic becomes a channel at
@@ -148,6 +148,7 @@ def recorded_topics(prefix: str = interface.PREFIX) -> Dict[str, Tuple[str, str]
     for name in interface.ESTIMATES:
         found[f'{interface.ESTIMATE_PREFIX}/{name}'] = (TEMPERATURE, 'output')
     found[interface.STATE_TOPIC] = ('std_msgs/msg/Float64MultiArray', 'output')
+    found[interface.STATE_NAMES_TOPIC] = ('std_msgs/msg/String', 'latched')
     found[interface.ALERT_TOPIC] = ('std_msgs/msg/String', 'latched')
     found[interface.READY_TOPIC] = ('std_msgs/msg/String', 'latched')
     found[interface.ACK_TOPIC] = ('std_msgs/msg/String', 'output')
