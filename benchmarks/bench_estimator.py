@@ -73,6 +73,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64, String
+from wet_eha_thermal import interface
 from wet_eha_thermal.config import default_config_path, load_config
 from wet_eha_thermal.estimator.core import sensor_inputs, sensor_signal
 from wet_eha_thermal.live_view import CHANNELS
@@ -123,10 +124,10 @@ def run_publisher(args) -> None:
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node('bench_publisher')
     q = reliable(args.depth)
-    pubs = [node.create_publisher(FluidPressure if k in topics.PRESSURE_INPUTS else Float64,
-                                  topics.INPUT_TOPICS[k], q) for k in inputs]
-    msgs = [FluidPressure() if k in topics.PRESSURE_INPUTS else Float64() for k in inputs]
-    pressure = [k in topics.PRESSURE_INPUTS for k in inputs]
+    pubs = [node.create_publisher(FluidPressure if k in interface.PRESSURE_INPUTS else Float64,
+                                  interface.INPUT_TOPICS[k], q) for k in inputs]
+    msgs = [FluidPressure() if k in interface.PRESSURE_INPUTS else Float64() for k in inputs]
+    pressure = [k in interface.PRESSURE_INPUTS for k in inputs]
     clock = node.get_clock()
     st = {'k': 0, 'start': None, 'ticks': 0, 'intervals': [], 'last': None}
     period_ns = int(round(1e9 / args.rate_Hz))
@@ -195,8 +196,8 @@ def run_bare(args) -> None:
         count[0] += 1
 
     for k in inputs:
-        node.create_subscription(FluidPressure if k in topics.PRESSURE_INPUTS else Float64,
-                                 topics.INPUT_TOPICS[k], on_message, reliable(args.depth))
+        node.create_subscription(FluidPressure if k in interface.PRESSURE_INPUTS else Float64,
+                                 interface.INPUT_TOPICS[k], on_message, reliable(args.depth))
     executor = make_executor(args.executor)
     executor.add_node(node)
     stop = []
@@ -224,9 +225,9 @@ class Monitor:
         self.diag_count = 0
         self.subscriptions = [
             node.create_subscription(FluidPressure, pressure_topic, self.on_p, reliable(1000)),
-            node.create_subscription(Temperature, f'{topics.ESTIMATE_PREFIX}/winding_hotspot',
+            node.create_subscription(Temperature, f'{interface.ESTIMATE_PREFIX}/winding_hotspot',
                                      self.on_estimate, reliable(100)),
-            node.create_subscription(DiagnosticArray, topics.DIAGNOSTICS_TOPIC, self.on_diag,
+            node.create_subscription(DiagnosticArray, interface.DIAGNOSTICS_TOPIC, self.on_diag,
                                      reliable(20))]
 
     def close(self, node) -> None:
@@ -541,7 +542,7 @@ def main() -> None:
     executor = make_executor(args.executor)
     executor.add_node(node)
     ready = []
-    node.create_subscription(String, topics.READY_TOPIC, lambda m: ready.append(m.data),
+    node.create_subscription(String, interface.READY_TOPIC, lambda m: ready.append(m.data),
                              topics.latched_qos())
     try:
         # 1. the bare subscriber
@@ -552,8 +553,8 @@ def main() -> None:
         bare_rx = json.loads(bare.stdout.read().decode().strip().splitlines()[-1])['received']
         # 2. the estimator, once it is ready (model warmed, inputs matched); 3. the same
         # with its Foxglove view and a client reading every channel of it
-        pressure_topic = topics.INPUT_TOPICS[next(k for k in inputs
-                                                  if k in topics.PRESSURE_INPUTS)]
+        pressure_topic = interface.INPUT_TOPICS[next(k for k in inputs
+                                                     if k in interface.PRESSURE_INPUTS)]
         est_fig, mon = run_estimator(args, executor, node, ready, est_cmd, pub_cmd, env, log,
                                      pressure_topic)
         if not args.no_foxglove:

@@ -42,7 +42,8 @@ from sensor_msgs.msg import FluidPressure
 from std_msgs.msg import Float64
 from wet_eha_thermal.bag.reader import FLOAT64, FLUID_PRESSURE, iter_column_blocks, read_columns
 from wet_eha_thermal.bag.writer import BagWriter, qos_profiles
-from wet_eha_thermal.ros.topics import input_qos, INPUT_TOPICS
+from wet_eha_thermal.interface import INPUT_TOPICS
+from wet_eha_thermal.ros.topics import input_qos
 
 RATE_HZ = 1000
 T0_NS = 1_750_000_000_000_000_000   # log time of the first sample

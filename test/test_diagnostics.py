@@ -1,10 +1,10 @@
 """The estimator node's diagnostic statuses, built without ROS from an estimator fed by hand."""
 
 import pytest
+from wet_eha_thermal import interface
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.estimator.core import Estimator, INPUTS
 from wet_eha_thermal.ros import diagnostics as dg
-from wet_eha_thermal.ros import topics
 
 VALUES = {'current_A': 15.0, 'speed_rad_s': 800.0, 'p_a_Pa': 3e6, 'p_b_Pa': 1e6,
           'p_acc_Pa': 1e6, 'position_m': 0.0}
@@ -30,8 +30,8 @@ def feed(est, t0, seconds, skip=()):
 
 def report(est, now_s, node=None, new_rejected=None, new_implausible=0):
     topic_of = {n: f'/eha/{n}' for n in est.inputs}
-    topic_of.update({f'{topics.MEASURED_PREFIX}/{tc}': f'/eha/measured/{tc}'
-                     for tc in topics.THERMOCOUPLES})
+    topic_of.update({f'{interface.MEASURED_PREFIX}/{tc}': f'/eha/measured/{tc}'
+                     for tc in interface.THERMOCOUPLES})
     rejected = {**dict.fromkeys(est.inputs, 0), **(new_rejected or {})}
     return {s.name: s for s in dg.statuses(est, node or counters(), now_s, topic_of, rejected,
                                            new_implausible)}
@@ -86,7 +86,7 @@ def test_with_the_correction_every_thermocouple_has_a_status():
     s = report(est, feed(est, 0.0, 1.0))
     names = list(s)
     assert names == (['estimate'] + [f'input {n}' for n in est.inputs] + ['plausibility']
-                     + [f'thermocouple {tc}' for tc in topics.THERMOCOUPLES])
+                     + [f'thermocouple {tc}' for tc in interface.THERMOCOUPLES])
     # no reading yet: each says so, at OK, on its own topic
     frame = s['thermocouple frame']
     assert (frame.level, frame.message) == (dg.OK, 'no reading yet')

@@ -29,8 +29,9 @@ from rclpy.task import Future
 from ros_domains import claim_domain
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, Temperature
-from std_msgs.msg import Float64, String
+from std_msgs.msg import Float64, Float64MultiArray, String
 from test_foxglove_view import Client
+from wet_eha_thermal import interface
 from wet_eha_thermal.config import default_config_path
 from wet_eha_thermal.live_view import CHANNELS, view_topics
 from wet_eha_thermal.ros import topics
@@ -57,16 +58,17 @@ class Rig:
         self.clock_ns = 1000 * 10**9 if sim_time else None
         in_qos = topics.input_qos('sensor_data', 100)
         self.pubs = {name: self.probe.create_publisher(
-            FluidPressure if name in topics.PRESSURE_INPUTS else Float64,
-            topics.INPUT_TOPICS[name], in_qos) for name in self.node.est.inputs}
+            FluidPressure if name in interface.PRESSURE_INPUTS else Float64,
+            interface.INPUT_TOPICS[name], in_qos) for name in self.node.est.inputs}
         self.clock_pub = self.probe.create_publisher(Clock, '/clock', 10)
-        self.ack_pub = self.probe.create_publisher(String, topics.ACK_TOPIC, QoSProfile(depth=10))
+        self.ack_pub = self.probe.create_publisher(String, interface.ACK_TOPIC,
+                                                   QoSProfile(depth=10))
         self.estimates = {'winding_hotspot': [], 'winding_mean': [], 'oil': []}
         for name, store in self.estimates.items():
-            self.probe.create_subscription(Temperature, f'{topics.ESTIMATE_PREFIX}/{name}',
+            self.probe.create_subscription(Temperature, f'{interface.ESTIMATE_PREFIX}/{name}',
                                            store.append, 100)
         self.diagnostics = []
-        self.probe.create_subscription(DiagnosticArray, topics.DIAGNOSTICS_TOPIC,
+        self.probe.create_subscription(DiagnosticArray, interface.DIAGNOSTICS_TOPIC,
                                        self.diagnostics.append, 10)
         self.executor = EventsExecutor(context=context)
         self.executor.add_node(self.node)
@@ -91,7 +93,7 @@ class Rig:
                 continue
             value = current if (name == 'current_A' and current is not None) \
                 else VALUES[name]
-            if name in topics.PRESSURE_INPUTS:
+            if name in interface.PRESSURE_INPUTS:
                 msg = FluidPressure(fluid_pressure=value)
                 msg.header.stamp = stamp
             else:
@@ -209,7 +211,7 @@ def test_latched_alert_and_acknowledge(context, tmp_path):
         assert rig.feed(2.0, until=lambda: rig.level('estimate') == WARN)
         # a subscriber created after the alert still gets it (transient local)
         late = []
-        sub = rig.probe.create_subscription(String, topics.ALERT_TOPIC,
+        sub = rig.probe.create_subscription(String, interface.ALERT_TOPIC,
                                             lambda m: late.append(json.loads(m.data)),
                                             topics.latched_qos())
         assert rig.feed(3.0, until=lambda: late)
@@ -218,6 +220,16 @@ def test_latched_alert_and_acknowledge(context, tmp_path):
         hot = late[-1]['quantities']['winding_hotspot']
         assert hot['reported'] == 'WARN' and not hot['acknowledged']
         assert 'winding_hotspot WARN' in late[-1]['message']
+        # the state's names are latched too: one per element of the state
+        names, states = [], []
+        rig.probe.create_subscription(String, interface.STATE_NAMES_TOPIC,
+                                      lambda m: names.append(json.loads(m.data)),
+                                      topics.latched_qos())
+        rig.probe.create_subscription(Float64MultiArray, interface.STATE_TOPIC, states.append, 10)
+        assert rig.feed(3.0, until=lambda: names and states)
+        assert names[0]['unit'] == 'K' and len(names[0]['names']) == len(states[-1].data)
+        assert 'case' in names[0]['names']
+        assert interface.STATE_NAMES_TOPIC in states[-1].layout.dim[0].label
         # acknowledging changes the summary: still active, now acknowledged
         n = len(late)
         rig.ack_pub.publish(String(data='winding_hotspot'))
@@ -364,9 +376,9 @@ def test_thermocouple_corrects_the_estimate_and_goes_stale(rig):
     # the shipped configuration has the live correction on: frame readings 1 K above the
     # (cold) model pull its frame estimate up and shrink the published variance
     frame = []
-    rig.probe.create_subscription(Temperature, f'{topics.ESTIMATE_PREFIX}/frame', frame.append,
+    rig.probe.create_subscription(Temperature, f'{interface.ESTIMATE_PREFIX}/frame', frame.append,
                                   100)
-    pub = rig.probe.create_publisher(Temperature, f'{topics.MEASURED_PREFIX}/frame',
+    pub = rig.probe.create_publisher(Temperature, f'{interface.MEASURED_PREFIX}/frame',
                                      topics.input_qos('sensor_data', 10))
     rng = np.random.default_rng(1)
 

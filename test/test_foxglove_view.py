@@ -19,11 +19,11 @@ import time
 import numpy as np
 import pytest
 from websockets.sync.client import connect
+from wet_eha_thermal import interface
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.estimator.core import Estimator
 from wet_eha_thermal.live_view import (address_text, app_url, BAND_SIGMAS, CHANNELS, LiveView,
                                        parse_address, PENDING_ESTIMATES, view_topics)
-from wet_eha_thermal.ros import topics
 from wet_eha_thermal.ros.estimator_node import LIMITED
 from wet_eha_thermal.ros.recorder_node import message_class, recorded_topics
 
@@ -103,10 +103,10 @@ def _wait(condition, timeout=TIMEOUT_S):
 
 @pytest.fixture
 def view():
-    v = LiveView('127.0.0.1', 0, estimates=topics.ESTIMATES, limited=LIMITED,
+    v = LiveView('127.0.0.1', 0, estimates=interface.ESTIMATES, limited=LIMITED,
                  inputs=('current_A', 'speed_rad_s', 'p_a_Pa', 'p_b_Pa', 'p_acc_Pa',
                          'position_m'),
-                 thermocouples=topics.THERMOCOUPLES, inputs_rate_Hz=20.0,
+                 thermocouples=interface.THERMOCOUPLES, inputs_rate_Hz=20.0,
                  parameters={'publish_rate_Hz': 50.0, 'alerts.oil.warn_C': 21.0,
                              'topic_prefix': '/eha'},
                  settable={'publish_rate_Hz': (1.0, 500.0)})
@@ -233,7 +233,7 @@ def test_channels_and_schemas_are_advertised(view):
             assert json.loads(c['schema']) == view.schemas[name]
         limits = view.schemas['limits']['properties']
         assert set(LIMITED) <= set(limits) and 'margin_current_A' in limits
-        assert set(view.schemas['thermocouples']['properties']) >= set(topics.THERMOCOUPLES)
+        assert set(view.schemas['thermocouples']['properties']) >= set(interface.THERMOCOUPLES)
     finally:
         client.close()
 
@@ -265,7 +265,7 @@ def test_messages_match_the_estimates(view, run):
     assert len(temps) == len(items)             # nothing dropped at this pace
     for _, m in temps:
         e = by_step[m['step']][0]
-        for n in topics.ESTIMATES:
+        for n in interface.ESTIMATES:
             sigma = e.uncertainty_K[n]
             assert m[n]['estimate_C'] == e.temperatures_C[n] and m[n]['sigma_K'] == sigma
             assert m[n]['band_high_C'] == pytest.approx(e.temperatures_C[n]
@@ -483,7 +483,7 @@ def test_live_layout_names_only_channels_of_the_view(view):
 def test_replay_layout_names_only_recorded_topics():
     layout = _layout('replay.json')
     cfg_inputs = Estimator(load_config()).inputs
-    unused = {topics.INPUT_TOPICS[n] for n in topics.INPUT_TOPICS if n not in cfg_inputs}
+    unused = {interface.INPUT_TOPICS[n] for n in interface.INPUT_TOPICS if n not in cfg_inputs}
     recorded = {t: spec for t, spec in recorded_topics().items() if t not in unused}
     paths = list(message_paths(layout['configById']))
     assert len(paths) > 15

@@ -12,10 +12,10 @@ import uuid
 
 import pytest
 from test_foxglove_view import message_paths, split_path
+from wet_eha_thermal import interface
 from wet_eha_thermal.bag.reader import open_bag
 from wet_eha_thermal.config import default_config_path, load_config
 from wet_eha_thermal.estimator.warmup import compile_estimator
-from wet_eha_thermal.ros import topics
 from wet_eha_thermal.ros.live import address_taken
 from wet_eha_thermal.ros.recorder_node import CONFIG_METADATA
 
@@ -86,9 +86,9 @@ def test_live_runs_and_cleans_up(tmp_path):
     assert (recordings[0] / f'{recordings[0].name}_0.mcap').is_file()
     bag = open_bag(recordings[0])
     assert not bag.truncated
-    assert all(bag.topics[f'{topics.ESTIMATE_PREFIX}/{name}'].message_count > 100
-               for name in topics.ESTIMATES), bag.topics
-    assert bag.topics[topics.INPUT_TOPICS['current_A']].message_count > 0
+    assert all(bag.topics[f'{interface.ESTIMATE_PREFIX}/{name}'].message_count > 100
+               for name in interface.ESTIMATES), bag.topics
+    assert bag.topics[interface.INPUT_TOPICS['current_A']].message_count > 0
     assert bag.metadata[CONFIG_METADATA]['yaml'] == default_config_path().read_text()
     # the replay layout opens this recording: every topic it names is in it
     replay = json.loads((ROOT / 'layouts' / 'replay.json').read_text())['configById']

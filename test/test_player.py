@@ -25,6 +25,7 @@ from ros_domains import claim_domain
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64, String
+from wet_eha_thermal import interface
 from wet_eha_thermal.bag.reader import FLOAT64, FLUID_PRESSURE, iter_raw, open_bag
 from wet_eha_thermal.bag.writer import BagWriter, qos_profiles
 from wet_eha_thermal.ros import topics
@@ -43,7 +44,7 @@ INPUTS = ('current_A', 'speed_rad_s', 'p_a_Pa', 'p_b_Pa', 'p_acc_Pa', 'position_
 VALUES = {'current_A': 20.0, 'speed_rad_s': 800.0, 'p_a_Pa': 1.2e6, 'p_b_Pa': 1.0e6,
           'p_acc_Pa': 1.0e6, 'position_m': 0.002}
 ALERT = '{"level": 0, "message": "OK"}'
-REMAP = {topics.ALERT_TOPIC: '/bag/alerts'}
+REMAP = {interface.ALERT_TOPIC: '/bag/alerts'}
 
 
 def _stamp(ns):
@@ -54,23 +55,23 @@ def write_bag(path, duration_s):
     """Write the estimator's inputs at 200 Hz (receive times 10 us apart) and one alert."""
     with BagWriter(path, flush_interval_s=0.25) as bag:
         for name in INPUTS:
-            bag.add_topic(topics.INPUT_TOPICS[name],
-                          FLUID_PRESSURE if name in topics.PRESSURE_INPUTS else FLOAT64,
+            bag.add_topic(interface.INPUT_TOPICS[name],
+                          FLUID_PRESSURE if name in interface.PRESSURE_INPUTS else FLOAT64,
                           qos_profiles(topics.input_qos('reliable', 100)))
-        bag.add_topic(topics.ALERT_TOPIC, 'std_msgs/msg/String',
+        bag.add_topic(interface.ALERT_TOPIC, 'std_msgs/msg/String',
                       qos_profiles(topics.latched_qos()))
         for i in range(round(duration_s * 1e9 / PERIOD_NS) + 1):
             for k, name in enumerate(INPUTS):
                 log_ns = T0_NS + i * PERIOD_NS + k * 10_000
                 value = VALUES[name] * (1.0 + 0.01 * (i % 7))
-                if name in topics.PRESSURE_INPUTS:
+                if name in interface.PRESSURE_INPUTS:
                     msg = FluidPressure(fluid_pressure=value)
                     msg.header.stamp = _stamp(log_ns)
                 else:
                     msg = Float64(data=value)
-                bag.write(topics.INPUT_TOPICS[name], serialize_message(msg), log_ns)
+                bag.write(interface.INPUT_TOPICS[name], serialize_message(msg), log_ns)
             if i == 20:
-                bag.write(topics.ALERT_TOPIC, serialize_message(String(data=ALERT)),
+                bag.write(interface.ALERT_TOPIC, serialize_message(String(data=ALERT)),
                           T0_NS + i * PERIOD_NS + 90_000)
     return path
 
@@ -103,7 +104,7 @@ class Probe:
         self.executor.add_node(self.node)
         self.raw = {}
         for topic, entry in open_bag(bag).topics.items():
-            qos = (topics.latched_qos() if topic == topics.ALERT_TOPIC   # needs transient local
+            qos = (topics.latched_qos() if topic == interface.ALERT_TOPIC   # needs transient local
                    else QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
             # the estimator publishes alerts too: the bag's are remapped (see play)
             self.node.create_subscription(message_class(entry.type_name), REMAP.get(topic, topic),
@@ -120,7 +121,7 @@ class Probe:
                 Parameter('use_sim_time', value=True)])
             self.executor.add_node(self.estimator)
             self.node.create_subscription(
-                Temperature, f'{topics.ESTIMATE_PREFIX}/winding_hotspot',
+                Temperature, f'{interface.ESTIMATE_PREFIX}/winding_hotspot',
                 self.estimates.append, 1000)
         self._never = Future()
 
@@ -181,7 +182,7 @@ def test_every_message_with_identical_payload_and_clock_to_the_end(played, bag3)
     assert played.rc == 0, played.err
     assert 'done:' in played.err and 'Traceback' not in played.err
     expected = bag_payloads(bag3)
-    assert set(expected) == {topics.INPUT_TOPICS[n] for n in INPUTS} | {topics.ALERT_TOPIC}
+    assert set(expected) == {interface.INPUT_TOPICS[n] for n in INPUTS} | {interface.ALERT_TOPIC}
     for topic, payloads in expected.items():
         assert len(played.raw[topic]) == len(payloads), topic
         assert same_payloads(played.raw[topic], payloads), topic
@@ -241,7 +242,7 @@ def test_loop_with_offset_keeps_time_increasing_and_stops_on_sigterm(context, tm
     bag = write_bag(tmp_path / 'short.mcap', 0.5)
     info = open_bag(bag)
     span_ns = info.end_time_ns - info.start_time_ns
-    p_a_topic = topics.INPUT_TOPICS['p_a_Pa']
+    p_a_topic = interface.INPUT_TOPICS['p_a_Pa']
     n = info.topics[p_a_topic].message_count
     probe = Probe(context, bag)
 

@@ -34,6 +34,7 @@ from rosbags.typesys import get_typestore, Stores
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension, String
+from wet_eha_thermal import interface
 from wet_eha_thermal.bag.reader import (bag_files, FLOAT64, open_bag, read_columns,
                                         ROSBAG2_METADATA)
 from wet_eha_thermal.config import default_config_path
@@ -48,7 +49,7 @@ os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 ROOT = Path(__file__).resolve().parents[1]
 PARAMS_FILE = ROOT / 'config' / 'estimator.params.yaml'
 N = 40                         # messages per topic
-ESTIMATE = f'{topics.ESTIMATE_PREFIX}/winding_hotspot'
+ESTIMATE = f'{interface.ESTIMATE_PREFIX}/winding_hotspot'
 EXTRA = '/probe/extra'
 
 
@@ -70,7 +71,7 @@ def _messages():
 
     def state(k):
         msg = Float64MultiArray(data=[300.0 + k, 301.5, -2.0])
-        msg.layout.dim = [MultiArrayDimension(label='state_K: motor[0:2], hydraulic[2:3]',
+        msg.layout.dim = [MultiArrayDimension(label='state_K: names on /eha/state_names',
                                               size=3, stride=3)]
         return msg
 
@@ -84,20 +85,20 @@ def _messages():
     sensor = topics.input_qos('sensor_data', 100)
     reliable = topics.input_qos('reliable', 100)
     return {
-        topics.INPUT_TOPICS['current_A']: (
+        interface.INPUT_TOPICS['current_A']: (
             Float64, sensor, [Float64(data=0.25 * k) for k in range(N)]),
-        topics.INPUT_TOPICS['speed_rad_s']: (
+        interface.INPUT_TOPICS['speed_rad_s']: (
             Float64, reliable, [Float64(data=-3.0 * k) for k in range(N)]),
-        topics.INPUT_TOPICS['dp_Pa']: (FluidPressure, sensor, [pressure(k) for k in range(N)]),
-        f'{topics.MEASURED_PREFIX}/winding': (Temperature, reliable,
-                                              [temperature(k) for k in range(N)]),
+        interface.INPUT_TOPICS['dp_Pa']: (FluidPressure, sensor, [pressure(k) for k in range(N)]),
+        f'{interface.MEASURED_PREFIX}/winding': (Temperature, reliable,
+                                                 [temperature(k) for k in range(N)]),
         ESTIMATE: (Temperature, QoSProfile(depth=10), [temperature(k) for k in range(N)]),
-        topics.STATE_TOPIC: (Float64MultiArray, QoSProfile(depth=10),
-                             [state(k) for k in range(N)]),
-        topics.DIAGNOSTICS_TOPIC: (DiagnosticArray, QoSProfile(depth=10),
-                                   [diagnostics(k) for k in range(N)]),
-        topics.ACK_TOPIC: (String, QoSProfile(depth=10), [String(data=f'oil{k}')
-                                                          for k in range(N)]),
+        interface.STATE_TOPIC: (Float64MultiArray, QoSProfile(depth=10),
+                                [state(k) for k in range(N)]),
+        interface.DIAGNOSTICS_TOPIC: (DiagnosticArray, QoSProfile(depth=10),
+                                      [diagnostics(k) for k in range(N)]),
+        interface.ACK_TOPIC: (String, QoSProfile(depth=10), [String(data=f'oil{k}')
+                                                             for k in range(N)]),
         EXTRA: (String, sensor, [String(data=f'extra {k}') for k in range(N)]),
     }
 
@@ -153,9 +154,12 @@ def _equal(ros, decoded):
 
 def test_records_every_field_qos_and_config(context, tmp_path):
     probe = rclpy.create_node('recorder_test_probe', context=context)
-    # the alert summary is latched: published before the recorder exists, it is recorded
-    alert = String(data='{"level": 1, "message": "oil WARN"}')
-    probe.create_publisher(String, topics.ALERT_TOPIC, topics.latched_qos()).publish(alert)
+    # the alert summary and the state's names are latched: published before the recorder
+    # exists, they are recorded
+    latched = {interface.ALERT_TOPIC: String(data='{"level": 1, "message": "oil WARN"}'),
+               interface.STATE_NAMES_TOPIC: String(data='{"unit": "K", "names": ["case"]}')}
+    for topic, msg in latched.items():
+        probe.create_publisher(String, topic, topics.latched_qos()).publish(msg)
     output = tmp_path / 'rec' / 'run'
     node = RecorderNode(context=context, parameter_overrides=[
         Parameter('output', value=str(output)), Parameter('params_file', value=str(PARAMS_FILE)),
@@ -174,8 +178,8 @@ def test_records_every_field_qos_and_config(context, tmp_path):
             _spin(executor, 0.002)
         # and the recorder's own status, published at 1 Hz
         assert _spin(executor, 10.0, until=lambda: all(
-            node.counts.get(t, 0) >= N for t in sent) and topics.ALERT_TOPIC in node.counts
-            and node.counts[topics.DIAGNOSTICS_TOPIC] > N)
+            node.counts.get(t, 0) >= N for t in sent) and all(t in node.counts for t in latched)
+            and node.counts[interface.DIAGNOSTICS_TOPIC] > N)
         summary = node.close()
     finally:
         executor.shutdown()
@@ -190,7 +194,7 @@ def test_records_every_field_qos_and_config(context, tmp_path):
         assert set(decoded_by_topic) == set(by_topic), reader
         for topic, (kind, _, msgs) in sent.items():
             got = decoded_by_topic[topic]
-            if topic == topics.DIAGNOSTICS_TOPIC:    # the recorder's own status is there too
+            if topic == interface.DIAGNOSTICS_TOPIC:    # the recorder's own status is there too
                 assert any(d.status[0].name == recorder_node.STATUS_NAME for _, d in got)
                 got = [(m, d) for m, d in got if d.status[0].name == 'probe: status']
             assert len(got) == N, (reader, topic)
@@ -199,20 +203,21 @@ def test_records_every_field_qos_and_config(context, tmp_path):
             times = [m.log_time for m, _ in got]
             # receive time, system clock
             assert times == sorted(times) and times[0] > 1e18, (reader, topic)
-        assert [d.data for _, d in decoded_by_topic[topics.ALERT_TOPIC]] == [alert.data], reader
+        for topic, msg in latched.items():
+            assert [d.data for _, d in decoded_by_topic[topic]] == [msg.data], (reader, topic)
     # topics without a message are not in the file
-    assert topics.INPUT_TOPICS['p_a_Pa'] not in channels
-    assert set(channels) == {*sent, topics.ALERT_TOPIC, topics.READY_TOPIC}
+    assert interface.INPUT_TOPICS['p_a_Pa'] not in channels
+    assert set(channels) == {*sent, *latched, interface.READY_TOPIC}
     # the recorder said it was ready once its inputs matched, and recorded that too
-    ready = [json.loads(d.data) for _, d in by_topic[topics.READY_TOPIC]]
+    ready = [json.loads(d.data) for _, d in by_topic[interface.READY_TOPIC]]
     assert ready and ready[0]['node'] == recorder_node.NODE_NAME and ready[0]['ready']
 
     def offered(topic):
         return yaml.safe_load(channels[topic].metadata['offered_qos_profiles'])[0]
 
-    assert offered(topics.INPUT_TOPICS['current_A'])['reliability'] == 'best_effort'
-    assert offered(topics.INPUT_TOPICS['speed_rad_s'])['reliability'] == 'reliable'
-    assert offered(topics.ALERT_TOPIC)['durability'] == 'transient_local'
+    assert offered(interface.INPUT_TOPICS['current_A'])['reliability'] == 'best_effort'
+    assert offered(interface.INPUT_TOPICS['speed_rad_s'])['reliability'] == 'reliable'
+    assert all(offered(t)['durability'] == 'transient_local' for t in latched)
     assert offered(EXTRA)['reliability'] == 'best_effort'
     assert channels[ESTIMATE].metadata['topic_type_hash'].startswith('RIHS01_')
 
@@ -236,7 +241,7 @@ def test_sim_time_log_times_follow_clock(context, tmp_path):
     executor = EventsExecutor(context=context)
     executor.add_node(node)
     executor.add_node(probe)
-    topic = topics.INPUT_TOPICS['position_m']
+    topic = interface.INPUT_TOPICS['position_m']
     try:
         pub = probe.create_publisher(Float64, topic, topics.input_qos('reliable'))
         clock = probe.create_publisher(Clock, '/clock', 10)
@@ -287,7 +292,7 @@ def test_sigkill_loses_at_most_about_one_flush_interval(context, tmp_path):
          '-p', f'output:={output}', '-p', 'qos:=reliable', '-p', 'split_duration_s:=1.0'],
         stdout=log, stderr=subprocess.STDOUT, env=dict(os.environ, OPENBLAS_NUM_THREADS='1'))
     probe = rclpy.create_node('recorder_test_killer', context=context)
-    topic = topics.INPUT_TOPICS['current_A']
+    topic = interface.INPUT_TOPICS['current_A']
     pub = probe.create_publisher(Float64, topic, topics.input_qos('reliable', 1000))
     try:
         end = time.monotonic() + 20.0

@@ -30,11 +30,10 @@ from typing import Callable, Dict, List, Optional, Sequence
 
 import numpy as np
 
-from . import replay as rp
+from . import interface, replay as rp
 from .bag.reader import is_bag
 from .estimator.alerts import Level
 from .outputs import atomic, markdown_table, save_figure, write_text
-from .ros import topics
 
 #: How long to wait for a scheduler to answer, and for a worker to join it (s).
 CONNECT_TIMEOUT_S = 30.0
@@ -222,7 +221,7 @@ def run(client, bags: Sequence[Path], out: Path, options: rp.ReplayOptions,
 # ------------------------------------------------------------------ summary
 def thermocouples(rows: Sequence[Dict[str, object]]) -> List[str]:
     """Return the thermocouples that any log of ``rows`` has errors of, in the rig's order."""
-    return [tc for tc in topics.THERMOCOUPLES if any(f'{tc}_max_abs_K' in r for r in rows)]
+    return [tc for tc in interface.THERMOCOUPLES if any(f'{tc}_max_abs_K' in r for r in rows)]
 
 
 def columns(rows: Sequence[Dict[str, object]]) -> List[str]:

@@ -528,7 +528,7 @@ class Thermocouple:
 
 @dataclass(frozen=True, kw_only=True)
 class Thermocouples:
-    """The rig's thermocouples (``ros.topics.THERMOCOUPLES``) and the trust in each."""
+    """The rig's thermocouples (``interface.THERMOCOUPLES``) and the trust in each."""
 
     winding: Thermocouple = spec(default_factory=Thermocouple, doc=(
         'in the winding: one point, read as the winding mean'))

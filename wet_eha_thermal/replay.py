@@ -11,7 +11,7 @@ header. The core steps in sample time, so a replay gives the estimates of the
 live run up to the difference between the recorder's and the estimator's
 receive times of the stamp-less inputs.
 
-The topics that feed each input are the live defaults (:mod:`.ros.topics`)
+The topics that feed each input are the live defaults (:mod:`.interface`)
 unless mapped otherwise; thermocouples (``/eha/measured/<name>``) are compared
 with the estimate each one measures. The configuration is, in this order, the
 one given, the one the recorder stored in the bag, or the shipped reference
@@ -32,18 +32,18 @@ from typing import Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
+from . import interface
 from .bag.reader import (BagError, BagInfo, Columns, iter_column_blocks, open_bag,
                          TEMPERATURE)
 from .config import Config, config_from_yaml, default_config_path, load_config, with_values
 from .estimator.core import Estimator, INPUTS, sensor_inputs
 from .outputs import atomic, markdown_table, save_figure, write_text
-from .ros import topics
 
 #: Metadata record in which the recorder stores the estimator's configuration YAML.
 CONFIG_METADATA = 'wet_eha_thermal.config'
 CONFIG_METADATA_KEY = 'yaml'
 #: Estimates written to the outputs (degC), in column order.
-OUTPUT_ESTIMATES = topics.ESTIMATES
+OUTPUT_ESTIMATES = interface.ESTIMATES
 
 
 class ReplayError(ValueError):
@@ -78,7 +78,7 @@ class ReplayPlan:
     @property
     def specs(self) -> Dict[str, str]:
         """Return topic -> message type of every topic to decode."""
-        specs = {topic: topics.INPUT_TYPES[name] for name, topic in self.inputs.items()}
+        specs = {topic: interface.INPUT_TYPES[name] for name, topic in self.inputs.items()}
         specs.update({topic: TEMPERATURE for topic in self.thermocouples.values()})
         if self.ambient is not None:
             specs[self.ambient] = TEMPERATURE
@@ -127,7 +127,7 @@ def _match_pressure_inputs(cfg: Config, wanted, source: str, info: BagInfo,
                            mapping: Mapping[str, str]) -> tuple:
     """Switch between three pressures and one differential when the bag holds only the other."""
     def present(names):
-        return any(mapping.get(n, topics.INPUT_TOPICS[n]) in info.topics for n in names)
+        return any(mapping.get(n, interface.INPUT_TOPICS[n]) in info.topics for n in names)
 
     ports, differential = ('p_a_Pa', 'p_b_Pa', 'p_acc_Pa'), ('dp_Pa',)
     mine, other, mode = (ports, differential, 'differential') if 'p_a_Pa' in wanted else \
@@ -157,7 +157,7 @@ def plan_replay(path: os.PathLike, config_path: Optional[os.PathLike] = None,
     cfg, source, text = config if config is not None else choose_config(info, config_path)
     mapping = dict(mapping or {})
     known = set(INPUTS) | {'dp_Pa', 'ambient'} | {f'measured/{tc}' for tc in
-                                                  topics.THERMOCOUPLES}
+                                                  interface.THERMOCOUPLES}
     unknown = sorted(set(mapping) - known)
     if unknown:
         raise ReplayError(f'cannot map {unknown[0]!r}: the names are '
@@ -166,28 +166,28 @@ def plan_replay(path: os.PathLike, config_path: Optional[os.PathLike] = None,
     cfg, wanted, source = _match_pressure_inputs(cfg, wanted, source, info, mapping)
     inputs, missing = {}, []
     for name in wanted:
-        topic = mapping.get(name, topics.INPUT_TOPICS[name])
+        topic = mapping.get(name, interface.INPUT_TOPICS[name])
         found = info.topics.get(topic)
         if found is None:
             missing.append(name)
             continue
-        if found.type_name != topics.INPUT_TYPES[name]:
+        if found.type_name != interface.INPUT_TYPES[name]:
             raise ReplayError(f'{info.path}: topic {topic} (input {name}) holds '
-                              f'{found.type_name}; expected {topics.INPUT_TYPES[name]}')
+                              f'{found.type_name}; expected {interface.INPUT_TYPES[name]}')
         inputs[name] = topic
     if not inputs:
         listing = ', '.join(f'{t} ({i.type_name})' for t, i in sorted(info.topics.items()))
         raise ReplayError(
             f'{info.path}: no topic of the mapping is in the bag (looked for '
-            f'{", ".join(mapping.get(n, topics.INPUT_TOPICS[n]) for n in wanted)}); the bag '
+            f'{", ".join(mapping.get(n, interface.INPUT_TOPICS[n]) for n in wanted)}); the bag '
             f'has: {listing or "no topics"}. Map them with --map name=/topic.')
     thermocouples = {}
-    for tc in topics.THERMOCOUPLES:
-        topic = mapping.get(f'measured/{tc}', f'{topics.MEASURED_PREFIX}/{tc}')
+    for tc in interface.THERMOCOUPLES:
+        topic = mapping.get(f'measured/{tc}', f'{interface.MEASURED_PREFIX}/{tc}')
         found = info.topics.get(topic)
         if found is not None and found.type_name == TEMPERATURE:
             thermocouples[tc] = topic
-    amb = mapping.get('ambient', topics.AMBIENT_TOPIC)
+    amb = mapping.get('ambient', interface.AMBIENT_TOPIC)
     ambient = amb if amb in info.topics and info.topics[amb].type_name == TEMPERATURE else None
     return ReplayPlan(cfg=cfg, config_source=source, config_yaml=text, inputs=inputs,
                       missing=missing, thermocouples=thermocouples, ambient=ambient, info=info)
@@ -391,17 +391,17 @@ def write_mcap(result: ReplayResult, path: Path) -> Path:
     with atomic(path) as tmp, BagWriter(tmp, metadata=metadata) as w:
         messages = []
         for name in OUTPUT_ESTIMATES:
-            topic = f'{topics.ESTIMATE_PREFIX}/{name}'
+            topic = f'{interface.ESTIMATE_PREFIX}/{name}'
             w.add_topic(topic, TEMPERATURE, offered_qos(depth=10))
             messages.append((topic, cdr.encode_stamped(
                 stamps_ns, 'eha', np.column_stack([result.temperatures_C[name], variance]))))
-        w.add_topic(topics.ALERT_TOPIC, 'std_msgs/msg/String',
+        w.add_topic(interface.ALERT_TOPIC, 'std_msgs/msg/String',
                     offered_qos(durability='transient_local', depth=1))
         for k, ns in enumerate(stamps_ns.tolist()):
             for topic, data in messages:
                 w.write(topic, data[k], ns)
         for stamp, text in result.alert_events:
-            w.write(topics.ALERT_TOPIC, cdr.encode_string(text), int(round(stamp * 1e9)))
+            w.write(interface.ALERT_TOPIC, cdr.encode_string(text), int(round(stamp * 1e9)))
     return path
 
 
@@ -424,12 +424,12 @@ def thermocouple_errors(result: ReplayResult) -> Dict[str, dict]:
     """
     out = {}
     for tc, (t, v) in result.measured.items():
-        est = result.temperatures_C[topics.THERMOCOUPLES[tc]]
+        est = result.temperatures_C[interface.THERMOCOUPLES[tc]]
         inside = (t >= result.stamp_s[0]) & (t <= result.stamp_s[-1])
         if not np.any(inside):
             continue
         err = np.interp(t[inside], result.stamp_s, est) - v[inside]
-        out[tc] = {'estimate': topics.THERMOCOUPLES[tc], **error_stats(err),
+        out[tc] = {'estimate': interface.THERMOCOUPLES[tc], **error_stats(err),
                    't_s': t[inside], 'error_K': err}
     return out
 

@@ -18,8 +18,8 @@ import warnings
 import numpy as np
 
 from .config import Config
-from .model.eha import OIL_OUTPUTS
 from .model.motor import C_TO_K
+from .model.quantities import OIL_OUTPUTS
 from .outputs import atomic, save_figure
 
 #: Temperatures of the table, in print order.

@@ -21,7 +21,7 @@ import numpy as np
 from .logs import CalibrationError, CHANNELS, LogData
 from ..config import Calibration, Config, with_values
 from ..estimator.core import Estimator
-from ..ros.topics import THERMOCOUPLES
+from ..interface import THERMOCOUPLES
 
 #: Length of the ambient segments (s): each gets the mean of its readings.
 AMBIENT_SEGMENT_S = 60.0

@@ -18,9 +18,9 @@ from typing import Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
+from .. import interface
 from ..config import Calibration, Config
-from ..ros import topics
-from ..ros.topics import THERMOCOUPLES
+from ..interface import THERMOCOUPLES
 
 #: A log whose thermocouples first read further apart than this (K) did not start in equilibrium.
 START_SPREAD_K = 2.0
@@ -179,7 +179,7 @@ class LogBuilder:
                 else self.calib.thermocouple_sigma_K
         if not thermocouples:
             raise CalibrationError(f'{self.name}: no thermocouple readings (sensor_msgs/'
-                                   f'Temperature on {topics.MEASURED_PREFIX}/<name>, names '
+                                   f'Temperature on {interface.MEASURED_PREFIX}/<name>, names '
                                    f'{", ".join(CHANNELS)}); map them with --map '
                                    'measured/<name>=/topic')
         amb_t = np.concatenate(self.amb[0]) if self.amb[0] else np.zeros(0)
@@ -248,7 +248,7 @@ def plan_log(path: os.PathLike, config: tuple, mapping: Optional[Mapping[str, st
                                    'bag')
     if not plan.thermocouples:
         raise CalibrationError(f'{info.path}: no thermocouple topics (sensor_msgs/Temperature '
-                               f'on {topics.MEASURED_PREFIX}/<name>, names '
+                               f'on {interface.MEASURED_PREFIX}/<name>, names '
                                f'{", ".join(CHANNELS)}); map them with --map '
                                'measured/<name>=/topic')
     return plan

@@ -459,7 +459,7 @@ class Estimator:
 
     def add_measured(self, name: str, stamp_s: float, value_C: float) -> bool:
         """
-        Take a thermocouple reading (degC) of ``name`` (a key of ``topics.THERMOCOUPLES``).
+        Take a thermocouple reading (degC) of ``name`` (a key of ``interface.THERMOCOUPLES``).
 
         It is reported beside the estimate it measures and, with the live
         correction on, corrects the model at the end of the first step that

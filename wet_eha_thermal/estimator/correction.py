@@ -23,9 +23,10 @@ Each model step, once the filter is active:
   fast oil node passes it on to its neighbours within the step, as heat does;
   the disturbances walk at their rates (their variance is capped at the prior).
 - update: every thermocouple reading that passed its guards (below) is a
-  scalar measurement of a linear output of the state: the winding mean and
-  frame are weighted sums of nodes, the oil volumes single nodes, and the
-  max-type outputs the hottest node. Scalar updates in turn, each in Joseph
+  scalar measurement of a linear output of the state, as the model's map of
+  named quantities (:mod:`..model.quantities`) defines it: the winding mean
+  and frame are weighted sums of nodes, the oil volumes single nodes, and
+  the max-type outputs the hottest node. Scalar updates in turn, each in Joseph
   form (written as rank-one terms, O(n^2)), then the covariance symmetrised.
   The correction is written back into the model: motor states and node
   temperatures together (algebraic nodes through the network's output map),
@@ -82,10 +83,11 @@ from typing import Deque, Dict, List, Optional, Tuple
 import numpy as np
 
 from ..config import Config
+from ..interface import THERMOCOUPLES
 from ..model.compiled import jit
-from ..model.eha import EHAModel, OIL_OUTPUTS
+from ..model.eha import EHAModel
 from ..model.motor import C_TO_K
-from ..ros.topics import THERMOCOUPLES
+from ..model.quantities import MEAN, STATE
 
 #: Readings outside this range (degC) are rejected as implausible values.
 READING_RANGE_C = (-60.0, 400.0)
@@ -176,40 +178,28 @@ class ThermalCorrection:
         self._i_wind_d = self.m + self.nh + self.disturbance_names.index('winding') \
             if 'winding' in self.disturbance_names else None
         self.base_extra_loss_W = model.circuit.extra_loss_W
-        # state positions of the motor nodes the outputs and the feedback use (all of them
-        # have heat capacity in this network; an algebraic one would need the output map)
-        self._state_of = {int(i): k for k, i in enumerate(self.dynamic.tolist())}
-        for idx in (mo.idx_copper, mo.idx_frame, mo.idx_magnet, mo.idx_gap, mo.idx_oil):
-            missing = [net.node_names[i] for i in idx if int(i) not in self._state_of]
-            if missing:
-                raise ValueError(f'correction: output nodes without heat capacity: {missing}')
-        self._s_copper = np.array([self._state_of[int(i)] for i in mo.idx_copper])
-        self._s_frame = np.array([self._state_of[int(i)] for i in mo.idx_frame])
-        self._s_magnet = np.array([self._state_of[int(i)] for i in mo.idx_magnet])
-        self._s_gap_out = self._state_of[int(mo.idx_gap[-1])]
-        self._s_outlet = self._state_of[int(mo.idx_oil[-1])]
-        self._w_copper = mo.copper_share / mo.copper_share.sum()
-        self._w_frame = mo.frame_volumes / mo.frame_volumes.sum()
+        # the measurement rows and the copper feedback read the model's map of named states
+        # (an output node without heat capacity would not be a state: the map refuses it);
+        # the winding mean is over the copper nodes, in the order of their sources
+        q = model.quantities
+        self._s_copper = q.state_indices('winding_mean')
+        self._w_copper = q.weights('winding_mean')
+        self._s_outlet = int(q.state_indices('motor_oil_outlet')[0])
         nb = net.nb
         self._col_inlet = net.boundary_index('oil_inlet')
         self._src_copper = np.array(mo.src_copper)
         self._col_copper = nb + self._src_copper
-        ci = model.circuit
-        self._h = {name: self.m + ci.index(node) for name, node in (
-            ('pump_case', 'case'), ('pump_port_a', 'port_a'), ('pump_port_b', 'port_b'),
-            ('chamber_a', 'chamber_a'), ('chamber_b', 'chamber_b'),
-            ('accumulator', 'accumulator'), ('line_a', 'line_a'), ('line_b', 'line_b'),
-            ('pump_shell', 'pump_shell'), ('actuator_shell', 'actuator_shell'))}
-        self._i_case = ci.index('case')
-        ci.keep_transition = True           # _transition reads it after every step
-        # the outputs that are weighted means of nodes: their (fixed) rows
-        self._weighted = {'winding_mean': 0, 'frame': 1}
-        self._H_weighted = np.zeros((2, self.n))
-        self._H_weighted[0, self._s_copper] = self._w_copper
-        self._H_weighted[1, self._s_frame] = self._w_frame
-        # the outputs that are one fixed node: their state index
-        self._fixed_index = dict(self._h, airgap_oil_outlet=self._s_gap_out,
-                                 motor_oil_outlet=self._s_outlet)
+        self._i_case = model.circuit.index('case')
+        model.circuit.keep_transition = True        # _transition reads it after every step
+        # the outputs that are weighted means of states: their (fixed) rows
+        means = [name for name, o in q.outputs.items() if o.kind == MEAN]
+        self._mean_row = {name: k for k, name in enumerate(means)}
+        self._H_mean = np.zeros((len(means), self.n))
+        for k, name in enumerate(means):
+            self._H_mean[k, q.state_indices(name)] = q.weights(name)
+        # the outputs that are one fixed state: its index
+        self._fixed_index = {name: int(q.state_indices(name)[0])
+                             for name, o in q.outputs.items() if o.kind == STATE}
         wd = cfg.motor.winding
         self._alpha_cu = wd.copper_tempco_1_K
         self.P: Optional[np.ndarray] = None
@@ -278,7 +268,7 @@ class ThermalCorrection:
         try:
             self._start()
             self._predict(model, dt)
-            row = self._H_weighted[0]
+            row = self._H_mean[0]
             Ph = self.P @ row
             var = float(row @ Ph) + 1.0
             joseph_update(self.P, Ph / var, Ph, var)
@@ -336,7 +326,7 @@ class ThermalCorrection:
         delta = np.zeros(self.n) if self.P is not None else None
         for name, y in candidates:
             h = self.tcs[name]
-            row = self._row(model, h.quantity, prior)
+            row = self._row(model, h.quantity)
             pred = prior[h.quantity] + float(row @ delta)
             r = max(h.sigma_K, h.noise_K or 0.0) ** 2
             self._gate_and_update(name, row, y - pred, r, delta)
@@ -537,48 +527,30 @@ class ThermalCorrection:
         self.P = 0.5 * (self.P + self.P.T)
 
     # ------------------------------------------------------------ outputs
-    def _index(self, model: EHAModel, quantity: str, outputs: Dict[str, float]) -> int:
-        """Return the state index of a single-node output (the hottest node for a max)."""
-        mo = model.motor
-        if quantity == 'winding_hotspot':
-            return int(self._s_copper[int(np.argmax(mo.T[mo.idx_copper]))])
-        if quantity == 'magnet':
-            return int(self._s_magnet[int(np.argmax(mo.T[mo.idx_magnet]))])
-        if quantity == 'airgap_oil_outlet':
-            return self._s_gap_out
-        if quantity == 'motor_oil_outlet':
-            return self._s_outlet
-        if quantity == 'pump_outlet':
-            p = model._last[3]
-            return self._h['pump_port_a' if p[0] >= p[1] else 'pump_port_b']
-        if quantity == 'oil':
-            return self._index(model, max(OIL_OUTPUTS, key=outputs.__getitem__), outputs)
-        return self._h[quantity]
-
-    def _row(self, model: EHAModel, quantity: str, outputs: Dict[str, float]) -> np.ndarray:
+    def _row(self, model: EHAModel, quantity: str) -> np.ndarray:
         """Return the output's sensitivity to the filter state."""
-        if quantity in self._weighted:
-            return self._H_weighted[self._weighted[quantity]]
+        k = self._mean_row.get(quantity)
+        if k is not None:
+            return self._H_mean[k]
         row = np.zeros(self.n)
-        row[self._index(model, quantity, outputs)] = 1.0
+        i = self._fixed_index.get(quantity)
+        row[model.output_states([quantity])[0] if i is None else i] = 1.0
         return row
 
     def variances(self, model: EHAModel, outputs: Dict[str, float]) -> Dict[str, float]:
         """Return the filter's variance (K^2) of every named output."""
         P = self.P
-        Hw = self._H_weighted
-        weighted = np.einsum('ij,ij->i', Hw @ P, Hw).tolist()
+        Hm = self._H_mean
+        means = np.einsum('ij,ij->i', Hm @ P, Hm).tolist()
         diag = P.diagonal().tolist()
+        # the single states: fixed ones, and those a max or the port takes now
+        index = dict(self._fixed_index)
+        taken = [q for q in outputs if q not in index and q not in self._mean_row]
+        index.update(zip(taken, model.output_states(taken)))
         out = {}
-        fixed, w = self._fixed_index, self._weighted
         for q in outputs:
-            i = fixed.get(q)
-            if i is not None:
-                v = diag[i]
-            elif q in w:
-                v = weighted[w[q]]
-            else:
-                v = diag[self._index(model, q, outputs)]
+            k = self._mean_row.get(q)
+            v = diag[index[q]] if k is None else means[k]
             out[q] = v if v > 0.0 else 0.0
         return out
 

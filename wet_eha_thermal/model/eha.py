@@ -23,25 +23,26 @@ every step, and no oil takes a path the rig does not have.
 """
 
 from dataclasses import dataclass
-from typing import Dict, Optional
+from typing import Dict, List, Optional, Sequence
 
 import numpy as np
 
 from . import fluid_power as fp
 from .compiled import jit
-from .hydraulics import HydraulicCircuit, OIL_NODES, StepFlows, SubSteps
+from .hydraulics import (ACCUMULATOR, CASE, CHAMBER_A, CHAMBER_B, HydraulicCircuit, LEAK_A_TO_B,
+                         LEAK_A_TO_CASE, LEAK_B_TO_A, LEAK_B_TO_CASE, LINE_A, LINE_A_ACTUATOR_END,
+                         LINE_A_ACTUATOR_END_BACK, LINE_A_PUMP_END, LINE_A_PUMP_END_BACK, LINE_B,
+                         LINE_B_ACTUATOR_END, LINE_B_ACTUATOR_END_BACK, LINE_B_PUMP_END,
+                         LINE_B_PUMP_END_BACK, MAKE_UP_A, MAKE_UP_B, N_OIL, NODES, PORT_A, PORT_B,
+                         PUMP_INTO_A, PUMP_INTO_B, StepFlows, SubSteps)
 from .motor import MotorInputs, WetMotor
 from .oil import density as oil_density, get_oil, kinematic_viscosity as oil_nu, Oil
+from .quantities import coupled_outputs, QuantityMap
 from .validity import ValidityLog
 from ..config import Config
 
 #: the case oil may fall this far below its nominal volume (a fraction), never further
 CASE_BUFFER_FLOOR = 0.75
-_CHAMBER_A, _CHAMBER_B = OIL_NODES.index('chamber_a'), OIL_NODES.index('chamber_b')
-_CASE, _ACC = OIL_NODES.index('case'), OIL_NODES.index('accumulator')
-#: the oil volumes whose hottest value is the ``oil`` output, checked against the oil limit
-OIL_OUTPUTS = ('airgap_oil_outlet', 'motor_oil_outlet', 'pump_case', 'chamber_a', 'chamber_b',
-               'accumulator')
 
 
 @dataclass
@@ -88,9 +89,13 @@ class EHAModel:
                               max_substep_s=1.0, coefficient_filter_s=coefficient_filter_s,
                               defer_refresh=defer_refresh)
         self.circuit = HydraulicCircuit(cfg.hydraulics, self.oil)
-        ci = self.circuit
-        self._i_case = ci.index('case')
-        self._i_lines = (ci.index('line_a'), ci.index('line_b'))
+        # the outputs are evaluated on the motor's node temperatures, then the circuit's
+        net = self.motor.net
+        circuit_value = {name: net.n + i for i, name in enumerate(NODES)}
+        #: the named states (those of :attr:`state`) and the outputs over them
+        self.quantities = QuantityMap(
+            net.state_names + list(NODES), coupled_outputs(self.motor),
+            lambda name: circuit_value[name] if name in circuit_value else net.index(name))
         h = cfg.hydraulics
         self.area = h.actuator.area_m2
         self.d_rad = fp.displacement_per_rad(h.pump.displacement_m3_rev)
@@ -148,8 +153,7 @@ class EHAModel:
     def _node_pressures(self, sensed: np.ndarray, flow_m3_s: np.ndarray) -> np.ndarray:
         """Return the pressure (Pa) of every oil node (8 x n) from sensed p_a, p_b, p_acc."""
         ln = self.cfg.hydraulics.lines
-        i_a, i_b = self._i_lines
-        P, re = node_pressures(sensed, flow_m3_s, 0.5 * (self.T_hyd[i_a] + self.T_hyd[i_b]),
+        P, re = node_pressures(sensed, flow_m3_s, 0.5 * (self.T_hyd[LINE_A] + self.T_hyd[LINE_B]),
                                ln.length_m, ln.bore_m, self.oil.laws)
         fp.check_line_reynolds(self.log, re)
         return P
@@ -167,12 +171,11 @@ class EHAModel:
         """
         t0, x0, raw0, p0 = self._last
         h, ci = self.cfg.hydraulics, self.circuit
-        i_a, i_b = self._i_lines
         (flow, work, P_end, vdp, x_mean, dx, fric_W, q_ext, dt, wgt, raw_end,
          re, seg) = step_flows_kernel(
             t0, x0, raw0, p0, b.t_s, b.position_m, b.p_a_Pa, b.p_b_Pa, b.p_acc_Pa,
-            b.speed_rad_s, 0.5 * (self.T_hyd[i_a] + self.T_hyd[i_b]),
-            float(self.T_hyd[self._i_case]), self._geometry, self._leak_coeffs, self._friction,
+            b.speed_rad_s, 0.5 * (self.T_hyd[LINE_A] + self.T_hyd[LINE_B]),
+            float(self.T_hyd[CASE]), self._geometry, self._leak_coeffs, self._friction,
             self.oil.laws, ci.u, ci.d, ci.oil_volumes, self.oil_substep_s)
         fp.check_line_reynolds(self.log, re)
         act = h.actuator
@@ -205,11 +208,11 @@ class EHAModel:
         # (the case moves with the leakage heat; a start-of-step value would lag), over
         # at most twice the previous step (a step much longer than the one before would
         # stretch a trend over far more time than it was seen in)
-        T_now = float(self.T_hyd[self._i_case])
+        T_now = float(self.T_hyd[CASE])
         T_case = T_now + 0.5 * (T_now - self._case_prev_K) * min(dt, 2.0 * self._dt_prev) \
             / self._dt_prev if self._dt_prev else T_now
         self._case_prev_K, self._dt_prev = T_now, dt
-        p_case = float(sf.p_end_Pa[2])
+        p_case = float(sf.p_end_Pa[CASE])
         i_sq = float(np.dot(b.current_A ** 2, wgt))
         # the buffered oil drains through the motor: the motor's (filtered) flow follows
         # the leakage plus the buffer over buffer_time_s, or over the step when that is
@@ -234,13 +237,13 @@ class EHAModel:
             self.T_hyd = ci.step_substeps(self.T_hyd, self._substeps(seg, q_motor), q_motor,
                                           sf.motor_outlet_K, ambient_K, rho_cp)
             dv_case = self.case_buffer_m3 - buffer0
-            sf.case_volume_m3 = ci.oil_volumes[2] + buffer0 + 0.5 * dv_case
+            sf.case_volume_m3 = ci.oil_volumes[CASE] + buffer0 + 0.5 * dv_case
             sf.case_dV_m3 = dv_case
         else:
             # one sample interval (held inputs: a silence crossed in one block): flows
             # and volumes are constant over it, and one exact step holds for any length
             dv_case = self._case_change(q_ext, q_motor, dt)
-            sf.case_volume_m3 = ci.oil_volumes[2] + buffer0 + 0.5 * dv_case
+            sf.case_volume_m3 = ci.oil_volumes[CASE] + buffer0 + 0.5 * dv_case
             sf.case_dV_m3 = dv_case
             self.case_buffer_m3 += dv_case
             self.T_hyd = ci.step(self.T_hyd, dt, sf, ambient_K, rho_cp)
@@ -267,7 +270,7 @@ class EHAModel:
         counted (the books then miss that volume's heat).
         """
         dv = (q_ext - q_motor) * dt
-        floor = -CASE_BUFFER_FLOOR * self.circuit.oil_volumes[2]
+        floor = -CASE_BUFFER_FLOOR * self.circuit.oil_volumes[CASE]
         if self.case_buffer_m3 + dv < floor:
             dv = floor - self.case_buffer_m3
             self.case_floor_hits += 1
@@ -288,25 +291,29 @@ class EHAModel:
     # --------------------------------------------------------------- outputs
     def outputs(self) -> Dict[str, float]:
         """
-        Return the named temperatures (K); ``oil`` is the hottest oil.
+        Return the outputs of :func:`~.quantities.coupled_outputs`, in K.
 
         The motor's are those of the present state; the hydraulic nodes' those
         the circuit reports (:attr:`HydraulicCircuit.T_report`: the last
         step's means when it was sub-stepped).
         """
-        out = dict(self.motor.outputs())
+        return self.quantities.values(self._output_values(), self._port_a_high())
+
+    def output_states(self, names: Sequence[str]) -> List[int]:
+        """Return the state each single-state output takes now (the hottest one of a max)."""
+        return self.quantities.states_taken(names, self._output_values(), self._port_a_high())
+
+    def _output_values(self) -> np.ndarray:
+        """Return the temperatures the outputs are evaluated on: motor nodes, then circuit (K)."""
         ci = self.circuit
-        named = ci.named(self.T_hyd if ci.T_report is None else ci.T_report)
-        out.update({'pump_case': named['case'], 'pump_port_a': named['port_a'],
-                    'pump_port_b': named['port_b'], 'chamber_a': named['chamber_a'],
-                    'chamber_b': named['chamber_b'], 'accumulator': named['accumulator'],
-                    'line_a': named['line_a'], 'line_b': named['line_b'],
-                    'pump_shell': named['pump_shell'], 'actuator_shell': named['actuator_shell']})
-        if self._last is not None:
-            p = self._last[3]
-            out['pump_outlet'] = named['port_a'] if p[0] >= p[1] else named['port_b']
-        out['oil'] = max(out[k] for k in OIL_OUTPUTS)
-        return out
+        return np.concatenate([self.motor.T, self.T_hyd if ci.T_report is None else ci.T_report])
+
+    def _port_a_high(self) -> Optional[bool]:
+        """Return whether port A is the pump's outlet (the higher pressure; None: no sample)."""
+        if self._last is None:
+            return None
+        p = self._last[3]
+        return bool(p[PORT_A] >= p[PORT_B])
 
     def energy(self) -> Dict[str, float]:
         """
@@ -340,15 +347,15 @@ def node_pressures(sensed, flow_m3_s, T_line_K, length_m, bore_m, laws):
     mu = oil_nu(T_line_K, p_l, laws) * rho     # the dynamic viscosity
     dp, re = fp.line_drop_and_reynolds(flow_m3_s, length_m, bore_m, rho, mu)
     half = 0.5 * dp
-    P = np.empty((8, pa.size))
-    P[0] = pa + dp
-    P[1] = pb - dp
-    P[2] = pacc
-    P[3] = pa + half
-    P[4] = pb - half
-    P[5] = pa
-    P[6] = pb
-    P[7] = pacc
+    P = np.empty((N_OIL, pa.size))
+    P[PORT_A] = pa + dp
+    P[PORT_B] = pb - dp
+    P[CASE] = pacc
+    P[LINE_A] = pa + half
+    P[LINE_B] = pb - half
+    P[CHAMBER_A] = pa
+    P[CHAMBER_B] = pb
+    P[ACCUMULATOR] = pacc
     return P, re
 
 
@@ -395,18 +402,18 @@ def step_flows_kernel(t0, x0, raw0, p0, t_s, position_m, p_a, p_b, p_acc, speed,
                            line_bore, laws)
     # the two leakage gaps, in one evaluation: port to port (internal) and high port
     # to case (external), each with the viscosity at its mean pressure
-    p_high = np.maximum(P[0], P[1])
+    p_high = np.maximum(P[PORT_A], P[PORT_B])
     gap_dp = np.empty((2, n))
-    gap_dp[0] = P[0] - P[1]
-    gap_dp[1] = p_high - P[2]
+    gap_dp[0] = P[PORT_A] - P[PORT_B]
+    gap_dp[1] = p_high - P[CASE]
     gap_p = np.empty((2, n))
-    gap_p[0] = P[0] + P[1]
-    gap_p[1] = p_high + P[2]
+    gap_p[0] = P[PORT_A] + P[PORT_B]
+    gap_p[1] = p_high + P[CASE]
     gap_p *= 0.5
     gap_mu = oil_nu(T_case_K, gap_p, laws) * oil_density(T_case_K, gap_p, laws)
     leak = fp.laminar_leakage(leak_coeffs, gap_dp, gap_mu)
     q_int = leak[0]
-    high_a = P[0] >= P[1]
+    high_a = P[PORT_A] >= P[PORT_B]
     q_ext = np.maximum(leak[1], 0.0)
     q_ext_a = np.where(high_a, q_ext, 0.0)
     q_ext_b = q_ext - q_ext_a
@@ -421,19 +428,24 @@ def step_flows_kernel(t0, x0, raw0, p0, t_s, position_m, p_a, p_b, p_acc, speed,
     # flow of every link of LINKS per interval: a signed flow splits into its two
     # directed links (forward part, reverse part); no make-up flows back
     F = np.zeros((link_up.size, n))
-    F[0] = np.maximum(q_pump, 0.0)
-    F[1] = np.maximum(-q_pump, 0.0)
-    F[2] = np.maximum(q_int, 0.0)
-    F[3] = np.maximum(-q_int, 0.0)
-    F[4] = q_ext_a
-    F[5] = q_ext_b
-    q_fwd = np.maximum(q, 0.0)
+    F[PUMP_INTO_A] = np.maximum(q_pump, 0.0)
+    F[PUMP_INTO_B] = np.maximum(-q_pump, 0.0)
+    F[LEAK_A_TO_B] = np.maximum(q_int, 0.0)
+    F[LEAK_B_TO_A] = np.maximum(-q_int, 0.0)
+    F[LEAK_A_TO_CASE] = q_ext_a
+    F[LEAK_B_TO_CASE] = q_ext_b
+    q_fwd = np.maximum(q, 0.0)          # the four line sections carry q
     q_rev = np.maximum(-q, 0.0)
-    for k in range(6, 14, 2):       # the four line sections carry q
-        F[k] = q_fwd
-        F[k + 1] = q_rev
-    F[14] = make_up_a
-    F[16] = q_ext - make_up_a
+    F[LINE_A_PUMP_END] = q_fwd
+    F[LINE_A_PUMP_END_BACK] = q_rev
+    F[LINE_A_ACTUATOR_END] = q_fwd
+    F[LINE_A_ACTUATOR_END_BACK] = q_rev
+    F[LINE_B_ACTUATOR_END] = q_fwd
+    F[LINE_B_ACTUATOR_END_BACK] = q_rev
+    F[LINE_B_PUMP_END] = q_fwd
+    F[LINE_B_PUMP_END_BACK] = q_rev
+    F[MAKE_UP_A] = make_up_a
+    F[MAKE_UP_B] = q_ext - make_up_a
     flow = F @ wgt
     work = (F * (P[link_up] - P[link_down])) @ wgt
     c_v, c_f, coulomb = friction
@@ -441,14 +453,14 @@ def step_flows_kernel(t0, x0, raw0, p0, t_s, position_m, p_a, p_b, p_acc, speed,
     x_mean = np.dot(0.5 * (x[1:] + x[:-1]), wgt)
     # integral of V dp per oil node: P holds interval-mean pressures, so between two
     # of them the chamber volume is the one at the sample instant in between
-    dP = np.empty((8, n))
+    dP = np.empty((N_OIL, n))
     dP[:, 0] = P[:, 0] - p0
     dP[:, 1:] = P[:, 1:] - P[:, :-1]
     vdp_int = oil_volumes.reshape(-1, 1) * dP
     va = dead_volume + area * (half_stroke + x[:-1])
     vb = 2 * dead_volume + 2 * area * half_stroke - va
-    vdp_int[5] = va * dP[5]
-    vdp_int[6] = vb * dP[6]
+    vdp_int[CHAMBER_A] = va * dP[CHAMBER_A]
+    vdp_int[CHAMBER_B] = vb * dP[CHAMBER_B]
     vdp = vdp_int.sum(axis=1)
     fric_W = fric * np.abs(speed)
     seg = segment_sums(t, x, dts, F, F * (P[link_up] - P[link_down]), vdp_int, P, fric_W, q_ext,
@@ -523,8 +535,8 @@ def substep_volumes(x0, x_end, case_buffer, oil_volumes, geometry):
     x[1:] = x_end
     vol = np.empty((x.size, oil_volumes.size))
     vol[:] = oil_volumes
-    vol[:, _CHAMBER_A] = dead_volume + area * (half_stroke + x)
-    vol[:, _CHAMBER_B] = dead_volume + area * (half_stroke - x)
-    vol[:, _CASE] += case_buffer          # the case holds what the accumulator gives
-    vol[:, _ACC] -= case_buffer
+    vol[:, CHAMBER_A] = dead_volume + area * (half_stroke + x)
+    vol[:, CHAMBER_B] = dead_volume + area * (half_stroke - x)
+    vol[:, CASE] += case_buffer          # the case holds what the accumulator gives
+    vol[:, ACCUMULATOR] -= case_buffer
     return vol

@@ -44,24 +44,44 @@ SOLID_NODES = ('pump_shell', 'line_a_shell', 'line_b_shell', 'actuator_shell',
                'accumulator_shell')
 NODES = OIL_NODES + SOLID_NODES
 _I = {name: i for i, name in enumerate(NODES)}
-_CASE, _ACC, _PUMP_SHELL = _I['case'], _I['accumulator'], _I['pump_shell']
-_CHAMBER_A, _CHAMBER_B = _I['chamber_a'], _I['chamber_b']
-_LINE_A, _LINE_B = _I['line_a'], _I['line_b']
+#: the rows the kernels index by name: of each node in the temperature vector, and of each
+#: oil node in the pressure, volume and V dp vectors (the oil nodes come first)
+PORT_A, PORT_B, CASE = _I['port_a'], _I['port_b'], _I['case']
+LINE_A, LINE_B = _I['line_a'], _I['line_b']
+CHAMBER_A, CHAMBER_B, ACCUMULATOR = _I['chamber_a'], _I['chamber_b'], _I['accumulator']
+PUMP_SHELL = _I['pump_shell']
+N_OIL = len(OIL_NODES)
 
-# Directed flow links (upstream, downstream); 'pump' is the displacement flow, the
-# rest are throttles (leaks, line friction, check valves).
-LINKS: Tuple[Tuple[str, str], ...] = (
-    ('port_b', 'port_a'), ('port_a', 'port_b'),             # 0, 1 pump displacement
-    ('port_a', 'port_b'), ('port_b', 'port_a'),             # 2, 3 internal leakage
-    ('port_a', 'case'), ('port_b', 'case'),                 # 4, 5 external leakage
-    ('port_a', 'line_a'), ('line_a', 'port_a'),             # 6, 7 line A, pump end
-    ('line_a', 'chamber_a'), ('chamber_a', 'line_a'),       # 8, 9 line A, actuator end
-    ('chamber_b', 'line_b'), ('line_b', 'chamber_b'),       # 10, 11 line B, actuator end
-    ('line_b', 'port_b'), ('port_b', 'line_b'),             # 12, 13 line B, pump end
-    ('accumulator', 'port_a'), ('port_a', 'accumulator'),   # 14, 15 make-up / relief A
-    ('accumulator', 'port_b'), ('port_b', 'accumulator'),   # 16, 17 make-up / relief B
-)
-PUMP_LINKS = (0, 1)
+# Directed flow links, name: (upstream, downstream); 'pump' is the displacement flow, the
+# rest are throttles (leaks, line friction, check valves). A line section's forward link
+# carries the flow into chamber A (out of chamber B), its '_back' link the reverse.
+_LINKS: Dict[str, Tuple[str, str]] = {
+    'pump_into_a': ('port_b', 'port_a'), 'pump_into_b': ('port_a', 'port_b'),
+    'leak_a_to_b': ('port_a', 'port_b'), 'leak_b_to_a': ('port_b', 'port_a'),
+    'leak_a_to_case': ('port_a', 'case'), 'leak_b_to_case': ('port_b', 'case'),
+    'line_a_pump_end': ('port_a', 'line_a'), 'line_a_pump_end_back': ('line_a', 'port_a'),
+    'line_a_actuator_end': ('line_a', 'chamber_a'),
+    'line_a_actuator_end_back': ('chamber_a', 'line_a'),
+    'line_b_actuator_end': ('chamber_b', 'line_b'),
+    'line_b_actuator_end_back': ('line_b', 'chamber_b'),
+    'line_b_pump_end': ('line_b', 'port_b'), 'line_b_pump_end_back': ('port_b', 'line_b'),
+    'make_up_a': ('accumulator', 'port_a'), 'relief_a': ('port_a', 'accumulator'),
+    'make_up_b': ('accumulator', 'port_b'), 'relief_b': ('port_b', 'accumulator'),
+}
+LINKS: Tuple[Tuple[str, str], ...] = tuple(_LINKS.values())
+_L = {name: k for k, name in enumerate(_LINKS)}
+#: the rows of LINKS the kernels index by name
+PUMP_INTO_A, PUMP_INTO_B = _L['pump_into_a'], _L['pump_into_b']
+LEAK_A_TO_B, LEAK_B_TO_A = _L['leak_a_to_b'], _L['leak_b_to_a']
+LEAK_A_TO_CASE, LEAK_B_TO_CASE = _L['leak_a_to_case'], _L['leak_b_to_case']
+LINE_A_PUMP_END, LINE_A_PUMP_END_BACK = _L['line_a_pump_end'], _L['line_a_pump_end_back']
+LINE_A_ACTUATOR_END, LINE_A_ACTUATOR_END_BACK = (_L['line_a_actuator_end'],
+                                                 _L['line_a_actuator_end_back'])
+LINE_B_ACTUATOR_END, LINE_B_ACTUATOR_END_BACK = (_L['line_b_actuator_end'],
+                                                 _L['line_b_actuator_end_back'])
+LINE_B_PUMP_END, LINE_B_PUMP_END_BACK = _L['line_b_pump_end'], _L['line_b_pump_end_back']
+MAKE_UP_A, MAKE_UP_B = _L['make_up_a'], _L['make_up_b']
+PUMP_LINKS = (PUMP_INTO_A, PUMP_INTO_B)
 
 
 @dataclass
@@ -244,10 +264,10 @@ class HydraulicCircuit:
         dV_a, dV_b = sf.chamber_dV_m3
         e['sources'] += float(heat.sum()) * dt_s
         e['stored'] += float(np.dot(C, dT)) + rho_cp_flow * (
-            tm[_CHAMBER_A] * dV_a + tm[_CHAMBER_B] * dV_b
-            + (tm[_CASE] - tm[_ACC]) * sf.case_dV_m3)
+            tm[CHAMBER_A] * dV_a + tm[CHAMBER_B] * dV_b
+            + (tm[CASE] - tm[ACCUMULATOR]) * sf.case_dV_m3)
         e['to_ambient'] += float(np.dot(self.G_amb, Tm - ambient_K)) * dt_s
-        e['motor_loop'] += motor_rate * (sf.motor_outlet_K - tm[_CASE]) * dt_s
+        e['motor_loop'] += motor_rate * (sf.motor_outlet_K - tm[CASE]) * dt_s
         self.last_sources = heat
         self.T_report = T1
         self._last_exact = (E, M, C, motor_rate, dt_s)
@@ -305,13 +325,13 @@ class HydraulicCircuit:
             E, M, C, motor_rate, dt = self._last_exact
             n = self.n
             # int_0^dt exp(A t) dt b = A^-1 (E - I) b for a constant input b (W / C)
-            rhs = E[:n, [_ACC, _CASE]].copy()
-            rhs[[_ACC, _CASE], [0, 1]] -= 1.0
+            rhs = E[:n, [ACCUMULATOR, CASE]].copy()
+            rhs[[ACCUMULATOR, CASE], [0, 1]] -= 1.0
             gam = np.linalg.solve(M[:n, :n], rhs)
             # in C order, as the sub-steps' transition: the filter's kernel takes either
             self._last_transition = (np.ascontiguousarray(E[:n, :n]),
-                                     gam[:, 0] * (motor_rate * dt / C[_ACC]),
-                                     gam[:, 1] * (dt / C[_CASE]), C)
+                                     gam[:, 0] * (motor_rate * dt / C[ACCUMULATOR]),
+                                     gam[:, 1] * (dt / C[CASE]), C)
         return self._last_transition
 
     def sources(self, T0: np.ndarray, dt_s: float, sf: StepFlows) -> np.ndarray:
@@ -340,10 +360,6 @@ class HydraulicCircuit:
             self._T_alpha += -np.expm1(-dt_s / self.alpha_T_filter_s) * (T_oil - self._T_alpha)
         return self.oil.alpha_p * self._T_alpha
 
-    def named(self, T: np.ndarray) -> Dict[str, float]:
-        """Return the node temperatures (K) by name."""
-        return dict(zip(NODES, T.tolist()))
-
 
 @jit
 def node_sources(alpha_T, dt_s, work_W, volume_dp_m3Pa, pump_friction_W, is_pump, link_down,
@@ -353,8 +369,8 @@ def node_sources(alpha_T, dt_s, work_W, volume_dp_m3Pa, pump_friction_W, is_pump
     per_link = np.where(is_pump, -alpha_T * work_W, (1 - alpha_T) * work_W)
     heat = np.bincount(link_down, weights=per_link, minlength=n)
     heat[:volume_dp_m3Pa.size] += alpha_T * volume_dp_m3Pa / dt_s
-    heat[_CASE] += friction_to_case * pump_friction_W + extra_loss_W
-    heat[_PUMP_SHELL] += (1 - friction_to_case) * pump_friction_W
+    heat[CASE] += friction_to_case * pump_friction_W + extra_loss_W
+    heat[PUMP_SHELL] += (1 - friction_to_case) * pump_friction_W
     return heat
 
 
@@ -372,8 +388,9 @@ def line_conductances(T_K, p_Pa, rho, cp, flows, line_geometry, laws):
     mu = kinematic_viscosity(T_K, p_Pa, laws) * rho
     k = conductivity(T_K, laws)
     q = np.empty(2)
-    q[0] = flows[6] + flows[7]          # links 6 + 7 (line A), 10 + 11 (line B)
-    q[1] = flows[10] + flows[11]
+    # each line's flow, taken at one of its sections (both carry it)
+    q[0] = flows[LINE_A_PUMP_END] + flows[LINE_A_PUMP_END_BACK]
+    q[1] = flows[LINE_B_ACTUATOR_END] + flows[LINE_B_ACTUATOR_END_BACK]
     re = rho * q / flow_area * bore / mu
     nu = corr.laminar_turbulent_nusselt(re, mu * cp / k, corr.NU_PIPE_T)
     return nu * k / bore * inner_area
@@ -392,14 +409,14 @@ def conductances_and_input(T, p_mid, rho, cp, flows, motor_rate, motor_outlet_K,
     """
     n = T.size
     rate = rho_cp_flow * flows
-    lines = slice(_LINE_A, _LINE_B + 1)       # adjacent nodes
+    lines = slice(LINE_A, LINE_B + 1)       # adjacent nodes
     g_line = line_conductances(T[lines], p_mid[lines], rho[lines], cp[lines], flows,
                                line_geometry, laws)
     weights = np.concatenate((rate, -rate, g_line, g_line, -g_line, -g_line,
                               np.full(1, motor_rate)))
     K = K_static + np.bincount(k_index, weights=weights, minlength=n * n).reshape(n, n)
     s = G_amb * ambient_K + heat
-    s[_ACC] += motor_rate * motor_outlet_K
+    s[ACCUMULATOR] += motor_rate * motor_outlet_K
     return K, s
 
 
@@ -419,8 +436,8 @@ def circuit_matrices(T0, dt_s, flows, p_mid, chamber_volumes, case_volume, motor
     T_oil = T0[:no]
     rho, cp = density(T_oil, p_mid, laws), specific_heat(T_oil, laws)
     vol = oil_volumes.copy()
-    vol[5], vol[6] = chamber_volumes
-    vol[2] = case_volume
+    vol[CHAMBER_A], vol[CHAMBER_B] = chamber_volumes
+    vol[CASE] = case_volume
     C = capacities.copy()
     C[:no] = density(T_oil, p_ref, laws) * cp * vol
     K, s = conductances_and_input(T0, p_mid, rho, cp, flows, motor_rate, motor_outlet_K,
@@ -494,9 +511,9 @@ def cn_substeps(T0, alpha_T, dts, flows, works, vdps, p_mids, frics, volumes, mo
         if with_transition:
             rhs[:, :n] = B
             rhs[:, n] = 0.0
-            rhs[_ACC, n] = motor_rate
+            rhs[ACCUMULATOR, n] = motor_rate
             rhs[:, n + 1] = 0.0
-            rhs[_CASE, n + 1] = 1.0
+            rhs[CASE, n + 1] = 1.0
             X = np.linalg.solve(A, rhs)
             step_phi = X[:, :n].copy()
             Phi = step_phi @ Phi
@@ -513,9 +530,9 @@ def cn_substeps(T0, alpha_T, dts, flows, works, vdps, p_mids, frics, volumes, mo
             extra[link_up[link]] -= carried
         # the motor's oil leaves the case and comes back to the accumulator with the heat
         # the motor books for it (its enthalpy rise at the loop's rho c_p, in K and s)
-        carried = q_motor * h * g[_CASE]
-        extra[_CASE] -= carried
-        extra[_ACC] += carried
+        carried = q_motor * h * g[CASE]
+        extra[CASE] -= carried
+        extra[ACCUMULATOR] += carried
         E0 = volumes[k] * volumetric_energy(T_oil, p_ref, laws)
         E1 = E0 + Cm[:no] * (T1[:no] - T_oil) + Tm[:no] * (C1[:no] - C0[:no]) + extra
         T1[:no] = temperature_of_energy(E1 / volumes[k + 1], T1[:no], p_ref, laws)
@@ -524,7 +541,7 @@ def cn_substeps(T0, alpha_T, dts, flows, works, vdps, p_mids, frics, volumes, mo
         ledger[0] += heat.sum() * h
         ledger[1] += (E1 - E0).sum() + np.dot(Cm[no:], T1[no:] - T[no:])
         ledger[2] += np.dot(G_amb, Tm - ambient_K) * h
-        ledger[3] += motor_rate * (motor_outlet_K - Tm[_CASE]) * h
+        ledger[3] += motor_rate * (motor_outlet_K - Tm[CASE]) * h
         T = T1
     dt = dts.sum()
     return T, T_sum / dt, Phi, g_acc, g_case, C1, heat_sum / dt, ledger

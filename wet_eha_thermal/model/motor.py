@@ -27,6 +27,7 @@ from .losses import copper_resistance, electrical_frequency, steinmetz_loss_dens
 from .mellor import add_cylinder
 from .network import ThermalNetwork
 from .oil import density as oil_density, kinematic_viscosity as oil_nu, Oil
+from .quantities import motor_outputs, QuantityMap
 from .validity import ValidityLog
 from ..config import Motor
 
@@ -105,6 +106,8 @@ class WetMotor:
         self.net = ThermalNetwork()
         self._build()
         self.net.freeze()
+        #: the named states and the outputs over them (evaluated on node temperatures)
+        self.quantities = QuantityMap(self.net.state_names, motor_outputs(self), self.net.index)
         # the constants of the losses kernel (see motor_losses)
         wd, st, ro = cfg.winding, cfg.stator, cfg.rotor
         self._copper_weight = wd.phases * self.copper_share
@@ -349,9 +352,7 @@ class WetMotor:
         self.idx_frame_outer = np.array([net.index(m) for m in p['frame'].outer])
         self.idx_cap_outer = np.array([net.index(p[f'end_cap_{s}'].faces[o])
                                        for s, o in (('front', 0), ('rear', 1))])
-        self.idx_magnet = np.array([net.index(m) for m in p['magnet'].mean])
         self.idx_frame = np.array([net.index(m) for m in p['frame'].mean])
-        self.frame_volumes = np.array(p['frame'].volume_m3)
         # nodes whose temperature sets a coefficient, with the drift (in units of
         # refresh_dT_K) that triggers a refresh: airgap oil viscosity sets the airgap h
         # (~1.5 %/K); end-space oil capacity and natural convection move < 0.2 %/K.
@@ -360,11 +361,8 @@ class WetMotor:
                                          self.idx_frame_outer, self.idx_cap_outer])
         self.watch_scale = np.concatenate([np.ones(self.idx_gap.size),
                                            np.full(self.idx_watch.size - self.idx_gap.size, 4.0)])
-        # per-step constants: the links to ambient (frame, then end caps) for the ledger,
-        # and the weights of the named outputs
+        # the links to ambient (frame, then end caps) for the ledger
         self._to_ambient_ids = np.array(self.ambient_links + self.cap_links)
-        self._copper_share_sum = self.copper_share.sum()
-        self._frame_volume_sum = self.frame_volumes.sum()
 
     # ------------------------------------------------------------ coefficients
     def _oil_rho_cp(self, T_K, p_Pa):
@@ -651,26 +649,8 @@ class WetMotor:
         return float(T[self.net.index(name)])
 
     def outputs(self, T: Optional[np.ndarray] = None) -> Dict[str, float]:
-        """
-        Named temperatures (K) a user asks for.
-
-        winding_mean is the conductor-length weighted mean (what a resistance
-        measurement sees); winding_hotspot the hottest winding node (slot
-        slices and end windings; the peak inside a block is not resolved);
-        frame the volume mean of the frame over the stack; magnet the hottest
-        magnet slice; airgap_oil_outlet the last airgap section; motor_oil_outlet
-        the rear end space, where the oil leaves the motor.
-        """
-        T = self.T if T is None else T
-        Tw = T[self.idx_copper]
-        return {
-            'winding_mean': float(np.dot(self.copper_share, Tw) / self._copper_share_sum),
-            'winding_hotspot': float(Tw.max()),
-            'frame': float(np.dot(self.frame_volumes, T[self.idx_frame]) / self._frame_volume_sum),
-            'magnet': float(T[self.idx_magnet].max()),
-            'airgap_oil_outlet': float(T[self.idx_gap[-1]]),
-            'motor_oil_outlet': float(T[self.idx_oil[-1]]),
-        }
+        """Return the outputs of :func:`~.quantities.motor_outputs` at ``T``, in K."""
+        return self.quantities.values(self.T if T is None else T)
 
     def heat_balance(self, T: np.ndarray, u: MotorInputs) -> Dict[str, float]:
         """Heat flows (W) at temperatures ``T``: losses in, to ambient, carried out by the oil."""

@@ -12,8 +12,8 @@ from dataclasses import dataclass
 from typing import List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
+from wet_eha_thermal import interface
 from wet_eha_thermal.estimator.core import Estimator
-from wet_eha_thermal.ros import topics
 
 # the levels of diagnostic_msgs/DiagnosticStatus
 OK, WARN, ERROR, STALE = 0, 1, 2, 3
@@ -64,8 +64,8 @@ def statuses(est: Estimator, node: NodeCounters, now_s: float, topic_of: Mapping
                          node.callback_errors.get(name, 0)) for name in est.inputs]
     out.append(plausibility_status(est, new_implausible))
     if est.correction is not None:
-        out += [thermocouple_status(est, tc, topic_of[f'{topics.MEASURED_PREFIX}/{tc}'])
-                for tc in topics.THERMOCOUPLES]
+        out += [thermocouple_status(est, tc, topic_of[f'{interface.MEASURED_PREFIX}/{tc}'])
+                for tc in interface.THERMOCOUPLES]
     return out
 
 
@@ -91,7 +91,7 @@ def estimate_status(est: Estimator, node: NodeCounters) -> Status:
         message = f'model step failed, republishing the last estimate: {node.model_error}'
     sigma = max(latest.uncertainty_K.values()) if latest.uncertainty_K else None
     values += [('stamp [s]', f'{latest.stamp_s:.3f}'), ('step', latest.step)]
-    values += [(f'{n} [degC]', fmt(latest.temperatures_C.get(n))) for n in topics.ESTIMATES]
+    values += [(f'{n} [degC]', fmt(latest.temperatures_C.get(n))) for n in interface.ESTIMATES]
     values.append(('uncertainty [K, 1 sigma]', fmt(sigma)))
     values.append(('margin_current [A RMS]', fmt(latest.margin_current_A, '.1f')))
     for q in LIMITED:
@@ -107,7 +107,7 @@ def estimate_status(est: Estimator, node: NodeCounters) -> Status:
                        f'{lat[0]:.2f}/{lat[1]:.2f}/{max(node.latency_ms):.2f} (last '
                        f'{len(node.latency_ms)} estimates; closing sample received -> '
                        'estimate published)'))
-    for tc, name in topics.THERMOCOUPLES.items():
+    for tc, name in interface.THERMOCOUPLES.items():
         if tc in est.measured_C:
             t_meas = est.measured_C[tc][1]
             values.append((f'measured {tc} [degC]',

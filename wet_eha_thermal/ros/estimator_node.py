@@ -12,7 +12,7 @@ calls ``advance(now)`` with the ROS clock, so the model keeps stepping on its
 fallbacks when inputs fall silent. No call steps more than
 ``estimator.max_steps_per_call`` steps: after a stall the model catches up over
 several calls. Each new estimate is published: one sensor_msgs/Temperature per
-name in ``topics.ESTIMATES`` (stamped with the estimate's sample time, strictly
+name in ``interface.ESTIMATES`` (stamped with the estimate's sample time, strictly
 increasing), the state vector, and the alert summary whenever it changes
 (latched). The rest of each tick's budget goes to the forecast and margin.
 Thermocouples (``/eha/measured/<tc>``) go to the core with their header stamps:
@@ -67,6 +67,7 @@ from rclpy.qos import QoSProfile
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension, String
+from wet_eha_thermal import interface
 from wet_eha_thermal.bag import cdr
 from wet_eha_thermal.config import ConfigError, load_config
 from wet_eha_thermal.estimator.core import Estimate, Estimator
@@ -76,7 +77,7 @@ from wet_eha_thermal.ros.diagnostics import LIMITED
 from wet_eha_thermal.ros.runtime import (accept_whole_numbers, EXECUTORS, FastClock,
                                          prepare_model_step, Readiness, run_node)
 
-NODE_NAME = topics.ESTIMATOR_NODE
+NODE_NAME = interface.ESTIMATOR_NODE
 
 
 def _float_param(description: str, low: float, high: float,
@@ -114,7 +115,7 @@ PARAMETERS = {
     'diagnostics_rate_Hz': (1.0, _float_param('rate of /diagnostics', 0.1, 10.0)),
     'hardware_id': ('wet-eha-rig', _str_param('hardware_id of the diagnostic statuses')),
     'frame_id': ('eha', _str_param('frame_id of the published temperatures')),
-    'topic_prefix': (topics.PREFIX, _str_param(
+    'topic_prefix': (interface.PREFIX, _str_param(
         "replaces '/eha' in every topic name (not /diagnostics)")),
     'executor': ('events', _str_param(
         "executor used by main(): 'events' (rclpy.experimental.EventsExecutor) or 'single' "
@@ -210,8 +211,8 @@ class EstimatorNode(Node):
         # inputs, raw: decoded here in a fraction of rclpy's deserialisation
         input_subs = []
         for name in self.est.inputs:
-            topic = self._topic(topics.INPUT_TOPICS[name])
-            if name in topics.PRESSURE_INPUTS:
+            topic = self._topic(interface.INPUT_TOPICS[name])
+            if name in interface.PRESSURE_INPUTS:
                 cb = functools.partial(self._on_pressure, name)
                 input_subs.append(self.create_subscription(FluidPressure, topic, cb, in_qos,
                                                            raw=True))
@@ -220,28 +221,34 @@ class EstimatorNode(Node):
                 input_subs.append(self.create_subscription(Float64, topic, cb, in_qos,
                                                            raw=True))
             self.topic_names[name] = topic
-        self.create_subscription(Temperature, self._topic(topics.AMBIENT_TOPIC),
+        self.create_subscription(Temperature, self._topic(interface.AMBIENT_TOPIC),
                                  self._on_ambient, in_qos)
-        for tc in topics.THERMOCOUPLES:
-            key = f'{topics.MEASURED_PREFIX}/{tc}'
+        for tc in interface.THERMOCOUPLES:
+            key = f'{interface.MEASURED_PREFIX}/{tc}'
             self.topic_names[key] = self._topic(key)
             self.create_subscription(Temperature, self.topic_names[key],
                                      functools.partial(self._on_measured, tc), in_qos)
-        self.create_subscription(String, self._topic(topics.ACK_TOPIC), self._on_ack,
+        self.create_subscription(String, self._topic(interface.ACK_TOPIC), self._on_ack,
                                  QoSProfile(depth=10))
 
         # outputs
         self.estimate_pubs = {
-            name: self.create_publisher(Temperature,
-                                        self._topic(f'{topics.ESTIMATE_PREFIX}/{name}'), out_qos)
-            for name in topics.ESTIMATES}
+            name: self.create_publisher(
+                Temperature, self._topic(f'{interface.ESTIMATE_PREFIX}/{name}'), out_qos)
+            for name in interface.ESTIMATES}
         self._temperature_msg = Temperature()
         self._temperature_msg.header.frame_id = self.frame_id
         self.state_pub = self.create_publisher(Float64MultiArray,
-                                               self._topic(topics.STATE_TOPIC), out_qos)
-        self.alert_pub = self.create_publisher(String, self._topic(topics.ALERT_TOPIC),
+                                               self._topic(interface.STATE_TOPIC), out_qos)
+        # the name of each element of the state, once and latched: they do not change in a run
+        names_topic = self._topic(interface.STATE_NAMES_TOPIC)
+        self.state_names_pub = self.create_publisher(String, names_topic, topics.latched_qos())
+        self.state_names_pub.publish(String(data=json.dumps(
+            {'unit': 'K', 'names': list(self.est.model.quantities.state_names)})))
+        self._state_label = f'state_K: names on {names_topic}'
+        self.alert_pub = self.create_publisher(String, self._topic(interface.ALERT_TOPIC),
                                                topics.latched_qos())
-        self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS_TOPIC,
+        self.diag_pub = self.create_publisher(DiagnosticArray, interface.DIAGNOSTICS_TOPIC,
                                               QoSProfile(depth=10))
 
         self.budget_s = p['background_budget_ms'] * 1e-3
@@ -251,19 +258,19 @@ class EstimatorNode(Node):
         self.view_error = ''
         self.view = self._start_view(view_at, p) if view_at is not None else None
         self._publish_alerts(force=True)
-        self.readiness = Readiness(self, self._topic(topics.READY_TOPIC), input_subs,
+        self.readiness = Readiness(self, self._topic(interface.READY_TOPIC), input_subs,
                                    self.hardware_id, require_all=True,
                                    extra={'foxglove': self.view.url if self.view else None,
                                           'foxglove_error': self.view_error})
         self.get_logger().info(
-            f"estimating {len(topics.ESTIMATES)} temperatures at {p['publish_rate_Hz']:g} Hz "
+            f"estimating {len(interface.ESTIMATES)} temperatures at {p['publish_rate_Hz']:g} Hz "
             f"from {self.prefix or '/'}/* ({p['qos']} QoS, depth {p['qos_depth']}); config "
             f"{p['config_file'] or 'reference_eha.yaml (shipped)'}")
 
     # ------------------------------------------------------------- helpers
     def _topic(self, name: str) -> str:
-        """Return ``name`` with the topic prefix in place of topics.PREFIX."""
-        return topics.prefixed(name, self.prefix)
+        """Return ``name`` with the topic prefix in place of interface.PREFIX."""
+        return interface.prefixed(name, self.prefix)
 
     def _now_s(self) -> Optional[float]:
         """Return the ROS clock in seconds, or None while sim time has not started."""
@@ -289,8 +296,8 @@ class EstimatorNode(Node):
                         PARAMETERS[n][1].floating_point_range[0].to_value)
                     for n in FOXGLOVE_SETTABLE}
         try:
-            view = LiveView(host, port, estimates=topics.ESTIMATES, limited=LIMITED,
-                            inputs=self.est.inputs, thermocouples=topics.THERMOCOUPLES,
+            view = LiveView(host, port, estimates=interface.ESTIMATES, limited=LIMITED,
+                            inputs=self.est.inputs, thermocouples=interface.THERMOCOUPLES,
                             inputs_rate_Hz=p['foxglove_inputs_rate_Hz'], prefix=self.prefix,
                             parameters={**p, **alerts, **limits}, settable=settable)
         except RuntimeError as exc:
@@ -521,11 +528,9 @@ class EstimatorNode(Node):
     def _publish_state(self) -> None:
         """Publish the model's state vector (after the estimates: no consumer waits on it)."""
         state = self.est.model.state
-        n_motor = state.size - self.est.model.circuit.n
         arr = Float64MultiArray()
-        arr.layout.dim = [MultiArrayDimension(
-            label=f'state_K: motor[0:{n_motor}], hydraulic[{n_motor}:{state.size}]',
-            size=state.size, stride=state.size)]
+        arr.layout.dim = [MultiArrayDimension(label=self._state_label, size=state.size,
+                                              stride=state.size)]
         arr.data = state.astype(float).tolist()
         self.state_pub.publish(arr)
 

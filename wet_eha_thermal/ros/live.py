@@ -64,13 +64,14 @@ from rclpy.qos import QoSProfile
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import Temperature
 from std_msgs.msg import String
+from wet_eha_thermal import interface
 from wet_eha_thermal.bag.reader import BagError, open_bag
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.estimator.warmup import compile_estimator
+from wet_eha_thermal.interface import ESTIMATOR_NODE, RECORDER_NODE, RIG_NODE
 from wet_eha_thermal.live_view import address_text, app_url
 from wet_eha_thermal.ros import topics
 from wet_eha_thermal.ros.recorder_node import default_output
-from wet_eha_thermal.ros.topics import ESTIMATOR_NODE, RECORDER_NODE, RIG_NODE
 
 #: Environment variable that fixes the ROS domain of a live run (0..232).
 DOMAIN_ENV = 'WET_EHA_LIVE_DOMAIN_ID'
@@ -515,13 +516,13 @@ def _monitor_node(context, state: TwinState):
         return cb
 
     for name in WATCHED:
-        node.create_subscription(Temperature, f'{topics.ESTIMATE_PREFIX}/{name}',
+        node.create_subscription(Temperature, f'{interface.ESTIMATE_PREFIX}/{name}',
                                  estimate_cb(name), QoSProfile(depth=50))
-    node.create_subscription(String, topics.ALERT_TOPIC, lambda m: state.on_alerts(m.data),
+    node.create_subscription(String, interface.ALERT_TOPIC, lambda m: state.on_alerts(m.data),
                              topics.latched_qos())
-    node.create_subscription(DiagnosticArray, topics.DIAGNOSTICS_TOPIC,
+    node.create_subscription(DiagnosticArray, interface.DIAGNOSTICS_TOPIC,
                              lambda m: state.on_diagnostics(m.status), QoSProfile(depth=20))
-    node.create_subscription(String, topics.READY_TOPIC,
+    node.create_subscription(String, interface.READY_TOPIC,
                              lambda m: state.on_ready(m.data, time.monotonic()),
                              topics.latched_qos(depth=10))
     return node

@@ -2,21 +2,21 @@
 The recorder: every topic of the twin to a rosbag2 bag directory (MCAP files).
 
 Node ``eha_recorder``. It subscribes at start to every topic the twin uses
-(``topic_prefix`` replaces ``/eha``; see :mod:`.topics`): each estimator
-input of ``INPUT_TOPICS`` (all of them: three pressures and the differential
-one), the ambient temperature, the thermocouples, the estimates, the state,
-the alerts (transient local, so the last summary published before the
-recorder started is recorded too), the acknowledgements and /diagnostics (its
-own status included). ``extra_topics`` names further topics, subscribed once
-they appear in the ROS graph, with their type and a QoS adapted to their
-publishers as rosbag2 does (reliable and transient local only when every
-publisher is).
+(``topic_prefix`` replaces ``/eha``; see :mod:`wet_eha_thermal.interface`):
+each estimator input of ``INPUT_TOPICS`` (all of them: three pressures and
+the differential one), the ambient temperature, the thermocouples, the
+estimates, the state, the state's names and the alerts (both transient
+local, so what was published before the recorder started is recorded too),
+the acknowledgements and /diagnostics (its own status included). ``extra_topics``
+names further topics, subscribed once they appear in the ROS graph, with
+their type and a QoS adapted to their publishers as rosbag2 does (reliable
+and transient local only when every publisher is).
 
 QoS of the fixed subscriptions: the sensor topics (inputs, ambient,
 thermocouples) take ``qos`` (sensor_data, best effort, hears every
 publisher; or reliable, which hears only reliable publishers but loses
 nothing they send); the outputs and acknowledgements are reliable; the
-alerts reliable and transient local. Depth ``qos_depth``.
+alerts and the state's names reliable and transient local. Depth ``qos_depth``.
 
 Messages are taken raw (CDR bytes, never deserialised) and written with
 :class:`~wet_eha_thermal.bag.writer.BagWriter`; a topic becomes a channel at
@@ -72,6 +72,7 @@ from rclpy.exceptions import NameValidationException, ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from wet_eha_thermal import interface
 from wet_eha_thermal.bag.writer import BagWriter, COMPRESSIONS, qos_profiles
 from wet_eha_thermal.config import ConfigError, default_config_path, load_config
 from wet_eha_thermal.ros import topics
@@ -79,7 +80,7 @@ from wet_eha_thermal.ros.runtime import (accept_whole_numbers, descriptor, EXECU
                                          FastClock, Readiness, run_node)
 import yaml
 
-NODE_NAME = topics.RECORDER_NODE
+NODE_NAME = interface.RECORDER_NODE
 #: Metadata record names in every file of the bag (see the module docstring).
 CONFIG_METADATA = 'wet_eha_thermal.config'
 PARAMS_METADATA = 'wet_eha_thermal.params'
@@ -115,7 +116,7 @@ PARAMETERS = {
     'qos': ('sensor_data', descriptor(
         "QoS of the sensor subscriptions: 'sensor_data' (best effort) or 'reliable'")),
     'qos_depth': (1000, descriptor('history depth of every subscription', 1, 100000)),
-    'topic_prefix': (topics.PREFIX, descriptor(
+    'topic_prefix': (interface.PREFIX, descriptor(
         "replaces '/eha' in every topic name (not /diagnostics)")),
     # declared by type: rclpy takes an empty list for a byte array; unset, it reads None
     'extra_topics': (Parameter.Type.STRING_ARRAY, ParameterDescriptor(
@@ -132,26 +133,27 @@ PARAMETERS = {
 }
 
 
-def recorded_topics(prefix: str = topics.PREFIX) -> Dict[str, Tuple[str, str]]:
+def recorded_topics(prefix: str = interface.PREFIX) -> Dict[str, Tuple[str, str]]:
     """
     Return the fixed topics of the recorder under ``prefix``: topic -> (type, QoS kind).
 
     The QoS kind is 'sensor' (the ``qos`` parameter), 'output' (reliable) or
     'latched' (reliable, transient local).
     """
-    found = {topics.INPUT_TOPICS[name]: (topics.INPUT_TYPES[name], 'sensor')
-             for name in topics.INPUT_TOPICS}
-    found[topics.AMBIENT_TOPIC] = (TEMPERATURE, 'sensor')
-    for tc in topics.THERMOCOUPLES:
-        found[f'{topics.MEASURED_PREFIX}/{tc}'] = (TEMPERATURE, 'sensor')
-    for name in topics.ESTIMATES:
-        found[f'{topics.ESTIMATE_PREFIX}/{name}'] = (TEMPERATURE, 'output')
-    found[topics.STATE_TOPIC] = ('std_msgs/msg/Float64MultiArray', 'output')
-    found[topics.ALERT_TOPIC] = ('std_msgs/msg/String', 'latched')
-    found[topics.READY_TOPIC] = ('std_msgs/msg/String', 'latched')
-    found[topics.ACK_TOPIC] = ('std_msgs/msg/String', 'output')
-    found[topics.DIAGNOSTICS_TOPIC] = ('diagnostic_msgs/msg/DiagnosticArray', 'output')
-    return {topics.prefixed(topic, prefix): spec for topic, spec in found.items()}
+    found = {interface.INPUT_TOPICS[name]: (interface.INPUT_TYPES[name], 'sensor')
+             for name in interface.INPUT_TOPICS}
+    found[interface.AMBIENT_TOPIC] = (TEMPERATURE, 'sensor')
+    for tc in interface.THERMOCOUPLES:
+        found[f'{interface.MEASURED_PREFIX}/{tc}'] = (TEMPERATURE, 'sensor')
+    for name in interface.ESTIMATES:
+        found[f'{interface.ESTIMATE_PREFIX}/{name}'] = (TEMPERATURE, 'output')
+    found[interface.STATE_TOPIC] = ('std_msgs/msg/Float64MultiArray', 'output')
+    found[interface.STATE_NAMES_TOPIC] = ('std_msgs/msg/String', 'latched')
+    found[interface.ALERT_TOPIC] = ('std_msgs/msg/String', 'latched')
+    found[interface.READY_TOPIC] = ('std_msgs/msg/String', 'latched')
+    found[interface.ACK_TOPIC] = ('std_msgs/msg/String', 'output')
+    found[interface.DIAGNOSTICS_TOPIC] = ('diagnostic_msgs/msg/DiagnosticArray', 'output')
+    return {interface.prefixed(topic, prefix): spec for topic, spec in found.items()}
 
 
 def default_output(stem: str = 'eha') -> Path:
@@ -234,7 +236,8 @@ class RecorderNode(Node):
         self.write_failed = False                   # the writer gave up (disk full, ...)
         self.started_s = time.monotonic()
         self.clock = FastClock(self)
-        inputs = {topics.prefixed(t, p['topic_prefix']) for t in topics.INPUT_TOPICS.values()}
+        inputs = {interface.prefixed(t, p['topic_prefix'])
+                  for t in interface.INPUT_TOPICS.values()}
         input_subs = []
         for topic, (type_name, kind) in recorded_topics(p['topic_prefix']).items():
             sub = self._subscribe(topic, type_name, qos_of[kind])
@@ -242,13 +245,13 @@ class RecorderNode(Node):
                 input_subs.append(sub)
         extra = ['/' + t.lstrip('/') for t in p['extra_topics']]    # as rosbag2 names them
         self.extra_wanted = [t for t in extra if t not in self.types]
-        self.diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS_TOPIC,
+        self.diag_pub = self.create_publisher(DiagnosticArray, interface.DIAGNOSTICS_TOPIC,
                                               QoSProfile(depth=10))
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._on_diagnostics)
         # ready once every input topic that has a publisher is matched (a rig publishes
         # either the three pressures or the differential one)
         self.readiness = Readiness(
-            self, topics.prefixed(topics.READY_TOPIC, p['topic_prefix']), input_subs,
+            self, interface.prefixed(interface.READY_TOPIC, p['topic_prefix']), input_subs,
             self.hardware_id, require_all=False)
         if self.extra_wanted:
             # steady clock: under use_sim_time an extra topic may be /clock itself

@@ -28,7 +28,7 @@ from rclpy.task import Future
 from rclpy.utilities import remove_ros_args
 from std_msgs.msg import String
 from wet_eha_thermal.config import Config
-from wet_eha_thermal.ros import topics
+from wet_eha_thermal.ros.topics import latched_qos
 
 EXECUTORS = ('events', 'single')
 
@@ -78,7 +78,7 @@ class Readiness:
         self.hardware_id = hardware_id
         self.extra = dict(extra or {})
         self.ready = False
-        self.publisher = node.create_publisher(String, topic, topics.latched_qos())
+        self.publisher = node.create_publisher(String, topic, latched_qos())
         self._timer = node.create_timer(0.1, self.check,
                                         clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.check()

@@ -64,14 +64,14 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64, String
 from wet_eha_thermal.config import ConfigError, load_config
+from wet_eha_thermal.interface import (AMBIENT_TOPIC, DIAGNOSTICS_TOPIC, INPUT_TOPICS,
+                                       MEASURED_PREFIX, PREFIX, prefixed, PRESSURE_INPUTS,
+                                       READY_TOPIC, RIG_NODE, THERMOCOUPLES)
 from wet_eha_thermal.model.kinetics import DutyError, load_duty_csv, stage_duty, STAGES
 from wet_eha_thermal.model.motor import C_TO_K
 from wet_eha_thermal.ros.runtime import (accept_whole_numbers, descriptor, prepare_model_step,
                                          run_node)
-from wet_eha_thermal.ros.topics import (AMBIENT_TOPIC, DIAGNOSTICS_TOPIC, input_qos,
-                                        INPUT_TOPICS, latched_qos, MEASURED_PREFIX, PREFIX,
-                                        prefixed, PRESSURE_INPUTS, publish_inputs, READY_TOPIC,
-                                        RIG_NODE, THERMOCOUPLES)
+from wet_eha_thermal.ros.topics import input_qos, latched_qos, publish_inputs
 from wet_eha_thermal.simulated_rig import (AMBIENT_SIGMA_K, NOISE_SIGMA, SimulatedRig,
                                            THERMOCOUPLE_SIGMA_K)
 
