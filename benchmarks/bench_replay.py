@@ -2,7 +2,7 @@
 Offline replay of a rig log through the estimator: rate, ratio to the plain reader loop, memory.
 
 Run: OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_replay.py
-     [--minutes 60] [--bag EXISTING.mcap] [--keep] [--dir DIR]
+     [--minutes 60] [--bag EXISTING.mcap] [--keep] [--dir DIR] [--rounds N]
 
 Without ``--bag`` it first writes a log of the simulated rig on stage 6
 (:func:`~wet_eha_thermal.simulated_rig.write_rig_bag`: current, speed, one
@@ -22,13 +22,18 @@ RSS is its own:
 
 Printed: messages per second of each, the replays' ratios to the plain loop,
 multiples of real time, and peak RSS (the replay's reading process, which
-decodes the next block on the other core, on its own).
+decodes the next block on the other core, on its own). With ``--rounds N``
+the three run N times in turn, and the medians close the output: each phase's
+time, and each replay's ratio to the plain loop of its own round (a virtual
+machine whose speed drifts by 10-30 % within minutes makes one round's ratio
+a sample, not a figure).
 """
 
 import argparse
 import json
 from pathlib import Path
 import resource
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -84,6 +89,37 @@ def write_log(path: Path, minutes: float) -> None:
           f'{path.stat().st_size / 1e6:.0f} MB -> {path}')
 
 
+PHASES = ('plain', 'open-loop', 'replay')
+
+
+def ratio(r: dict, phase: str) -> float:
+    """Return a replay's rate over the plain loop's, both of the round ``r``."""
+    return (r[phase]['messages'] / r[phase]['seconds']) / (
+        r['plain']['messages'] / r['plain']['seconds'])
+
+
+def run_round(path: Path) -> dict:
+    """Run the three phases once, each in its own process; print and return their figures."""
+    r = {}
+    for phase in PHASES:
+        out = subprocess.run([sys.executable, __file__, '--phase', phase, '--bag', str(path)],
+                             check=True, capture_output=True, text=True)
+        r[phase] = json.loads(out.stdout)
+        rate = r[phase]['messages'] / r[phase]['seconds']
+        print(f'{phase:9s}: {r[phase]["messages"]} messages in {r[phase]["seconds"]:.1f} s '
+              f'= {rate:.0f} msg/s, peak RSS {r[phase]["peak_rss_MB"]:.0f} MB (after '
+              f'imports {r[phase]["rss_before_MB"]:.0f} MB)'
+              + (f', reading process {r[phase]["reader_rss_MB"]:.0f} MB'
+                 if r[phase]['reader_rss_MB'] else ''), flush=True)
+    for phase in PHASES[1:]:
+        rp = r[phase]
+        print(f'{phase:9s} / plain loop: {ratio(r, phase):.2f}x; '
+              f'{rp["steps"]} model steps, {rp["sample_time_s"]:.0f} s of sample time in '
+              f'{rp["seconds"]:.1f} s = {rp["sample_time_s"] / rp["seconds"]:.1f}x real time',
+              flush=True)
+    return r
+
+
 def main() -> None:
     """Run the benchmark and print the figures."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
@@ -91,8 +127,9 @@ def main() -> None:
     parser.add_argument('--bag', type=Path, help='replay this log instead of writing one')
     parser.add_argument('--dir', type=Path, help='where to write the log (default: temp dir)')
     parser.add_argument('--keep', action='store_true', help='keep the log written')
-    parser.add_argument('--phase', choices=('plain', 'open-loop', 'replay'),
-                        help=argparse.SUPPRESS)
+    parser.add_argument('--rounds', type=int, default=1,
+                        help='run the three phases this many times in turn; print medians')
+    parser.add_argument('--phase', choices=PHASES, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.phase:
         run_phase(args.phase, args.bag)
@@ -105,23 +142,16 @@ def main() -> None:
             f'bench_replay_stage6_{args.minutes:g}min_{time.strftime("%Y%m%d_%H%M%S")}.mcap')
         write_log(path, args.minutes)
     try:
-        r = {}
-        for phase in ('plain', 'open-loop', 'replay'):
-            out = subprocess.run([sys.executable, __file__, '--phase', phase, '--bag', str(path)],
-                                 check=True, capture_output=True, text=True)
-            r[phase] = json.loads(out.stdout)
-            rate = r[phase]['messages'] / r[phase]['seconds']
-            print(f'{phase:9s}: {r[phase]["messages"]} messages in {r[phase]["seconds"]:.1f} s '
-                  f'= {rate:.0f} msg/s, peak RSS {r[phase]["peak_rss_MB"]:.0f} MB (after '
-                  f'imports {r[phase]["rss_before_MB"]:.0f} MB)'
-                  + (f', reading process {r[phase]["reader_rss_MB"]:.0f} MB'
-                     if r[phase]['reader_rss_MB'] else ''), flush=True)
-        plain_rate = r['plain']['messages'] / r['plain']['seconds']
-        for phase in ('open-loop', 'replay'):
-            rp = r[phase]
-            print(f'{phase:9s} / plain loop: {rp["messages"] / rp["seconds"] / plain_rate:.2f}x; '
-                  f'{rp["steps"]} model steps, {rp["sample_time_s"]:.0f} s of sample time in '
-                  f'{rp["seconds"]:.1f} s = {rp["sample_time_s"] / rp["seconds"]:.1f}x real time')
+        rounds = [run_round(path) for _ in range(args.rounds)]
+        if args.rounds > 1:
+            print(f'medians of {args.rounds} rounds:')
+            for phase in PHASES:
+                print(f'{phase:9s}: '
+                      f'{statistics.median(r[phase]["seconds"] for r in rounds):.1f} s')
+            for phase in PHASES[1:]:
+                ratios = [ratio(r, phase) for r in rounds]
+                print(f'{phase:9s} / plain loop: {statistics.median(ratios):.2f}x (rounds: '
+                      + ', '.join(f'{x:.2f}x' for x in ratios) + ')')
     finally:
         if args.bag is None and not args.keep:
             path.unlink()
