@@ -41,8 +41,8 @@ CONNECT_TIMEOUT_S = 30.0
 #: its whole run, and Dask's defaults wake each process's event loop every
 #: 20 ms (a health check) and sample the system every 0.5 s: each wake-up
 #: takes the GIL from the replay, and the in-process scheduler a share of the
-#: cores the workers use (measured: docs/scaling.md). A stuck loop is still
-#: reported after 3 s, as before.
+#: cores the workers use (measured: docs/scaling.md). Dask still logs a loop
+#: that went more than 3 s between two ticks (its tick.limit, unchanged).
 LOCAL_CLUSTER_CONFIG = {'distributed.admin.tick.interval': '1s',
                         'distributed.admin.system-monitor.interval': '5s'}
 #: Estimates shown in campaign.md (campaign.csv has the peak of every one).
