@@ -228,10 +228,11 @@ def run_node(args: Optional[List[str]], prog: str, description: str,
         # collector's full passes, which would otherwise stall a callback now and then
         gc.freeze()
         executor = make_executor(kind)
-        if log_executor:
-            node.get_logger().info(f'spinning with the {kind} executor')
-        executor.add_node(node)
         try:
+            # inside: a Ctrl-C while the node is added still shuts the executor down
+            executor.add_node(node)
+            if log_executor:
+                node.get_logger().info(f'spinning with the {kind} executor')
             spin(executor)
             if after_spin is not None:
                 after_spin(node, executor)
