@@ -27,10 +27,10 @@ from typing import Callable, Dict, Iterator, Optional, Tuple
 
 import numpy as np
 
-from . import interface
 from .config import Calibration, Config
 from .estimator.core import sensor_inputs, sensor_signal
-from .interface import THERMOCOUPLES
+from .interface import (AMBIENT_TOPIC, INPUT_TOPICS, INPUT_TYPES, MEASURED_PREFIX,
+                        PRESSURE_INPUTS, THERMOCOUPLES)
 from .model.eha import EHAModel
 from .model.kinetics import Duty, KineticModel, ThermalFeedback
 from .model.motor import C_TO_K
@@ -167,19 +167,19 @@ def write_rig_bag(path: os.PathLike, rig: SimulatedRig, seconds: float, *,
     with BagWriter(path, metadata=metadata) as bag:
         for name in rig.inputs:
             # what the sensor_data input QoS offers (ros.topics.input_qos)
-            bag.add_topic(interface.INPUT_TOPICS[name], interface.INPUT_TYPES[name],
+            bag.add_topic(INPUT_TOPICS[name], INPUT_TYPES[name],
                           offered_qos('best_effort', depth=100))
         for tc in THERMOCOUPLES:
-            bag.add_topic(f'{interface.MEASURED_PREFIX}/{tc}', 'sensor_msgs/msg/Temperature',
+            bag.add_topic(f'{MEASURED_PREFIX}/{tc}', 'sensor_msgs/msg/Temperature',
                           offered_qos(depth=10))
-        bag.add_topic(interface.AMBIENT_TOPIC, 'sensor_msgs/msg/Temperature',
+        bag.add_topic(AMBIENT_TOPIC, 'sensor_msgs/msg/Temperature',
                       offered_qos(depth=10))
         for k, n_blocks, block, tcs, amb in rig.run(seconds, thermocouple_rate_Hz):
             stamps_ns = (start_ns + np.round(block['t_s'] * 1e9)).astype(np.int64)
-            cols = [(interface.INPUT_TOPICS[n],
+            cols = [(INPUT_TOPICS[n],
                      cdr.encode_stamped(stamps_ns, '', np.column_stack(
                          [block[n], np.zeros_like(block[n])]))
-                     if n in interface.PRESSURE_INPUTS
+                     if n in PRESSURE_INPUTS
                      else [cdr.encode_float64(v) for v in block[n].tolist()])
                     for n in rig.inputs]
             stamps = stamps_ns.tolist()
@@ -190,11 +190,11 @@ def write_rig_bag(path: os.PathLike, rig: SimulatedRig, seconds: float, *,
             ns = stamps[-1]
             if tcs is not None:
                 for tc, value in tcs.items():
-                    bag.write(f'{interface.MEASURED_PREFIX}/{tc}',
+                    bag.write(f'{MEASURED_PREFIX}/{tc}',
                               temperature(value, THERMOCOUPLE_SIGMA_K, ns), ns)
                     count += 1
             if amb is not None:
-                bag.write(interface.AMBIENT_TOPIC, temperature(amb, AMBIENT_SIGMA_K, ns), ns)
+                bag.write(AMBIENT_TOPIC, temperature(amb, AMBIENT_SIGMA_K, ns), ns)
                 count += 1
             if on_progress is not None and k % 500 == 0:
                 on_progress((k + 1) / n_blocks)

@@ -140,10 +140,19 @@ def type_hash(type_name: str) -> str:
     raise ValueError(f'message type {type_name!r}: no type hash in its .json description')
 
 
-def _rmw_time(duration) -> Dict[str, int]:
-    """Return an rclpy Duration as rosbag2 writes an rmw_time_t."""
-    sec, nsec = divmod(duration.nanoseconds, 1_000_000_000)
-    return {'sec': sec, 'nsec': nsec}
+def _rosbag2_profile(history: str, depth: int, reliability: str, durability: str,
+                     deadline_ns: int, lifespan_ns: int, liveliness: str, lease_ns: int,
+                     avoid_ros_namespace_conventions: bool) -> dict:
+    """Return one offered QoS profile as rosbag2 (metadata version 9) stores it."""
+    def rmw_time(ns: int) -> Dict[str, int]:  # a new dict each: a shared one dumps as an alias
+        sec, nsec = divmod(ns, 1_000_000_000)
+        return {'sec': sec, 'nsec': nsec}
+
+    return {'history': history, 'depth': depth, 'reliability': reliability,
+            'durability': durability, 'deadline': rmw_time(deadline_ns),
+            'lifespan': rmw_time(lifespan_ns), 'liveliness': liveliness,
+            'liveliness_lease_duration': rmw_time(lease_ns),
+            'avoid_ros_namespace_conventions': avoid_ros_namespace_conventions}
 
 
 def qos_profiles(qos) -> List[dict]:
@@ -153,17 +162,11 @@ def qos_profiles(qos) -> List[dict]:
     Read by attribute, so this module imports nothing of ROS: the recorder
     passes what its publishers offer.
     """
-    return [{
-        'history': qos.history.short_key,
-        'depth': qos.depth,
-        'reliability': qos.reliability.short_key,
-        'durability': qos.durability.short_key,
-        'deadline': _rmw_time(qos.deadline),
-        'lifespan': _rmw_time(qos.lifespan),
-        'liveliness': qos.liveliness.short_key,
-        'liveliness_lease_duration': _rmw_time(qos.liveliness_lease_duration),
-        'avoid_ros_namespace_conventions': qos.avoid_ros_namespace_conventions,
-    }]
+    return [_rosbag2_profile(
+        qos.history.short_key, qos.depth, qos.reliability.short_key,
+        qos.durability.short_key, qos.deadline.nanoseconds, qos.lifespan.nanoseconds,
+        qos.liveliness.short_key, qos.liveliness_lease_duration.nanoseconds,
+        qos.avoid_ros_namespace_conventions)]
 
 
 def offered_qos(reliability: str = 'reliable', durability: str = 'volatile',
@@ -175,13 +178,8 @@ def offered_qos(reliability: str = 'reliable', durability: str = 'volatile',
     logs): rclpy's defaults for the rest (no deadline, lifespan or lease,
     system-default liveliness).
     """
-    def zero():  # one dict each: a shared one would be dumped as a YAML anchor and alias
-        return {'sec': 0, 'nsec': 0}
-
-    return [{'history': 'keep_last', 'depth': depth, 'reliability': reliability,
-             'durability': durability, 'deadline': zero(), 'lifespan': zero(),
-             'liveliness': 'system_default', 'liveliness_lease_duration': zero(),
-             'avoid_ros_namespace_conventions': False}]
+    return [_rosbag2_profile('keep_last', depth, reliability, durability, 0, 0,
+                             'system_default', 0, False)]
 
 
 def _yaml(data) -> str:
