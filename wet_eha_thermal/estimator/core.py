@@ -841,7 +841,7 @@ class Estimator:
         on_fallback = self.settings.stale_uncertainty_K_per_s * max(worst_stale, 0.0)
         sigma = self.settings.model_uncertainty_K + on_fallback
         if corrected is not None:
-            uncertainty = self._filtered_uncertainty(outputs, on_fallback, sigma)
+            uncertainty = self._filtered_uncertainty(on_fallback, sigma)
         else:
             uncertainty = {k: sigma for k in temps}
         notices, self._notices = self._notices, []
@@ -887,8 +887,7 @@ class Estimator:
         self.held_blocks += 1
         return est
 
-    def _filtered_uncertainty(self, outputs: Dict[str, float], on_fallback: float,
-                              open_loop: float) -> Dict[str, float]:
+    def _filtered_uncertainty(self, on_fallback: float, open_loop: float) -> Dict[str, float]:
         """
         Return each output's 1 sigma (K) from the filter's covariance.
 
@@ -898,8 +897,9 @@ class Estimator:
         not seen a thermocouple for long knows no more than the model alone.
         """
         u2 = self.settings.correction.unmodelled_sigma_K ** 2
-        return {k: min(math.sqrt(v + u2) + on_fallback, open_loop)
-                for k, v in self.correction.variances(self.model, outputs).items()}
+        sigma = np.minimum(np.sqrt(self.correction.variances(self.model) + u2) + on_fallback,
+                           open_loop)
+        return dict(zip(self.model.quantities.names, sigma.tolist()))
 
     def _model_inputs(self, values: Dict[str, np.ndarray]) -> Dict[str, np.ndarray]:
         """

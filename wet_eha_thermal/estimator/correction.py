@@ -197,6 +197,7 @@ class ThermalCorrection:
         self._H_mean = np.zeros((len(means), self.n))
         for k, name in enumerate(means):
             self._H_mean[k, q.state_indices(name)] = q.weights(name)
+        self._mean_of_output = np.array([self._mean_row.get(name, -1) for name in q.names])
         # the outputs that are one fixed state: its index
         self._fixed_index = {name: int(q.state_indices(name)[0])
                              for name, o in q.outputs.items() if o.kind == STATE}
@@ -469,35 +470,24 @@ class ThermalCorrection:
             P[nt:, nt:] = np.diag(self._d_prior)
         self.P = P
 
-    def _transition(self, model: EHAModel, dt: float) -> Tuple[np.ndarray, np.ndarray]:
-        """Return the step's state transition and the heat capacities of the states."""
-        mo, ci = model.motor, model.circuit
+    def _predict(self, model: EHAModel, dt: float) -> None:
+        """Propagate the covariance through the step just made (``dt`` s)."""
+        mo = model.motor
         disc = mo.net.last_disc
-        # motor: x+ = Ad x + Bd w, copper losses linear in their temperatures (R(T))
-        T_cu = mo.T[mo.idx_copper]
         p_cu = mo.power_W[self._src_copper]
         if mo.extra_power_W is not None:          # the learned heat does not follow R(T)
             p_cu = p_cu - mo.extra_power_W[self._src_copper]
-        gain = p_cu * self._alpha_cu / (1.0 + self._alpha_cu * (T_cu - (C_TO_K + 20.0)))
         # hydraulics: the circuit's transition over the step, and its responses to the
         # motor outlet's step mean (into the accumulator) and to heat into the case
-        Eh, g_acc, g_case, C = ci.last_transition()
-        Phi = coupled_transition(
-            disc.Ad, disc.Bd, disc.Mx, disc.Mw, gain, self._s_copper, self._col_copper,
-            self._col_inlet, self._w_copper, self._s_outlet, mo.last_substeps, Eh, g_acc,
-            g_case, self._i_case, -1 if self._i_case_d is None else self._i_case_d,
-            -1 if self._i_wind_d is None else self._i_wind_d, self.n)
-        cap = np.concatenate([mo.net.coefficients_in_use()[2][self.dynamic], C])
-        return Phi, cap
-
-    def _predict(self, model: EHAModel, dt: float) -> None:
-        """Propagate the covariance through the step just made."""
-        Phi, cap = self._transition(model, dt)
-        s = self.settings
-        # process noise at the start of the step: white heat-rate error per node, and the
-        # disturbances' random walks
-        noise = np.concatenate([s.heat_noise_W ** 2 * dt / cap ** 2, self._d_rate2 * dt])
-        self.P = propagate_covariance(self.P, Phi, noise, self._d_prior)
+        Eh, g_acc, g_case, C = model.circuit.last_transition()
+        self.P = predict_covariance(
+            self.P, disc.Ad, disc.Bd, disc.Mx, disc.Mw, mo.T[mo.idx_copper], p_cu,
+            self._alpha_cu, self._s_copper, self._col_copper, self._col_inlet, self._w_copper,
+            self._s_outlet, mo.last_substeps, Eh, g_acc, g_case, self._i_case,
+            -1 if self._i_case_d is None else self._i_case_d,
+            -1 if self._i_wind_d is None else self._i_wind_d,
+            mo.net.coefficients_in_use()[2][self.dynamic], C,
+            self.settings.heat_noise_W ** 2 * dt, self._d_rate2 * dt, self._d_prior)
 
     def _write_back(self, model: EHAModel, delta: np.ndarray) -> None:
         """Put the corrected state into the model, every dependent value consistent."""
@@ -537,22 +527,10 @@ class ThermalCorrection:
         row[model.output_states([quantity])[0] if i is None else i] = 1.0
         return row
 
-    def variances(self, model: EHAModel, outputs: Dict[str, float]) -> Dict[str, float]:
-        """Return the filter's variance (K^2) of every named output."""
-        P = self.P
-        Hm = self._H_mean
-        means = np.einsum('ij,ij->i', Hm @ P, Hm).tolist()
-        diag = P.diagonal().tolist()
-        # the single states: fixed ones, and those a max or the port takes now
-        index = dict(self._fixed_index)
-        taken = [q for q in outputs if q not in index and q not in self._mean_row]
-        index.update(zip(taken, model.output_states(taken)))
-        out = {}
-        for q in outputs:
-            k = self._mean_row.get(q)
-            v = diag[index[q]] if k is None else means[k]
-            out[q] = v if v > 0.0 else 0.0
-        return out
+    def variances(self, model: EHAModel) -> np.ndarray:
+        """Return the filter's variance (K^2) of every output, in the order of the model's map."""
+        return output_variances(self.P, model.states_taken(), self._H_mean,
+                                self._mean_of_output)
 
     def summary(self) -> Dict[str, object]:
         """Return what an estimate reports: active, learned heats (W), thermocouple statuses."""
@@ -614,6 +592,30 @@ def coupled_transition(Ad, Bd, Mx, Mw, copper_gain, s_copper, col_copper, col_in
 
 
 @jit
+def predict_covariance(P, Ad, Bd, Mx, Mw, T_copper, p_copper, alpha_copper, s_copper,
+                       col_copper, col_inlet, w_copper, s_outlet, substeps, Eh, g_acc, g_case,
+                       i_case, i_case_d, i_wind_d, C_motor, C_hyd, heat_var, walk_var, prior):
+    """
+    Return the covariance after a step of the coupled model, from the step's matrices.
+
+    The copper losses are linear in their temperatures ``T_copper`` (K):
+    ``p_copper`` (W) scales with R(T), 1 + ``alpha_copper`` (T - 20 degC),
+    so dP/dT = p alpha / (1 + alpha (T - 20 degC)). The transition is
+    :func:`coupled_transition`'s. Process noise, added at the start of the
+    step: ``heat_var`` (W^2 s, the heat-rate noise q^2 times the step) over
+    the square of each state's heat capacity (``C_motor``, ``C_hyd``, J/K),
+    and ``walk_var`` for the disturbances (:func:`propagate_covariance`).
+    """
+    gain = p_copper * alpha_copper / (1.0 + alpha_copper * (T_copper - (C_TO_K + 20.0)))
+    Phi = coupled_transition(Ad, Bd, Mx, Mw, gain, s_copper, col_copper, col_inlet, w_copper,
+                             s_outlet, substeps, Eh, g_acc, g_case, i_case, i_case_d,
+                             i_wind_d, P.shape[0])
+    cap = np.concatenate((C_motor, C_hyd))
+    noise = np.concatenate((heat_var / (cap * cap), walk_var))
+    return propagate_covariance(P, Phi, noise, prior)
+
+
+@jit
 def propagate_covariance(P, Phi, noise, prior):
     """
     Return the covariance after a step: Phi (P + diag(noise)) Phi^T, symmetrised, capped.
@@ -635,6 +637,27 @@ def propagate_covariance(P, Phi, noise, prior):
             Q[i, :] *= f
             Q[:, i] *= f
     return Q
+
+
+@jit
+def output_variances(P, taken, H_mean, mean_of_output):
+    """
+    Return the variance of every output from the covariance ``P``, never below zero.
+
+    ``taken[k]``: the state output ``k`` takes (-1: none); else it is the
+    weighted mean of row ``mean_of_output[k]`` of ``H_mean`` (-1: none, NaN).
+    """
+    HP = H_mean @ P
+    out = np.empty(taken.size)
+    for k in range(taken.size):
+        if taken[k] >= 0:
+            v = P[taken[k], taken[k]]
+        elif mean_of_output[k] >= 0:
+            v = np.dot(HP[mean_of_output[k]], H_mean[mean_of_output[k]])
+        else:
+            v = np.nan
+        out[k] = v if v > 0.0 else 0.0
+    return out
 
 
 @jit

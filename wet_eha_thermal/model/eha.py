@@ -303,6 +303,10 @@ class EHAModel:
         """Return the state each single-state output takes now (the hottest one of a max)."""
         return self.quantities.states_taken(names, self._output_values(), self._port_a_high())
 
+    def states_taken(self) -> np.ndarray:
+        """Return the state every output takes now, in the map's order (-1: a mean)."""
+        return self.quantities.evaluate(self._output_values(), self._port_a_high())[1]
+
     def _output_values(self) -> np.ndarray:
         """Return the temperatures the outputs are evaluated on: motor nodes, then circuit (K)."""
         ci = self.circuit

@@ -28,8 +28,12 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from .compiled import jit
+
 
 MEAN, MAX, STATE, PORT = 'mean', 'max', 'state', 'port'
+#: the kinds' codes in :func:`evaluate_outputs`
+_KIND_CODE = {MEAN: 0, MAX: 1, STATE: 2, PORT: 3}
 #: the outputs that are one hydraulic node: output -> node of :data:`~.hydraulics.NODES`
 HYDRAULIC_OUTPUTS = {'pump_case': 'case', 'pump_port_a': 'port_a', 'pump_port_b': 'port_b',
                      'chamber_a': 'chamber_a', 'chamber_b': 'chamber_b',
@@ -96,43 +100,49 @@ class QuantityMap:
         state_of = {name: i for i, name in enumerate(self.state_names)}
         if len(state_of) < len(self.state_names):
             raise ValueError('two states share a name')
+        self.names = tuple(outputs)
         self._states: Dict[str, np.ndarray] = {}      # positions in the state vector
         self._values: Dict[str, np.ndarray] = {}      # positions in the vector of values
-        # how values() forms each output; the single states and ports are read in one go
-        self._plan = []
-        singles = []
         for name, q in outputs.items():
             missing = [s for s in q.states if s not in state_of]
             if missing:
                 raise ValueError(f'output {name}: no state named {", ".join(missing)}')
             self._states[name] = np.array([state_of[s] for s in q.states])
-            idx = self._values[name] = np.array([value_index(s) for s in q.states])
-            if q.kind == MEAN:
-                self._plan.append((name, q.kind, idx, q.weights, q.weights.sum()))
-            elif q.kind == MAX:
-                self._plan.append((name, q.kind, idx, None, None))
-            else:
-                self._plan.append((name, q.kind, len(singles), None, None))
-                singles.extend(idx.tolist())
-        self._singles = np.array(singles, dtype=int)
+            self._values[name] = np.array([value_index(s) for s in q.states])
+        # the whole map as flat tables, for one compiled pass over every output
+        qs = list(outputs.values())
+        self._kinds = np.array([_KIND_CODE[q.kind] for q in qs])
+        self._offsets = np.cumsum([0] + [len(q.states) for q in qs])
+        self._value_at = np.concatenate([self._values[name] for name in self.names])
+        self._state_at = np.concatenate([self._states[name] for name in self.names])
+        self._weights = np.concatenate([q.weights if q.kind == MEAN else np.zeros(len(q.states))
+                                        for q in qs])
+        self._weight_sums = np.array([q.weights.sum() if q.kind == MEAN else 1.0 for q in qs])
+        self._position = {name: k for k, name in enumerate(self.names)}
 
     def __deepcopy__(self, memo) -> 'QuantityMap':
         """Return the map itself: it never changes, so a copied model (a forecast's) shares it."""
         return self
 
+    def evaluate(self, v: np.ndarray, port_a_high: Optional[bool] = None) -> tuple:
+        """
+        Return every output's value (in the unit of ``v``) and the state it takes.
+
+        In the order of :attr:`names`. The state is the position in the state
+        vector of a single-state output (the hottest of a ``max``, the port), -1
+        for a mean; a ``port`` output is NaN, state -1, without ``port_a_high``.
+        """
+        return evaluate_outputs(v, -1 if port_a_high is None else int(port_a_high),
+                                self._kinds, self._offsets, self._value_at, self._state_at,
+                                self._weights, self._weight_sums)
+
     def values(self, v: np.ndarray, port_a_high: Optional[bool] = None) -> Dict[str, float]:
         """Return every output (in the unit of ``v``); a ``port`` one only with ``port_a_high``."""
-        single = v[self._singles].tolist()
-        out = {}
-        for name, kind, at, w, w_sum in self._plan:
-            if kind == MEAN:
-                out[name] = float(np.dot(w, v[at]) / w_sum)
-            elif kind == MAX:
-                out[name] = float(v[at].max())
-            elif kind == STATE:
-                out[name] = single[at]
-            elif port_a_high is not None:
-                out[name] = single[at if port_a_high else at + 1]
+        out = dict(zip(self.names, self.evaluate(v, port_a_high)[0].tolist()))
+        if port_a_high is None:
+            for name, q in self.outputs.items():
+                if q.kind == PORT:
+                    del out[name]
         return out
 
     def state_indices(self, name: str) -> np.ndarray:
@@ -150,15 +160,45 @@ class QuantityMap:
 
     def states_taken(self, names: Sequence[str], v: np.ndarray, port_a_high: bool) -> List[int]:
         """Return the state each single-state output takes now: the hottest of a max, the port."""
-        taken = []
         for name in names:
-            q, states = self.outputs[name], self._states[name]
-            if q.kind == MAX:
-                taken.append(int(states[int(np.argmax(v[self._values[name]]))]))
-            elif q.kind == PORT:
-                taken.append(int(states[0 if port_a_high else 1]))
-            elif q.kind == STATE:
-                taken.append(int(states[0]))
-            else:
-                raise ValueError(f'output {name} is a weighted mean of {len(states)} states')
-        return taken
+            if self.outputs[name].kind == MEAN:
+                raise ValueError(f'output {name} is a weighted mean of '
+                                 f'{len(self._states[name])} states')
+        taken = self.evaluate(v, port_a_high)[1]
+        return [int(taken[self._position[name]]) for name in names]
+
+
+@jit
+def evaluate_outputs(v, port_a_high, kinds, offsets, value_at, state_at, weights, weight_sums):
+    """
+    Return the outputs' values and the states they take (:meth:`QuantityMap.evaluate`).
+
+    Output ``k`` is formed from ``value_at[offsets[k]:offsets[k + 1]]`` (the
+    positions of its states in ``v``), ``state_at`` the same states in the
+    state vector; ``kinds`` 0 mean (by ``weights``, which sum to
+    ``weight_sums[k]``), 1 max, 2 state, 3 port
+    (A then B; ``port_a_high`` 1 A, 0 B, -1 unknown).
+    """
+    n = kinds.size
+    vals = np.empty(n)
+    taken = np.full(n, -1, np.int64)
+    for k in range(n):
+        a, b = offsets[k], offsets[k + 1]
+        g = np.empty(b - a)
+        for i in range(a, b):
+            g[i - a] = v[value_at[i]]
+        if kinds[k] == 0:
+            vals[k] = np.dot(weights[a:b], g) / weight_sums[k]
+            continue
+        if kinds[k] == 1:
+            j = np.argmax(g)              # the first NaN, if any, as numpy's max
+        elif kinds[k] == 2:
+            j = 0
+        elif port_a_high >= 0:
+            j = 0 if port_a_high == 1 else 1
+        else:
+            vals[k] = np.nan
+            continue
+        vals[k] = g[j]
+        taken[k] = state_at[a + j]
+    return vals, taken
