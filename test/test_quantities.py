@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from wet_eha_thermal import interface
 from wet_eha_thermal.config import load_config, Thermocouples
-from wet_eha_thermal.estimator.correction import ThermalCorrection
+from wet_eha_thermal.estimator.correction import output_variances, ThermalCorrection
 from wet_eha_thermal.model.hydraulics import NODES
 from wet_eha_thermal.model.kinetics import stage_duty
 from wet_eha_thermal.model.quantities import MAX, MEAN, PORT, Quantity, QuantityMap, STATE
@@ -63,12 +63,19 @@ def test_the_kalman_row_of_each_output_is_its_definition(cfg, model):
     # the circuit reports its step means; on the end state the outputs and the rows meet
     model.circuit.T_report = None
     state = np.concatenate([model.state, np.zeros(corr.nd)])
-    outputs = model.outputs()
+    outputs, taken = model.outputs_and_states()
+    assert outputs == model.outputs()
+    # and the variance of each output is its row's quadratic form in a covariance
+    a = np.random.default_rng(3).normal(size=(corr.n, corr.n))
+    P = a @ a.T
+    variances = dict(zip(q.names, output_variances(P, taken, corr._H_mean,
+                                                   corr._mean_of_output)))
     kinds = set()
     for name, quantity in q.outputs.items():
         kinds.add(quantity.kind)
-        row = corr._row(model, name)
+        row = corr._row(name, taken)
         assert row @ state == pytest.approx(outputs[name], abs=1e-9), name
+        assert variances[name] == pytest.approx(row @ P @ row, rel=1e-12), name
         if quantity.kind in (MEAN, STATE):
             expected = np.zeros(corr.n)
             expected[q.state_indices(name)] = q.weights(name)

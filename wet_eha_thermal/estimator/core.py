@@ -897,8 +897,7 @@ class Estimator:
         not seen a thermocouple for long knows no more than the model alone.
         """
         u2 = self.settings.correction.unmodelled_sigma_K ** 2
-        sigma = np.minimum(np.sqrt(self.correction.variances(self.model) + u2) + on_fallback,
-                           open_loop)
+        sigma = np.minimum(np.sqrt(self.correction.variances_K2 + u2) + on_fallback, open_loop)
         return dict(zip(self.model.quantities.names, sigma.tolist()))
 
     def _model_inputs(self, values: Dict[str, np.ndarray]) -> Dict[str, np.ndarray]:

@@ -87,7 +87,7 @@ from ..interface import THERMOCOUPLES
 from ..model.compiled import jit
 from ..model.eha import EHAModel
 from ..model.motor import C_TO_K
-from ..model.quantities import MEAN, STATE
+from ..model.quantities import MEAN
 
 #: Readings outside this range (degC) are rejected as implausible values.
 READING_RANGE_C = (-60.0, 400.0)
@@ -198,12 +198,12 @@ class ThermalCorrection:
         for k, name in enumerate(means):
             self._H_mean[k, q.state_indices(name)] = q.weights(name)
         self._mean_of_output = np.array([self._mean_row.get(name, -1) for name in q.names])
-        # the outputs that are one fixed state: its index
-        self._fixed_index = {name: int(q.state_indices(name)[0])
-                             for name, o in q.outputs.items() if o.kind == STATE}
+        self._output_position = {name: k for k, name in enumerate(q.names)}
         wd = cfg.motor.winding
         self._alpha_cu = wd.copper_tempco_1_K
         self.P: Optional[np.ndarray] = None
+        #: the variance (K^2) of every output after the last step, in the model map's order
+        self.variances_K2: Optional[np.ndarray] = None
         self.tcs: Dict[str, ThermocoupleHealth] = {}
         for name, quantity in THERMOCOUPLES.items():
             tc = getattr(c.thermocouples, name)
@@ -269,10 +269,9 @@ class ThermalCorrection:
         try:
             self._start()
             self._predict(model, dt)
-            row = self._H_mean[0]
-            Ph = self.P @ row
-            var = float(row @ Ph) + 1.0
-            joseph_update(self.P, Ph / var, Ph, var)
+            _, taken = model.outputs_and_states()
+            output_variances(self.P, taken, self._H_mean, self._mean_of_output)
+            scalar_update(self.P, self._H_mean[0], 0.0, 0.0, 1.0, 1.0, True, np.zeros(self.n))
         finally:
             self.P = P
 
@@ -316,7 +315,7 @@ class ThermalCorrection:
             self._predict(model, dt)
             if not np.isfinite(self.P).all():
                 raise FloatingPointError('the covariance is no longer finite')
-        prior = model.outputs()
+        prior, taken = model.outputs_and_states()
         candidates = []
         for name, items in batch.items():
             y = self._screen(name, items, prior[self.tcs[name].quantity], t0, t1, eps)
@@ -327,17 +326,20 @@ class ThermalCorrection:
         delta = np.zeros(self.n) if self.P is not None else None
         for name, y in candidates:
             h = self.tcs[name]
-            row = self._row(model, h.quantity)
-            pred = prior[h.quantity] + float(row @ delta)
             r = max(h.sigma_K, h.noise_K or 0.0) ** 2
-            self._gate_and_update(name, row, y - pred, r, delta)
+            self._gate_and_update(name, self._row(h.quantity, taken), y, prior[h.quantity],
+                                  r, delta)
+        post = prior
         if delta is not None and delta.any():
             self._write_back(model, delta)
-        post = model.outputs() if delta is not None and delta.any() else prior
+            post, taken = model.outputs_and_states()
         for name in batch:
             self._guards[name].prev_post = post[self.tcs[name].quantity]
         self._last_t0 = t0
-        return post if self.P is not None else None
+        if self.P is None:
+            return None
+        self.variances_K2 = output_variances(self.P, taken, self._H_mean, self._mean_of_output)
+        return post
 
     def _update_staleness(self, t1: float, batch) -> None:
         timeout = self.settings.stale_timeout_s
@@ -424,19 +426,25 @@ class ThermalCorrection:
             h.recovered += 1
         h.status, h.reason = status, reason
 
-    def _gate_and_update(self, name: str, row: np.ndarray, innovation: float, r: float,
+    def _gate_and_update(self, name: str, row: np.ndarray, y: float, prior: float, r: float,
                          delta: np.ndarray) -> None:
-        """Gate one reading and, if it passes, do the scalar update (Joseph form)."""
+        """
+        Gate one reading ``y`` (K) and, if it passes, do the scalar update (Joseph form).
+
+        ``prior``: the estimate before the step's updates (``delta``, which
+        this one adds to).
+        """
         s = self.settings
         h, g = self.tcs[name], self._guards[name]
-        P = self.P
-        Ph = P @ row
-        var = float(row @ Ph) + r
+        # a thermocouple coming back from implausible is used after recover_count in a row
+        use = h.status != 'implausible' or g.ok_run + 1 >= s.recover_count
+        innovation, var, inside = scalar_update(self.P, row, y, prior, r, s.gate_sigma ** 2,
+                                                use, delta)
         if not (math.isfinite(innovation) and math.isfinite(var) and var > 0.0):
             raise FloatingPointError(f'{name}: innovation {innovation} K, variance {var} K^2')
         h.innovation_K = innovation
         h.innovation_sigma_K = math.sqrt(var)
-        if innovation * innovation > s.gate_sigma ** 2 * var:
+        if not inside:
             h.gated += 1
             g.gated_run += 1
             g.ok_run = 0
@@ -446,15 +454,12 @@ class ThermalCorrection:
                           f'{math.sqrt(var):.2f} K)')
             return
         g.gated_run = 0
-        if h.status == 'implausible':
+        if not use:
             g.ok_run += 1
-            if g.ok_run < s.recover_count:
-                return
+            return
+        if h.status == 'implausible':
             self._set(h, 'ok', '')
         g.ok_run = 0
-        k = Ph / var
-        delta += k * innovation
-        joseph_update(P, k, Ph, var)          # Joseph form, in place
         h.used += 1
         self.updates += 1
 
@@ -517,20 +522,14 @@ class ThermalCorrection:
         self.P = 0.5 * (self.P + self.P.T)
 
     # ------------------------------------------------------------ outputs
-    def _row(self, model: EHAModel, quantity: str) -> np.ndarray:
-        """Return the output's sensitivity to the filter state."""
+    def _row(self, quantity: str, taken: np.ndarray) -> np.ndarray:
+        """Return the output's sensitivity to the filter state (``taken``: the states taken)."""
         k = self._mean_row.get(quantity)
         if k is not None:
             return self._H_mean[k]
         row = np.zeros(self.n)
-        i = self._fixed_index.get(quantity)
-        row[model.output_states([quantity])[0] if i is None else i] = 1.0
+        row[taken[self._output_position[quantity]]] = 1.0
         return row
-
-    def variances(self, model: EHAModel) -> np.ndarray:
-        """Return the filter's variance (K^2) of every output, in the order of the model's map."""
-        return output_variances(self.P, model.states_taken(), self._H_mean,
-                                self._mean_of_output)
 
     def summary(self) -> Dict[str, object]:
         """Return what an estimate reports: active, learned heats (W), thermocouple statuses."""
@@ -658,6 +657,27 @@ def output_variances(P, taken, H_mean, mean_of_output):
             v = np.nan
         out[k] = v if v > 0.0 else 0.0
     return out
+
+
+@jit
+def scalar_update(P, row, y, prior, r, gate2, use, delta):
+    """
+    Gate a reading ``y`` of ``row`` . state; if it passes, update ``P`` and ``delta`` in place.
+
+    ``prior``: its estimate before the step's earlier updates, ``delta`` (of
+    the state), which add their part; ``r`` the reading's variance. Returns
+    (innovation, its variance, inside the gate: innovation^2 <= ``gate2``
+    variance); the update is made when inside and ``use``.
+    """
+    innovation = y - (prior + np.dot(row, delta))
+    Ph = P @ row
+    var = np.dot(row, Ph) + r
+    inside = innovation * innovation <= gate2 * var
+    if inside and use and np.isfinite(innovation) and np.isfinite(var) and var > 0.0:
+        k = Ph / var
+        delta += k * innovation
+        joseph_update(P, k, Ph, var)          # Joseph form, in place
+    return innovation, var, inside
 
 
 @jit

@@ -138,12 +138,19 @@ class QuantityMap:
 
     def values(self, v: np.ndarray, port_a_high: Optional[bool] = None) -> Dict[str, float]:
         """Return every output (in the unit of ``v``); a ``port`` one only with ``port_a_high``."""
-        out = dict(zip(self.names, self.evaluate(v, port_a_high)[0].tolist()))
+        return self.values_and_states(v, port_a_high)[0]
+
+    def values_and_states(self, v: np.ndarray,
+                          port_a_high: Optional[bool] = None) -> Tuple[Dict[str, float],
+                                                                       np.ndarray]:
+        """Return :meth:`values` and the states the outputs take (:meth:`evaluate`)."""
+        vals, taken = self.evaluate(v, port_a_high)
+        out = dict(zip(self.names, vals.tolist()))
         if port_a_high is None:
             for name, q in self.outputs.items():
                 if q.kind == PORT:
                     del out[name]
-        return out
+        return out, taken
 
     def state_indices(self, name: str) -> np.ndarray:
         """Return the positions in the state vector of the states an output is formed from."""
