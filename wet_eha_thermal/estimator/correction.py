@@ -77,7 +77,6 @@ disturbances their prior sigma.
 from collections import deque
 from dataclasses import dataclass, field
 import math
-import statistics
 from typing import Deque, Dict, List, Optional, Tuple
 
 import numpy as np
@@ -99,6 +98,13 @@ DROPPED = ('stuck', 'noisy', 'implausible')
 PENDING_READINGS = 1000
 #: sigma of a reading from the median |difference| of two: 1 / (0.6745 sqrt(2))
 _MEDIAN_TO_SIGMA = 1.0 / (0.6744897501960817 * math.sqrt(2.0))
+
+
+def _median(values) -> float:
+    """Return the median of ``values``, as :func:`statistics.median` (without its overhead)."""
+    ordered = sorted(values)
+    n = len(ordered)
+    return ordered[n // 2] if n % 2 else (ordered[n // 2 - 1] + ordered[n // 2]) / 2
 
 
 @dataclass
@@ -138,7 +144,9 @@ class _Guard:
     # input at all) the oldest go first, being stale by then anyway
     pending: Deque[Tuple[float, float]] = field(
         default_factory=lambda: deque(maxlen=PENDING_READINGS))
-    recent: Deque[Tuple[float, float]] = field(default_factory=deque)   # for the stuck test
+    # for the stuck test: the stamps (s) and readings (K) of the last stuck_window_s
+    recent_s: Deque[float] = field(default_factory=deque)
+    recent_K: Deque[float] = field(default_factory=deque)
     diffs: Deque[float] = field(default_factory=deque)                  # |differences| (K)
     prev_value: Optional[float] = None     # last reading (K)
     prev_post: Optional[float] = None      # estimate after the step of that reading (K)
@@ -252,7 +260,8 @@ class ThermalCorrection:
             h.last_stamp_s = None
         for g in self._guards.values():
             g.pending.clear()
-            g.recent.clear()
+            g.recent_s.clear()
+            g.recent_K.clear()
             g.prev_value = None
             g.frozen_since = None
         self._last_t0 = None
@@ -272,6 +281,7 @@ class ThermalCorrection:
             _, taken = model.outputs_and_states()
             output_variances(self.P, taken, self._H_mean, self._mean_of_output)
             scalar_update(self.P, self._H_mean[0], 0.0, 0.0, 1.0, 1.0, True, np.zeros(self.n))
+            symmetrise(self.P)
         finally:
             self.P = P
 
@@ -313,8 +323,6 @@ class ThermalCorrection:
             return None
         if self.P is not None:
             self._predict(model, dt)
-            if not np.isfinite(self.P).all():
-                raise FloatingPointError('the covariance is no longer finite')
         prior, taken = model.outputs_and_states()
         candidates = []
         for name, items in batch.items():
@@ -359,7 +367,8 @@ class ThermalCorrection:
                 h.stale_events += 1
                 h.reason = f'no reading for {t1 - h.last_stamp_s:.1f} s'
                 g.prev_value = None          # no difference across the gap
-                g.recent.clear()
+                g.recent_s.clear()
+                g.recent_K.clear()
                 g.frozen_since = None
 
     def _screen(self, name: str, items, prior_K: float, t0: float, t1: float,
@@ -379,17 +388,18 @@ class ThermalCorrection:
                 g.diffs.append(abs((y - g.prev_value) - (prior_K - g.prev_post)))
                 if len(g.diffs) > s.noise_window:
                     g.diffs.popleft()
-                h.noise_K = _MEDIAN_TO_SIGMA * statistics.median(g.diffs)
+                h.noise_K = _MEDIAN_TO_SIGMA * _median(g.diffs)
             g.prev_value = y
             g.prev_post = prior_K              # until this step's update, the prior
             # frozen readings
-            g.recent.append((stamp, y))
-            while g.recent and g.recent[0][0] < stamp - s.stuck_window_s:
-                g.recent.popleft()
-            values = [v for _, v in g.recent]
-            span = g.recent[-1][0] - g.recent[0][0]
-            frozen = (len(values) >= 3 and span >= 0.5 * s.stuck_window_s
-                      and max(values) - min(values) <= s.stuck_tolerance_K)
+            g.recent_s.append(stamp)
+            g.recent_K.append(y)
+            while g.recent_s[0] < stamp - s.stuck_window_s:
+                g.recent_s.popleft()
+                g.recent_K.popleft()
+            span = stamp - g.recent_s[0]
+            frozen = (len(g.recent_K) >= 3 and span >= 0.5 * s.stuck_window_s
+                      and max(g.recent_K) - min(g.recent_K) <= s.stuck_tolerance_K)
             if frozen:
                 if g.frozen_since is None:
                     g.frozen_since, g.frozen_from_K = stamp, prior_K
@@ -519,7 +529,7 @@ class ThermalCorrection:
                 mo.extra_power_W = np.zeros(mo.net.ns)
                 mo.extra_power_W[self._src_copper] = \
                     self.d[self._i_wind_d - m - nh] * self._w_copper
-        self.P = 0.5 * (self.P + self.P.T)
+        symmetrise(self.P)
 
     # ------------------------------------------------------------ outputs
     def _row(self, quantity: str, taken: np.ndarray) -> np.ndarray:
@@ -611,7 +621,10 @@ def predict_covariance(P, Ad, Bd, Mx, Mw, T_copper, p_copper, alpha_copper, s_co
                              i_wind_d, P.shape[0])
     cap = np.concatenate((C_motor, C_hyd))
     noise = np.concatenate((heat_var / (cap * cap), walk_var))
-    return propagate_covariance(P, Phi, noise, prior)
+    P = propagate_covariance(P, Phi, noise, prior)
+    if not np.isfinite(P).all():
+        raise FloatingPointError('the covariance is no longer finite')
+    return P
 
 
 @jit
@@ -678,6 +691,17 @@ def scalar_update(P, row, y, prior, r, gate2, use, delta):
         delta += k * innovation
         joseph_update(P, k, Ph, var)          # Joseph form, in place
     return innovation, var, inside
+
+
+@jit
+def symmetrise(P):
+    """Replace ``P`` in place by (P + P^T) / 2: the scalar updates leave rounding asymmetries."""
+    n = P.shape[0]
+    for i in range(n):
+        for j in range(i + 1, n):
+            v = (P[i, j] + P[j, i]) * 0.5
+            P[i, j] = v
+            P[j, i] = v
 
 
 @jit
