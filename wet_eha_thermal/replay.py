@@ -388,7 +388,7 @@ def write_mcap(result: ReplayResult, path: Path) -> Path:
                                   'source': result.plan.config_source}}
     stamps_ns = np.round(result.stamp_s * 1e9).astype(np.int64)
     variance = result.sigma_K * result.sigma_K
-    with atomic(path) as tmp, BagWriter(tmp, metadata=metadata) as w:
+    with atomic(path) as tmp, BagWriter(tmp, metadata=metadata, flush_interval_s=3600.0) as w:
         messages = []
         for name in OUTPUT_ESTIMATES:
             topic = f'{interface.ESTIMATE_PREFIX}/{name}'

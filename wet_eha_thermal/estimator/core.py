@@ -835,7 +835,7 @@ class Estimator:
         implausible = self._plausibility(values, t1 - t0)
         outputs = corrected if corrected is not None else self.model.outputs()
         temps = {k: v - C_TO_K for k, v in outputs.items()}
-        events = self.alerts.update(t1, {q: temps[q] for q in self.limits_C})
+        events = self.alerts.update(t1, temps)      # (it takes the quantities it has rules for)
         worst_stale = max((t1 - self.health[n].stale_since_s for n in stale
                            if self.health[n].stale_since_s is not None), default=0.0)
         on_fallback = self.settings.stale_uncertainty_K_per_s * max(worst_stale, 0.0)
@@ -936,18 +936,8 @@ class Estimator:
         at the top of the speed range, the position catches up within a few
         steps; each limited step is counted as implausible.
         """
-        x_prev = self.model._last[1]
-        step = self.max_stroke_speed_m_s * h
-        out = np.empty_like(x)
-        clipped = False
-        for k, target in enumerate(x.tolist()):
-            move = target - x_prev
-            if abs(move) > step:
-                move = math.copysign(step, move)
-                clipped = True
-            x_prev += move
-            out[k] = x_prev
-        self._position_limited = clipped
+        out, self._position_limited = rate_limit(x, self.model._last[1],
+                                                 self.max_stroke_speed_m_s * h)
         return out
 
     def _plausibility(self, values: Dict[str, np.ndarray], dt: float) -> List[str]:
@@ -1115,6 +1105,21 @@ class Estimator:
 #: (the current: copper loss is I^2 R), or interpolation at the grid times (the position)
 _MODE = dict.fromkeys(INPUTS + DIFFERENTIAL_INPUTS, 0)
 _MODE.update(current_A=1, position_m=2)
+
+
+@jit
+def rate_limit(x, x_prev, step):
+    """Return ``x`` moved at most ``step`` per sample from ``x_prev`` on, and if it was cut."""
+    out = np.empty_like(x)
+    clipped = False
+    for k in range(x.size):
+        move = x[k] - x_prev
+        if abs(move) > step:
+            move = math.copysign(step, move)
+            clipped = True
+        x_prev += move
+        out[k] = x_prev
+    return out, clipped
 
 
 @jit

@@ -515,10 +515,15 @@ def cn_substeps(T0, alpha_T, dts, flows, works, vdps, p_mids, frics, volumes, mo
             rhs[:, n + 1] = 0.0
             rhs[CASE, n + 1] = 1.0
             X = np.linalg.solve(A, rhs)
-            step_phi = X[:, :n].copy()
-            Phi = step_phi @ Phi
-            g_acc = step_phi @ g_acc + X[:, n]
-            g_case = step_phi @ g_case + X[:, n + 1]
+            if k == 0:              # composed with the identity and zeros: the same bits
+                Phi = X[:, :n].copy()
+                g_acc = X[:, n].copy()
+                g_case = X[:, n + 1].copy()
+            else:
+                step_phi = X[:, :n].copy()
+                Phi = step_phi @ Phi
+                g_acc = step_phi @ g_acc + X[:, n]
+                g_case = step_phi @ g_case + X[:, n + 1]
         Tm = 0.5 * (T + T1)
         # what the flows carry beyond the loop's rho c_p: g = e - rho c_p T of the upstream
         # volume, into the downstream one and out of the upstream one
