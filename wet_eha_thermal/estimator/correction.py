@@ -657,7 +657,8 @@ def output_variances(P, taken, H_mean, mean_of_output):
     Return the variance of every output from the covariance ``P``, never below zero.
 
     ``taken[k]``: the state output ``k`` takes (-1: none); else it is the
-    weighted mean of row ``mean_of_output[k]`` of ``H_mean`` (-1: none, NaN).
+    weighted mean of row ``mean_of_output[k]`` of ``H_mean``. An output that
+    is neither now (a port before the first sample) gets 0.
     """
     HP = H_mean @ P
     out = np.empty(taken.size)
