@@ -288,3 +288,72 @@ def test_a_numerical_failure_restarts_the_filter_and_never_stops_the_estimator(c
         assert all(math.isfinite(e.temperatures_C['winding_hotspot']) for e in out)
     assert est.correction.failures == 1 and 'FloatingPointError' in est.correction.last_failure
     assert est.correction.active                            # restarted at the next reading
+
+
+def test_the_filter_transition_is_the_model_step_linearised():
+    """
+    The covariance moves with the model: each column of the filter's transition is the model's
+    response to that state perturbed, by finite differences of two real steps.
+
+    A perturbation goes in through the filter's own write-back (every dependent value
+    consistent, as a correction would), then both copies of the model take the same step of
+    samples. The motor network is linear between coefficient refreshes (none happens here) and
+    its copper loss follows R(T), which the transition linearises exactly: its columns agree
+    to round-off (a 1e-3 K perturbation of ~300 K states, 1e-16 relative: ~1e-10), but for
+    the airgap oil: its friction loss falls with its viscosity, a few % per K, which the
+    transition leaves out (2e-3 of a column here). The hydraulic step's transition is that
+    of the linear Crank-Nicolson step; it leaves out how the oil's rho c_p, and the lines'
+    friction, move with the temperature within the step, and the energy correction after it
+    (up to 1e-3 of a column here); the motor's response to the case oil, its inlet, is exact.
+    """
+    import copy
+    from wet_eha_thermal.estimator.correction import ThermalCorrection
+    from wet_eha_thermal.simulated_rig import feedback
+
+    cfg = load_config()
+    rig = SimulatedRig(cfg, stage_duty(cfg, 3), rate_Hz=1000.0, noise=False, seed=1,
+                       block_s=cfg.estimator.step_s)
+    corr = ThermalCorrection(cfg, rig.truth)      # the model keeps its step's transition
+    for _ in range(1500):                         # 30 s of stage 3: flows, warm oil
+        rig.next_block()
+    t = (1 + rig.blocks * rig.n_block + np.arange(rig.n_block)) * rig.period_s
+    block = rig.kin.sample(rig.duty, t, feedback(rig.truth))
+    ambient_K = rig.ambient_C + C_TO_K
+    n, m, nh = corr.n, corr.m, corr.nh
+
+    def step(delta=None):
+        model, c = copy.deepcopy(rig.truth), copy.deepcopy(corr)
+        c.P = np.eye(n)
+        if delta is not None:
+            c._write_back(model, delta)
+        model.step(block, ambient_K)
+        return model, c, np.concatenate([model.state, c.d])
+
+    base, c0, x0 = step()
+    refreshes = base.motor.net.discretise_count
+
+    def column(j):
+        # Phi (P + N) Phi^T with P = e_j e_j^T, minus the same with P = 0: phi_j phi_j^T
+        c0.P = np.zeros((n, n))
+        c0.P[j, j] = 1.0
+        c0._predict(base, block.t_s[-1] - block.t_s[0] + rig.period_s)
+        with_j = c0.P
+        c0.P = np.zeros((n, n))
+        c0._predict(base, block.t_s[-1] - block.t_s[0] + rig.period_s)
+        outer = with_j - c0.P
+        return outer[:, j] / np.sqrt(outer[j, j])
+
+    names = list(rig.truth.quantities.state_names) + corr.disturbance_names
+    for j in range(n):
+        size = 1e-3 if j < m + nh else 1.0           # K, or W for a disturbance
+        delta = np.zeros(n)
+        delta[j] = size
+        model, _, x1 = step(delta)
+        assert model.motor.net.discretise_count == refreshes, 'a refresh in one copy only'
+        fd, phi = (x1 - x0) / size, column(j)
+        err, scale = np.abs(fd - phi), np.abs(phi).max()
+        if names[j].startswith('gap_oil'):
+            assert err.max() <= 1e-2 * scale, names[j]
+        else:
+            assert err[:m].max() <= 1e-8 * scale, names[j]
+            assert err[m:].max() <= (5e-3 if m <= j < m + nh else 1e-8) * scale, names[j]
