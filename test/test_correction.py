@@ -13,6 +13,7 @@ alone; the rig samples at 200 Hz): 7200 steps, about 5 s per estimator run.
 One rig run is shared by every scenario.
 """
 
+import copy
 import math
 
 import numpy as np
@@ -20,9 +21,10 @@ import pytest
 from wet_eha_thermal.config import (config_from_yaml, ConfigError, default_config_path,
                                     load_config, with_values)
 from wet_eha_thermal.estimator.core import Estimator
+from wet_eha_thermal.estimator.correction import ThermalCorrection
 from wet_eha_thermal.model.kinetics import stage_duty
 from wet_eha_thermal.model.motor import C_TO_K
-from wet_eha_thermal.simulated_rig import SimulatedRig
+from wet_eha_thermal.simulated_rig import feedback, SimulatedRig
 import yaml
 
 STEP_S = 0.25
@@ -292,24 +294,21 @@ def test_a_numerical_failure_restarts_the_filter_and_never_stops_the_estimator(c
 
 def test_the_filter_transition_is_the_model_step_linearised():
     """
-    The covariance moves with the model: each column of the filter's transition is the model's
-    response to that state perturbed, by finite differences of two real steps.
+    Check each column of the filter's transition against the model's own step.
 
-    A perturbation goes in through the filter's own write-back (every dependent value
-    consistent, as a correction would), then both copies of the model take the same step of
-    samples. The motor network is linear between coefficient refreshes (none happens here) and
-    its copper loss follows R(T), which the transition linearises exactly: its columns agree
-    to round-off (a 1e-3 K perturbation of ~300 K states, 1e-16 relative: ~1e-10), but for
-    the airgap oil: its friction loss falls with its viscosity, a few % per K, which the
-    transition leaves out (2e-3 of a column here). The hydraulic step's transition is that
-    of the linear Crank-Nicolson step; it leaves out how the oil's rho c_p, and the lines'
-    friction, move with the temperature within the step, and the energy correction after it
-    (up to 1e-3 of a column here); the motor's response to the case oil, its inlet, is exact.
+    The covariance must move with the model: a column is the model's response to that state
+    perturbed, here by finite differences of two real steps. A perturbation goes in through the
+    filter's own write-back (every dependent value consistent, as a correction would), then
+    both copies of the model take the same step of samples. The motor network is linear between
+    coefficient refreshes (none happens here) and its copper loss follows R(T), which the
+    transition linearises exactly: its columns agree to round-off (a 1e-3 K perturbation of
+    ~300 K states, 1e-16 relative: ~1e-10), but for the airgap oil: its friction loss falls
+    with its viscosity, a few % per K, which the transition leaves out (2e-3 of a column here).
+    The hydraulic step's transition is that of the linear Crank-Nicolson step; it leaves out
+    how the oil's rho c_p, and the lines' friction, move with the temperature within the step,
+    and the energy correction after it (up to 1e-3 of a column here); the motor's response to
+    the case oil, its inlet, is exact.
     """
-    import copy
-    from wet_eha_thermal.estimator.correction import ThermalCorrection
-    from wet_eha_thermal.simulated_rig import feedback
-
     cfg = load_config()
     rig = SimulatedRig(cfg, stage_duty(cfg, 3), rate_Hz=1000.0, noise=False, seed=1,
                        block_s=cfg.estimator.step_s)
