@@ -910,11 +910,8 @@ class Estimator:
         """
         if not self.differential:
             return values
-        dp = values['dp_Pa']
-        p_acc = self.rest['p_acc_Pa']
-        return {**values, 'p_a_Pa': p_acc + np.maximum(dp, 0.0),
-                'p_b_Pa': p_acc - np.minimum(dp, 0.0),
-                'p_acc_Pa': np.full(dp.shape, p_acc, dtype=float)}
+        p_a, p_b, p_acc = split_differential(values['dp_Pa'], self.rest['p_acc_Pa'])
+        return {**values, 'p_a_Pa': p_a, 'p_b_Pa': p_b, 'p_acc_Pa': p_acc}
 
     def prepare(self) -> bool:
         """
@@ -943,15 +940,12 @@ class Estimator:
     def _plausibility(self, values: Dict[str, np.ndarray], dt: float) -> List[str]:
         """Count physically implausible combinations of the step's inputs."""
         found = []
-        # means as np.mean forms them (the sum over the count), without its overhead
-        w, i = values['speed_rad_s'], values['current_A']
-        speed = float(np.abs(w).sum() / w.size)
-        current = float(np.sqrt((i ** 2).sum() / i.size))
-        x = values['position_m']
-        flow = abs(x[-1] - x[0]) / dt * self.cfg.hydraulics.actuator.area_m2
-        if speed > 200.0 and current < 0.05:          # spinning oil needs torque
+        no_current, no_speed = implausible_inputs(
+            values['speed_rad_s'], values['current_A'], values['position_m'], dt,
+            self.cfg.hydraulics.actuator.area_m2)
+        if no_current:
             found.append('speed_without_current')
-        if flow > 0.5 / 60000 and speed < 20.0:        # 0.5 L/min moved, pump nearly still
+        if no_speed:
             found.append('flow_without_speed')
         if self._position_limited:
             found.append('position_faster_than_pump')
@@ -1105,6 +1099,28 @@ class Estimator:
 #: (the current: copper loss is I^2 R), or interpolation at the grid times (the position)
 _MODE = dict.fromkeys(INPUTS + DIFFERENTIAL_INPUTS, 0)
 _MODE.update(current_A=1, position_m=2)
+
+
+@jit
+def split_differential(dp, p_acc):
+    """Return the port pressures A and B and the accumulator's (Pa) from a differential one."""
+    return p_acc + np.maximum(dp, 0.0), p_acc - np.minimum(dp, 0.0), np.full(dp.shape, p_acc)
+
+
+@jit
+def implausible_inputs(speed, current, position, dt, area):
+    """
+    Tell whether a step's inputs spin the pump without current, or move oil without speed.
+
+    Speed (rad/s) mean of its magnitude above 200 with the current's RMS (A)
+    below 0.05 (spinning oil needs torque); the actuator's flow (the
+    position's change in m over ``dt`` s times ``area`` m^2) above 0.5 L/min
+    with the mean speed below 20 (the pump nearly still).
+    """
+    w = np.abs(speed).sum() / speed.size
+    i_rms = np.sqrt((current * current).sum() / current.size)
+    flow = abs(position[-1] - position[0]) / dt * area
+    return w > 200.0 and i_rms < 0.05, flow > 0.5 / 60000 and w < 20.0
 
 
 @jit
