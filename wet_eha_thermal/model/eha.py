@@ -164,17 +164,18 @@ class EHAModel:
 
         Returns (StepFlows without the motor terms, external leakage mean m^3/s,
         step length s, interval weights, the sub-steps' sums of
-        :func:`segment_sums`). Everything is evaluated per sample
-        interval: the mean flow from the position difference, paired with the
-        interval's mean pressures (pairing it with the end pressure would lag
-        by half an interval and book spurious load work).
+        :func:`segment_sums`, the mean of the current squared A^2). Everything
+        is evaluated per sample interval: the mean flow from the position
+        difference, paired with the interval's mean pressures (pairing it with
+        the end pressure would lag by half an interval and book spurious load
+        work).
         """
         t0, x0, raw0, p0 = self._last
         h, ci = self.cfg.hydraulics, self.circuit
         (flow, work, P_end, vdp, x_mean, dx, fric_W, q_ext, dt, wgt, raw_end,
-         re, seg) = step_flows_kernel(
+         re, seg, i_sq) = step_flows_kernel(
             t0, x0, raw0, p0, b.t_s, b.position_m, b.p_a_Pa, b.p_b_Pa, b.p_acc_Pa,
-            b.speed_rad_s, 0.5 * (self.T_hyd[LINE_A] + self.T_hyd[LINE_B]),
+            b.speed_rad_s, b.current_A, 0.5 * (self.T_hyd[LINE_A] + self.T_hyd[LINE_B]),
             float(self.T_hyd[CASE]), self._geometry, self._leak_coeffs, self._friction,
             self.oil.laws, ci.u, ci.d, ci.oil_volumes, self.oil_substep_s)
         fp.check_line_reynolds(self.log, re)
@@ -185,7 +186,7 @@ class EHAModel:
         sf = StepFlows(flow, work, p0, P_end, vdp, chambers, (dv, -dv), 0.0, 0.0, 0.0, 0.0,
                        fric_W)
         self._pending_last = (float(b.t_s[-1]), float(b.position_m[-1]), raw_end, P_end)
-        return sf, q_ext, dt, wgt, seg
+        return sf, q_ext, dt, wgt, seg, i_sq
 
     # ------------------------------------------------------------------ step
     def step(self, b: SampleBlock, ambient_K: float,
@@ -202,7 +203,7 @@ class EHAModel:
         """
         if self._last is None:
             raise RuntimeError('initialise the model with a first sample before stepping')
-        sf, q_ext, dt, wgt, seg = self.step_flows(b)
+        sf, q_ext, dt, wgt, seg, i_sq = self.step_flows(b)
         ci = self.circuit
         # the motor's inlet over the step: the case temperature extrapolated to mid-step
         # (the case moves with the leakage heat; a start-of-step value would lag), over
@@ -213,7 +214,6 @@ class EHAModel:
             / self._dt_prev if self._dt_prev else T_now
         self._case_prev_K, self._dt_prev = T_now, dt
         p_case = float(sf.p_end_Pa[CASE])
-        i_sq = float(np.dot(b.current_A ** 2, wgt))
         # the buffered oil drains through the motor: the motor's (filtered) flow follows
         # the leakage plus the buffer over buffer_time_s, or over the step when that is
         # longer (draining faster than in one step would overshoot and ring)
@@ -364,9 +364,9 @@ def node_pressures(sensed, flow_m3_s, T_line_K, length_m, bore_m, laws):
 
 
 @jit
-def step_flows_kernel(t0, x0, raw0, p0, t_s, position_m, p_a, p_b, p_acc, speed, T_line_K,
-                      T_case_K, geometry, leak_coeffs, friction, laws, link_up, link_down,
-                      oil_volumes, substep_s):
+def step_flows_kernel(t0, x0, raw0, p0, t_s, position_m, p_a, p_b, p_acc, speed, current,
+                      T_line_K, T_case_K, geometry, leak_coeffs, friction, laws, link_up,
+                      link_down, oil_volumes, substep_s):
     """
     Return the flows of one block of samples, as :meth:`EHAModel.step_flows` uses them.
 
@@ -379,8 +379,8 @@ def step_flows_kernel(t0, x0, raw0, p0, t_s, position_m, p_a, p_b, p_acc, speed,
     flow x pressure drop W, end node pressures Pa, integral of V dp per oil
     node m^3 Pa, mean position m, position change m, pump friction W, mean
     external leakage m^3/s, step length s, interval weights, end sensed
-    pressures Pa, line Reynolds numbers, and the sub-steps: see
-    :func:`segment_sums`).
+    pressures Pa, line Reynolds numbers, the sub-steps: see
+    :func:`segment_sums`, and the mean of the ``current`` (A) squared).
     """
     area, d_rad, line_length, line_bore, dead_volume, half_stroke = geometry
     n = t_s.size
@@ -470,7 +470,8 @@ def step_flows_kernel(t0, x0, raw0, p0, t_s, position_m, p_a, p_b, p_acc, speed,
     seg = segment_sums(t, x, dts, F, F * (P[link_up] - P[link_down]), vdp_int, P, fric_W, q_ext,
                        substep_s)
     return (flow, work, P[:, -1].copy(), vdp, x_mean, x[-1] - x[0],
-            np.dot(fric_W, wgt), np.dot(q_ext, wgt), dt, wgt, raw[:, -1].copy(), re, seg)
+            np.dot(fric_W, wgt), np.dot(q_ext, wgt), dt, wgt, raw[:, -1].copy(), re, seg,
+            np.dot(current * current, wgt))
 
 
 @jit
