@@ -198,7 +198,7 @@ class ThermalCorrection:
         self._src_copper = np.array(mo.src_copper)
         self._col_copper = nb + self._src_copper
         self._i_case = model.circuit.index('case')
-        model.circuit.keep_transition = True        # _transition reads it after every step
+        model.circuit.keep_transition = True        # _predict reads it after every step
         # the outputs that are weighted means of states: their (fixed) rows
         means = [name for name, o in q.outputs.items() if o.kind == MEAN]
         self._mean_row = {name: k for k, name in enumerate(means)}

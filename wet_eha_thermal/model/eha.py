@@ -23,7 +23,7 @@ every step, and no oil takes a path the rig does not have.
 """
 
 from dataclasses import dataclass
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Dict, Optional, Tuple
 
 import numpy as np
 
@@ -302,10 +302,6 @@ class EHAModel:
     def outputs_and_states(self) -> Tuple[Dict[str, float], np.ndarray]:
         """Return :meth:`outputs` and the state each takes, in the map's order (-1: a mean)."""
         return self.quantities.values_and_states(self._output_values(), self._port_a_high())
-
-    def output_states(self, names: Sequence[str]) -> List[int]:
-        """Return the state each single-state output takes now (the hottest one of a max)."""
-        return self.quantities.states_taken(names, self._output_values(), self._port_a_high())
 
     def _output_values(self) -> np.ndarray:
         """Return the temperatures the outputs are evaluated on: motor nodes, then circuit (K)."""

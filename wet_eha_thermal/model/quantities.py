@@ -24,7 +24,7 @@ through the estimates, the calibration's channels all read this map.
 """
 
 from dataclasses import dataclass
-from typing import Callable, Dict, List, Optional, Sequence, Tuple
+from typing import Callable, Dict, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -102,23 +102,21 @@ class QuantityMap:
             raise ValueError('two states share a name')
         self.names = tuple(outputs)
         self._states: Dict[str, np.ndarray] = {}      # positions in the state vector
-        self._values: Dict[str, np.ndarray] = {}      # positions in the vector of values
         for name, q in outputs.items():
             missing = [s for s in q.states if s not in state_of]
             if missing:
                 raise ValueError(f'output {name}: no state named {", ".join(missing)}')
             self._states[name] = np.array([state_of[s] for s in q.states])
-            self._values[name] = np.array([value_index(s) for s in q.states])
-        # the whole map as flat tables, for one compiled pass over every output
+        # the whole map as flat tables, for one compiled pass over every output: the
+        # states' positions in the vector of values and in the state vector
         qs = list(outputs.values())
         self._kinds = np.array([_KIND_CODE[q.kind] for q in qs])
         self._offsets = np.cumsum([0] + [len(q.states) for q in qs])
-        self._value_at = np.concatenate([self._values[name] for name in self.names])
+        self._value_at = np.array([value_index(s) for q in qs for s in q.states])
         self._state_at = np.concatenate([self._states[name] for name in self.names])
         self._weights = np.concatenate([q.weights if q.kind == MEAN else np.zeros(len(q.states))
                                         for q in qs])
         self._weight_sums = np.array([q.weights.sum() if q.kind == MEAN else 1.0 for q in qs])
-        self._position = {name: k for k, name in enumerate(self.names)}
 
     def __deepcopy__(self, memo) -> 'QuantityMap':
         """Return the map itself: it never changes, so a copied model (a forecast's) shares it."""
@@ -164,15 +162,6 @@ class QuantityMap:
         if q.kind != MEAN:
             raise ValueError(f'output {name} ({q.kind}) is not linear in the state')
         return q.weights / q.weights.sum()
-
-    def states_taken(self, names: Sequence[str], v: np.ndarray, port_a_high: bool) -> List[int]:
-        """Return the state each single-state output takes now: the hottest of a max, the port."""
-        for name in names:
-            if self.outputs[name].kind == MEAN:
-                raise ValueError(f'output {name} is a weighted mean of '
-                                 f'{len(self._states[name])} states')
-        taken = self.evaluate(v, port_a_high)[1]
-        return [int(taken[self._position[name]]) for name in names]
 
 
 @jit
