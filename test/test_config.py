@@ -99,7 +99,8 @@ def test_maps_command_writes_table_csv_and_plot(tmp_path, capsys):
         rows = list(csv.DictReader(f))
     cfg = load_config()
     assert len(rows) == len(cfg.maps.speeds_rpm) + len(cfg.maps.currents_A)
-    assert {'winding_mean_C', 'winding_hotspot_C', 'frame_C', 'oil_friction_W'} <= set(rows[0])
+    assert {'winding_mean_C', 'winding_hotspot_C', 'frame_C', 'gap_friction_W',
+            'bore_W'} <= set(rows[0])
     png = (tmp_path / 'motor_maps.png').read_bytes()
     assert png[:8] == b'\x89PNG\r\n\x1a\n' and len(png) > 20000
 

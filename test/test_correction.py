@@ -302,8 +302,9 @@ def test_the_filter_transition_is_the_model_step_linearised():
     both copies of the model take the same step of samples. The motor network is linear between
     coefficient refreshes (none happens here) and its copper loss follows R(T), which the
     transition linearises exactly: its columns agree to round-off (a 1e-3 K perturbation of
-    ~300 K states, 1e-16 relative: ~1e-10), but for the airgap oil: its friction loss falls
-    with its viscosity, a few % per K, which the transition leaves out (2e-3 of a column here).
+    ~300 K states, 1e-16 relative: ~1e-10), but for the airgap and end-space oil: their friction
+    loss (and the bearings') falls with their viscosity, a few % per K, which the transition
+    leaves out (2e-3 of a column here).
     The hydraulic step's transition is that of the linear Crank-Nicolson step; it leaves out
     how the oil's rho c_p, and the lines' friction, move with the temperature within the step,
     and the energy correction after it (up to 1e-3 of a column here); the motor's response to
@@ -351,7 +352,7 @@ def test_the_filter_transition_is_the_model_step_linearised():
         assert model.motor.net.discretise_count == refreshes, 'a refresh in one copy only'
         fd, phi = (x1 - x0) / size, column(j)
         err, scale = np.abs(fd - phi), np.abs(phi).max()
-        if names[j].startswith('gap_oil'):
+        if names[j].startswith(('gap_oil', 'end_oil')):
             assert err.max() <= 1e-2 * scale, names[j]
         else:
             assert err[:m].max() <= 1e-8 * scale, names[j]

@@ -23,6 +23,9 @@ NO_EXAMPLE = {
     'correlations.laminar_turbulent_nusselt': 'compiled kernel of pipe_internal_nusselt',
     'correlations.airgap_friction_factors': "airgap_friction's geometry constants (its examples)",
     'correlations.check_airgap_friction': 'flags the validity of airgap_friction; no value',
+    'correlations.daily_nece_regime': 'compiled regime choice of daily_nece_moment_coefficient',
+    'correlations.enclosed_disc_friction': 'compiled power of daily_nece_moment_coefficient '
+                                           '(its examples; test_end_spaces.py)',
     'oil.density': 'the law of Oil.density without checks (its example)',
     'oil.kinematic_viscosity': 'the law of Oil.kinematic_viscosity without checks',
     'oil.specific_heat': 'the law of Oil.specific_heat without checks',

@@ -33,17 +33,17 @@ def constant(area, q_L_min, dp_MPa):
 
 
 def gap_loss(speed):
-    """Airgap friction that grows with speed (W), never zero, like a real rotor."""
+    """Shaft friction that grows with speed (W), never zero, like a real rotor."""
     return 0.5 + 2e-7 * np.asarray(speed) ** 3
 
 
-def core_loss(speed):
-    """Core loss shaped like Steinmetz (W): linear plus quadratic in speed."""
+def em_loss(speed, current):
+    """Return iron loss like Steinmetz's (W), linear and quadratic in speed, plus an I^2 loss."""
     s = np.asarray(speed)
-    return 0.02 * s + 1e-5 * s ** 2
+    return 0.02 * s + 1e-5 * s ** 2 + 0.01 * np.asarray(current) ** 2
 
 
-LOSSY = ThermalFeedback(airgap_friction_W=gap_loss, core_loss_W=core_loss)
+LOSSY = ThermalFeedback(drag_W=gap_loss, electromagnetic_loss_W=em_loss)
 
 # the four quadrants (flow L/min, load MPa): motoring when flow and load have one sign
 QUADRANTS = {'motoring +': (6.0, 12.0), 'regenerating +': (-6.0, 12.0),
@@ -187,12 +187,12 @@ def power_residuals(model, s):
     """Return the two power-balance residuals (W) and the power scale they are measured on."""
     dpp = s.port_a_Pa - s.port_b_Pa
     w = s.speed_rad_s
-    shaft = s.torque_Nm * w - (model.d_rad * w * dpp + s.pump_friction_W + s.airgap_friction_W)
+    shaft = s.torque_Nm * w - (model.d_rad * w * dpp + s.pump_friction_W + s.drag_W)
     p_high = np.maximum(s.port_a_Pa, s.port_b_Pa)
     p_low = np.minimum(s.port_a_Pa, s.port_b_Pa)
     dpl = s.port_a_Pa - s.p_a_Pa
     assert np.allclose(s.p_b_Pa - s.port_b_Pa, dpl, rtol=0, atol=1e-6)  # same drop both lines
-    losses = (s.copper_W + s.core_W + s.pump_friction_W + s.airgap_friction_W
+    losses = (s.copper_W + s.electromagnetic_W + s.pump_friction_W + s.drag_W
               + s.q_internal_m3_s * dpp
               + s.q_external_m3_s * (p_high - s.p_acc_Pa)   # leak into the case
               + s.q_external_m3_s * (s.p_acc_Pa - p_low)    # make-up into the low port
@@ -210,10 +210,10 @@ def test_power_balance_of_every_stage(cfg, model, n):
     # round-off: pressures of 1e7 Pa times flows, summed over ~10 terms
     assert np.max(np.abs(shaft)) < 1e-11 * scale
     assert np.max(np.abs(total)) < 1e-11 * scale
-    assert np.all(s.pump_friction_W >= 0) and np.all(s.airgap_friction_W >= 0)
-    assert np.all(s.copper_W >= 0) and np.all(s.core_W >= 0)
+    assert np.all(s.pump_friction_W >= 0) and np.all(s.drag_W >= 0)
+    assert np.all(s.copper_W >= 0) and np.all(s.electromagnetic_W >= 0)
     # the losses are real: the balance would fail without any one of the big ones
-    for part in (s.copper_W, s.pump_friction_W, s.airgap_friction_W):
+    for part in (s.copper_W, s.pump_friction_W, s.drag_W):
         assert np.max(part) > 1e3 * np.max(np.abs(total))
     # the make-up term (accumulator to the low port, across one line drop) is small but
     # not round-off: tens of mW against hundreds of W
@@ -234,19 +234,20 @@ def test_power_balance_in_every_quadrant(cfg, model, quadrant):
     assert np.max(np.abs(total)) < 1e-11 * scale
 
 
-def test_current_copper_and_core_losses(cfg, model):
+def test_current_copper_and_electromagnetic_losses(cfg, model):
     d = stage_duty(cfg, 3)
     t = np.linspace(0.0, 1.0, 41)
-    hot = ThermalFeedback(winding_K=T40_K + 100.0, core_loss_W=core_loss)
+    hot = ThermalFeedback(winding_K=T40_K + 100.0, electromagnetic_loss_W=em_loss)
     s = model.sample(d, t, hot)
     k_t = cfg.motor.torque_constant_Nm_A
     np.testing.assert_allclose(s.current_A, np.abs(s.torque_Nm) / k_t, rtol=1e-14)
     w = cfg.motor.winding
     r = copper_resistance(w.phase_resistance_20C_ohm, w.copper_tempco_1_K, T40_K + 100.0)
     np.testing.assert_allclose(s.copper_W, 3 * s.current_A ** 2 * r, rtol=1e-13)
-    np.testing.assert_allclose(s.core_W, core_loss(np.abs(s.speed_rad_s)), rtol=1e-14)
+    np.testing.assert_allclose(s.electromagnetic_W, em_loss(np.abs(s.speed_rad_s), s.current_A),
+                               rtol=1e-14)
     # the winding temperature changes copper loss only, not the kinetics
-    cold = model.sample(d, t, ThermalFeedback(core_loss_W=core_loss))
+    cold = model.sample(d, t, ThermalFeedback(electromagnetic_loss_W=em_loss))
     np.testing.assert_array_equal(cold.torque_Nm, s.torque_Nm)
     assert np.all(s.copper_W[s.current_A > 1] > 1.3 * cold.copper_W[s.current_A > 1])
 
@@ -258,8 +259,8 @@ def test_standstill_gives_no_friction_torque_and_no_warning(cfg, model):
         with np.errstate(all='raise'):
             s = model.sample(d, np.array([0.0, 0.5]), LOSSY)
     assert np.all(s.speed_rad_s == 0) and np.all(s.torque_Nm == 0)
-    assert np.all(s.airgap_friction_W == 0) and np.all(s.pump_friction_W == 0)
-    assert np.all(s.electrical_power_W == s.core_W + s.copper_W)
+    assert np.all(s.drag_W == 0) and np.all(s.pump_friction_W == 0)
+    assert np.all(s.electrical_power_W == s.electromagnetic_W + s.copper_W)
 
 
 def test_sample_is_vectorised_and_keeps_the_times(cfg, model):
@@ -312,8 +313,8 @@ def test_stage_6_peak_speed_is_about_8000_rpm(cfg, model):
 def test_feedback_defaults_are_40_C():
     fb = ThermalFeedback()
     assert fb.pump_oil_K == fb.line_oil_K == fb.winding_K == pytest.approx(313.15)
-    assert np.all(fb.airgap_friction_W(np.array([0.0, 1e3])) == 0)
-    assert np.all(fb.core_loss_W(np.array([0.0, 1e3])) == 0)
+    assert np.all(fb.drag_W(np.array([0.0, 1e3])) == 0)
+    assert np.all(fb.electromagnetic_loss_W(np.array([0.0, 1e3]), np.array([5.0, 5.0])) == 0)
     hot = ThermalFeedback.uniform(373.15)
     assert hot.pump_oil_K == hot.line_oil_K == hot.winding_K == 373.15
 

@@ -37,8 +37,8 @@ def maps(cfg):
 def test_default_network_size_and_names(cfg):
     m = make_motor(cfg)
     assert m.cfg.slices == 5
-    # 8 stack parts x 5 slices, 4 end parts x 2 sides, 5 + 2 oil volumes
-    assert m.state_count == 8 * 5 + 4 * 2 + 7
+    # 8 stack parts x 5 slices, 5 end parts (with the bearing) x 2 sides, 5 + 2 oil volumes
+    assert m.state_count == 8 * 5 + 5 * 2 + 7
     m.steady_state(inputs())
     assert m.temperature('winding.s3') > m.temperature('gap_oil.s3')
     assert m.temperature('gap_oil.s5') == m.outputs()['airgap_oil_outlet']
@@ -59,7 +59,7 @@ def test_speed_sweep_rises_monotonically(maps):
         assert t[1] > t[0] - 0.05, key
         assert all(b > a for a, b in zip(t[1:], t[2:])), key
     # core and friction losses grow with speed; copper only through R(T)
-    for key in ('oil_friction', 'core_yoke', 'core_teeth'):
+    for key in ('gap_friction', 'core_yoke', 'core_teeth', 'end_face_friction', 'bearings'):
         v = [p.losses_W[key] for p in pts]
         assert all(b > a for a, b in zip(v, v[1:])), key
 
@@ -77,13 +77,19 @@ def test_current_sweep_rises_as_current_squared(maps):
     assert r2 > 0.99
     top = pts[-1].losses_W
     copper = top['copper_slot'] + top['copper_end']
-    assert copper > top['oil_friction'] + top['core_yoke'] + top['core_teeth']
+    assert copper > sum(v for k, v in top.items() if not k.startswith('copper'))
 
 
 def test_steady_state_heat_balance_closes(maps):
     for p in maps:
         total = sum(p.losses_W.values())
-        assert p.to_ambient_W + p.to_oil_W == pytest.approx(total, rel=1e-9)
+        heat = p.heat_W
+        assert heat['to_ambient'] + heat['to_oil'] == pytest.approx(total, rel=1e-9)
+        # the oil carries off what the solids give it through the bore and the end spaces
+        # and the friction made in it
+        in_oil = p.losses_W['gap_friction'] + p.losses_W['end_face_friction']
+        assert heat['bore'] + heat['end_spaces'] + in_oil == pytest.approx(heat['to_oil'],
+                                                                           rel=1e-9)
 
 
 def test_airgap_outlet_converges_with_section_count(cfg):
@@ -187,8 +193,10 @@ def test_losses_average_friction_over_speed_samples(cfg):
     mixed = m.losses(u)
     u.speed_rad_s = 2 * w
     double = m.losses(u)
-    gap = slice(-m.cfg.slices, None)
-    assert np.allclose(mixed[gap], 0.5 * double[gap], rtol=1e-12)
+    for group in ('gap_friction', 'end_face_friction', 'bearings'):
+        src = m.sources[group]
+        assert np.allclose(mixed[src], 0.5 * double[src], rtol=1e-12), group
+    gap = m.sources['gap_friction']
     assert mixed[gap].sum() > 2.5 * steady[gap].sum()
 
 

@@ -217,6 +217,8 @@ def _simulate(args: argparse.Namespace) -> int:
     print(report.format_limits(report.check_limits(res, cfg)))
     print(f'(oil limit {oil_lim:g} degC from {oil_src}; hottest oil node at the end: '
           f'{hottest.replace("_", " ")})')
+    print('\nWhere the heat is made and where it goes, mean over the last duty period:')
+    print(report.format_heat(res, duty.period_s))
     print('\n' + report.format_energy(report.energy_check(res)))
     log = res.model.log if res.model is not None else []
     if len(log):

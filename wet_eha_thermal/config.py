@@ -281,18 +281,54 @@ class Rotor:
 
 @dataclass(frozen=True, kw_only=True)
 class EndSpaces:
-    """The two oil-filled end spaces, end caps and bearings."""
+    """The two oil-filled end spaces and end caps."""
 
     oil_volume_m3: float = positive('each end space')
-    htc_still_W_m2K: float = positive('oil convection with the rotor at rest')
-    htc_speed_coeff: float = spec(0.0, None,
-                                  doc='h = h_still + coeff * v_tip^0.8, v_tip in m/s')
+    rotor_clearance_m: float = positive(
+        "axial clearance between the rotor's end face and the end cap: the Daily-Nece "
+        'disc friction and heat transfer of the face')
+    htc_multiplier: float = spec(0.0, 10.0, low_open=True, default=1.0, doc=(
+        "calibration factor on every end-space coefficient (the correlations' value: 1)"))
     cap_thickness_m: float = positive('axial thickness of each end cap (reference rig: est.)')
     cap_material: Solid = spec(doc='end caps (reference rig: aluminium alloy)')
     cap_frame_htc_W_m2K: float = positive('bolted joint, per area of the frame end face')
-    bearing_radius_m: float = positive('bearing seat radius in the end cap')
-    bearing_conductance_W_K: float = positive(
+
+
+@dataclass(frozen=True, kw_only=True)
+class Bearings:
+    """The two rolling bearings, one in each end cap, running flooded in the end-space oil."""
+
+    seat_radius_m: float = positive('bearing seat (outer ring) radius in the end cap')
+    mean_diameter_m: float = positive('pitch diameter (bore + outside diameter) / 2')
+    conductance_W_K: float = positive(
         'through each bearing, shaft end to end cap (reference rig: est.)')
+    mass_kg: float = positive('each bearing: its heat capacity (steel)')
+    radial_load_N: float = spec(0.0, None, doc="each bearing's radial load: Palmgren's P1")
+    static_load_rating_N: float = positive("C0 of the catalogue: Palmgren's load factor f1")
+    lubrication_factor_f0: float = positive(
+        "Palmgren's f0 of the bearing type and lubrication (Harris and Kotzalas, ch. 12)")
+    friction_factor: float = spec(0.0, 10.0, default=1.0, doc=(
+        "calibration factor on Palmgren's friction torque (the correlation's value: 1)"))
+
+
+@dataclass(frozen=True, kw_only=True)
+class LossMap:
+    """Motor losses over speed and current from an electromagnetic FEA (Motor-CAD, JMAG, ...)."""
+
+    file: str = spec(doc=(
+        'CSV grid with the columns speed_rpm, current_A, copper_W, stator_iron_W, magnet_W, '
+        'sleeve_W (and optionally rotor_core_W), one row per point of a full speed x current '
+        "grid; a relative path is taken from the configuration file's folder"))
+    copper_temperature_C: float = spec(-60.0, 250.0, default=20.0, doc=(
+        "winding temperature of the map's copper loss: the model scales it by R(T)"))
+
+    def check(self, key: str) -> None:
+        """Read and check the CSV now, so that a bad map stops the load naming this key."""
+        from .loss_map import LossMapError, read_loss_map
+        try:
+            read_loss_map(self.file)
+        except LossMapError as exc:
+            raise ConfigError(f'{key}.file = {self.file!r}: {exc}') from exc
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -309,11 +345,18 @@ class Motor:
     torque_constant_Nm_A: float = positive('per A RMS phase current')
     max_continuous_current_A: float = positive(
         "continuous rating, A RMS (datasheet): the estimator's margin-current search starts there")
+    peak_current_A: float = positive(
+        'peak rating, A RMS (datasheet): the loss tables cover 1.5 times it')
+    max_speed_rpm: float = positive(
+        'top speed (datasheet): the loss tables cover 1.5 times it, and are extrapolated above')
     frame: Frame = spec(doc='the housing over the stack and the end spaces')
     stator: Stator = spec(doc='the laminated stator core')
     winding: Winding = spec(doc='slot winding and end windings')
     rotor: Rotor = spec(doc='rotor and shaft')
     end_spaces: EndSpaces = spec(doc='the oil-filled spaces between the stack and the end caps')
+    bearings: Bearings = spec(doc='the two shaft bearings, in the end caps')
+    loss_map: Optional[LossMap] = spec(default=None, doc=(
+        'losses from an electromagnetic FEA instead of the analytical laws; null: analytical'))
 
     def check(self, key: str) -> None:
         """Check that the parts fit together."""
@@ -326,14 +369,19 @@ class Motor:
                'stator bore radius', self.stator.bore_radius_m)
         _below(key or 'motor', 'stack_length_m', self.stack_length_m, 'frame.length_m',
                self.frame.length_m)
+        if self.max_continuous_current_A > self.peak_current_A:
+            raise ConfigError(f'{p}max_continuous_current_A = {self.max_continuous_current_A!r}: '
+                              f'must not exceed {p}peak_current_A = {self.peak_current_A!r}')
+        _below(key + '.end_spaces' if key else 'end_spaces', 'rotor_clearance_m',
+               self.end_spaces.rotor_clearance_m, 'the end space length ((frame.length_m - '
+               'stack_length_m) / 2)', 0.5 * (self.frame.length_m - self.stack_length_m))
         _below(key or 'motor', 'stack_length_m', self.stack_length_m, 'rotor.shaft_length_m',
                self.rotor.shaft_length_m)
-        _below(key + '.end_spaces' if key else 'end_spaces', 'bearing_radius_m',
-               self.end_spaces.bearing_radius_m, 'frame inner radius',
-               self.frame.inner_radius_m)
+        _below(key + '.bearings' if key else 'bearings', 'seat_radius_m',
+               self.bearings.seat_radius_m, 'frame inner radius', self.frame.inner_radius_m)
         _below(key + '.rotor' if key else 'rotor', 'core_inner_radius_m',
-               self.rotor.core_inner_radius_m, 'end_spaces.bearing_radius_m',
-               self.end_spaces.bearing_radius_m + 1e-12)
+               self.rotor.core_inner_radius_m, 'bearings.seat_radius_m',
+               self.bearings.seat_radius_m + 1e-12)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -862,7 +910,19 @@ def config_from_yaml(text: str, origin: str = 'config',
         for part in parents:
             node = node.setdefault(part, {})
         node[last] = value
+    _resolve_loss_map(data, origin)
     return from_dict(Config, data)
+
+
+def _resolve_loss_map(data: Any, origin: str) -> None:
+    """Make a relative ``motor.loss_map.file`` relative to the folder of the file ``origin``."""
+    try:
+        loss_map = data['motor']['loss_map']
+        name = loss_map['file']
+    except (TypeError, KeyError):
+        return
+    if isinstance(name, str) and not Path(name).is_absolute() and Path(origin).is_file():
+        loss_map['file'] = str(Path(origin).resolve().parent / name)
 
 
 def config_value(cfg: Config, key: str) -> Any:

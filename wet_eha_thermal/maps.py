@@ -1,11 +1,13 @@
 """
-Motor maps: steady-state temperatures and losses versus speed and versus current.
+Motor maps: steady-state temperatures, losses and heat paths versus speed and current.
 
 The job behind ``wet-eha-thermal maps``: for a given oil inlet temperature
 and flow it solves the motor's nonlinear steady state at every operating
 point of two sweeps (speed at fixed current, current at fixed speed) and
-reports winding mean and hot-spot, frame, magnet and oil outlet temperatures
-with the loss split of each point.
+reports winding mean and hot-spot, frame, magnet and oil outlet temperatures,
+where the heat is made (every loss of :data:`~.model.motor.LOSS_NAMES`) and
+where it goes (through the bore, through the end spaces, to ambient, carried
+off by the oil) at each point.
 """
 
 import csv
@@ -16,28 +18,34 @@ from typing import Callable, Dict, List, Optional
 import numpy as np
 
 from .config import Config
-from .model.motor import C_TO_K, MotorInputs, WetMotor
+from .model.motor import C_TO_K, LOSS_NAMES, MotorInputs, WetMotor
 from .model.oil import get_oil
 from .model.validity import ValidityLog
 from .outputs import atomic, save_figure
 
 TEMPERATURES = ('winding_mean', 'winding_hotspot', 'frame', 'magnet', 'airgap_oil_outlet',
                 'motor_oil_outlet')
-LOSSES = ('copper_slot', 'copper_end', 'core_yoke', 'core_teeth', 'oil_friction')
+#: the heat paths of :meth:`~.model.motor.WetMotor.heat_balance` a map reports
+PATHS = ('bore', 'end_spaces', 'to_ambient', 'to_oil')
+#: display names of the losses, shortest first in the tables
+LOSS_LABELS = {'copper_slot': 'copper, slots', 'copper_end': 'copper, end windings',
+               'core_yoke': 'iron, yoke', 'core_teeth': 'iron, teeth',
+               'gap_friction': 'airgap friction', 'magnet': 'magnets', 'sleeve': 'sleeve',
+               'rotor_core': 'rotor core', 'end_face_friction': 'end-face friction',
+               'bearings': 'bearings'}
 RPM = np.pi / 30.0  # rad/s per r/min
 
 
 @dataclass
 class MapPoint:
-    """One steady operating point: temperatures in degC, losses and heat flows in W."""
+    """One steady operating point: temperatures in degC, losses and heat paths in W."""
 
     sweep: str
     speed_rpm: float
     current_A: float
     temperatures_C: Dict[str, float]
     losses_W: Dict[str, float]
-    to_ambient_W: float
-    to_oil_W: float
+    heat_W: Dict[str, float]
 
     def row(self) -> Dict[str, float]:
         """Flatten into one CSV row with units in the column names."""
@@ -45,8 +53,7 @@ class MapPoint:
         r.update({f'{k}_C': round(v, 4) for k, v in self.temperatures_C.items()})
         r.update({f'{k}_W': round(v, 4) for k, v in self.losses_W.items()})
         r['total_loss_W'] = round(sum(self.losses_W.values()), 4)
-        r['to_ambient_W'] = round(self.to_ambient_W, 4)
-        r['to_oil_W'] = round(self.to_oil_W, 4)
+        r.update({f'{k}_W': round(self.heat_W[k], 4) for k in PATHS})
         return r
 
 
@@ -70,31 +77,40 @@ def compute_maps(cfg: Config, progress: Optional[Callable[[int, int, str], None]
         bal = motor.heat_balance(T, u)
         temps = {k_: v - C_TO_K for k_, v in motor.outputs(T).items()}
         out.append(MapPoint(sweep, rpm, amps, temps, dict(motor.losses_W),
-                            bal['to_ambient'], bal['to_oil']))
+                            {k: bal[k] for k in PATHS}))
     if progress is not None:
         progress(len(points), len(points), 'done')
     return out
 
 
 def format_table(points: List[MapPoint], sweep: str) -> str:
-    """Return a fixed-width text table of one sweep."""
+    """Return fixed-width text tables of one sweep: temperatures, then losses and heat paths."""
+    pts = [p for p in points if p.sweep == sweep]
     head = (f'{"speed":>7} {"current":>7} | {"wind.mean":>9} {"hot-spot":>8} {"frame":>6} '
-            f'{"magnet":>6} {"gap out":>7} {"oil out":>7} | {"copper":>6} {"core":>5} '
-            f'{"fric.":>6} {"amb.":>5}')
+            f'{"magnet":>6} {"gap out":>7} {"oil out":>7}')
     units = (f'{"r/min":>7} {"A":>7} | {"degC":>9} {"degC":>8} {"degC":>6} {"degC":>6} '
-             f'{"degC":>7} {"degC":>7} | {"W":>6} {"W":>5} {"W":>6} {"W":>5}')
+             f'{"degC":>7} {"degC":>7}')
     lines = [head, units, '-' * len(head)]
-    for p in points:
-        if p.sweep != sweep:
-            continue
-        t, ls = p.temperatures_C, p.losses_W
+    for p in pts:
+        t = p.temperatures_C
         lines.append(
             f'{p.speed_rpm:7.0f} {p.current_A:7.1f} | {t["winding_mean"]:9.1f} '
             f'{t["winding_hotspot"]:8.1f} {t["frame"]:6.1f} {t["magnet"]:6.1f} '
-            f'{t["airgap_oil_outlet"]:7.1f} {t["motor_oil_outlet"]:7.1f} | '
-            f'{ls["copper_slot"] + ls["copper_end"]:6.1f} '
-            f'{ls["core_yoke"] + ls["core_teeth"]:5.1f} {ls["oil_friction"]:6.1f} '
-            f'{p.to_ambient_W:5.1f}')
+            f'{t["airgap_oil_outlet"]:7.1f} {t["motor_oil_outlet"]:7.1f}')
+    # where the heat is made, then where it goes (W)
+    made = (('copper', ('copper_slot', 'copper_end')), ('iron', ('core_yoke', 'core_teeth')),
+            ('magnet', ('magnet',)), ('sleeve', ('sleeve',)), ('r.core', ('rotor_core',)),
+            ('gap fr', ('gap_friction',)), ('ends fr', ('end_face_friction',)),
+            ('bearing', ('bearings',)))
+    goes = (('bore', 'bore'), ('end sp.', 'end_spaces'), ('ambient', 'to_ambient'),
+            ('by oil', 'to_oil'))
+    head = (f'{"speed":>7} {"current":>7} | ' + ' '.join(f'{n:>7}' for n, _ in made)
+            + ' | ' + ' '.join(f'{n:>7}' for n, _ in goes))
+    lines += ['', 'Losses (W) and where the heat goes (W):', head, '-' * len(head)]
+    for p in pts:
+        lines.append(f'{p.speed_rpm:7.0f} {p.current_A:7.1f} | '
+                     + ' '.join(f'{sum(p.losses_W[k] for k in keys):7.1f}' for _, keys in made)
+                     + ' | ' + ' '.join(f'{p.heat_W[k]:7.1f}' for _, k in goes))
     return '\n'.join(lines)
 
 
@@ -108,19 +124,27 @@ def write_csv(points: List[MapPoint], path: Path) -> None:
 
 
 def plot_maps(points: List[MapPoint], path: Path, title: str) -> None:
-    """Plot temperatures (top) and the loss split (bottom) of both sweeps to a PNG."""
+    """Plot temperatures, the loss split and the heat paths of both sweeps to a PNG."""
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(2, 2, figsize=(12, 8), sharex='col')
+    fig, axes = plt.subplots(3, 2, figsize=(13, 11), sharex='col')
     labels = {'winding_mean': 'winding mean', 'winding_hotspot': 'winding hot-spot',
               'frame': 'frame', 'magnet': 'magnet (hottest)',
               'motor_oil_outlet': 'motor oil outlet'}
+    # the heat paths, stacked to the total loss: what the solids give the oil through
+    # the bore and the end spaces, the friction made in the oil itself, and ambient
+    paths = (('through the bore', lambda p: p.heat_W['bore']),
+             ('through the end spaces', lambda p: p.heat_W['end_spaces']),
+             ('friction made in the oil', lambda p: p.losses_W['gap_friction']
+              + p.losses_W['end_face_friction']),
+             ('frame and caps to ambient', lambda p: p.heat_W['to_ambient']))
     for col, (sweep, xkey, xlabel) in enumerate((('speed', 'speed_rpm', 'speed (r/min)'),
                                                  ('current', 'current_A', 'current (A RMS)'))):
         pts = [p for p in points if p.sweep == sweep]
         x = [getattr(p, xkey) for p in pts]
+        width = (x[1] - x[0]) * 0.7 if len(x) > 1 else 1.0
         ax = axes[0, col]
         for key, label in labels.items():
             ax.plot(x, [p.temperatures_C[key] for p in pts], marker='o', ms=3, label=label)
@@ -132,14 +156,23 @@ def plot_maps(points: List[MapPoint], path: Path, title: str) -> None:
         ax.legend(fontsize=8)
         ax = axes[1, col]
         bottom = np.zeros(len(pts))
-        for key in LOSSES:
+        for key in LOSS_NAMES:
             v = np.array([p.losses_W[key] for p in pts])
-            width = (x[1] - x[0]) * 0.7 if len(x) > 1 else 1.0
-            ax.bar(x, v, width=width, bottom=bottom, label=key.replace('_', ' '))
+            if v.any():
+                ax.bar(x, v, width=width, bottom=bottom, label=LOSS_LABELS[key])
+                bottom += v
+        ax.set_ylabel('where the heat is made (W)')
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7, ncol=2)
+        ax = axes[2, col]
+        bottom = np.zeros(len(pts))
+        for label, value in paths:
+            v = np.array([value(p) for p in pts])
+            ax.bar(x, v, width=width, bottom=bottom, label=label)
             bottom += v
-        ax.set_ylabel('loss (W)')
+        ax.set_ylabel('where the heat goes (W)')
         ax.set_xlabel(xlabel)
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=7)
     fig.suptitle(title)
     save_figure(fig, path)

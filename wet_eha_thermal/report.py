@@ -1,10 +1,11 @@
 """
-Report of a duty-cycle simulation: temperature table, limits, CSV and PNG.
+Report of a duty-cycle simulation: temperature table, limits, heat, CSV and PNG.
 
 The job behind ``wet-eha-thermal simulate`` turns a
 :class:`~wet_eha_thermal.simulation.SimulationResult` into a text table of
 end and peak temperatures, the time each temperature limit is (or would be)
-reached, an energy check, a CSV of every recorded history and a PNG plot.
+reached, where the motor's heat is made and where it goes, an energy check,
+a CSV of every recorded history and a PNG plot.
 """
 
 import csv
@@ -18,7 +19,8 @@ import warnings
 import numpy as np
 
 from .config import Config
-from .model.motor import C_TO_K
+from .maps import LOSS_LABELS
+from .model.motor import C_TO_K, LOSS_NAMES
 from .model.quantities import OIL_OUTPUTS
 from .outputs import atomic, save_figure
 
@@ -33,6 +35,11 @@ LABELS = {'winding_hotspot': 'winding hot-spot', 'magnet': 'magnet (hottest)',
 FIT_FRACTION = 1.0 / 3.0
 #: Peak-to-peak change (K) below which the fitted part of a history counts as flat.
 FLAT_K = 1e-3
+#: The motor's heat paths in a result's heat flows (W), with their printed names.
+HEAT_PATHS = (('motor_bore', 'through the bore to the airgap oil'),
+              ('motor_end_spaces', 'through the end spaces to their oil'),
+              ('motor_to_ambient', 'frame and end caps to ambient'),
+              ('motor_to_oil', 'carried off by the oil'))
 #: Unit suffixes that a heat-flow key may already carry (otherwise it is in W).
 _UNIT = re.compile(r'_(W|J|K|C|L_min|m3_s|Pa|MPa|kg_s)$')
 
@@ -299,6 +306,35 @@ def format_energy(e: Dict[str, float]) -> str:
             f'{e["residual"]:.3g} J ({e["relative"]:.2e} relative)')
 
 
+def motor_heat_W(result,
+                 period_s: Optional[float] = None) -> Tuple[Dict[str, float], Dict[str, float]]:
+    """
+    Return the motor's losses and heat paths (W): means over the run's last duty period.
+
+    Over the last record when the period is unknown or spans one record.
+    """
+    t = np.asarray(result.time_s, dtype=float)
+    n = _window(t, period_s)
+
+    def mean(key):
+        return float(np.mean(result.heat_W[key][-n:]))
+
+    return ({k: mean(f'loss_{k}') for k in LOSS_NAMES},
+            {k: mean(k) for k, _ in HEAT_PATHS})
+
+
+def format_heat(result, period_s: Optional[float] = None) -> str:
+    """Return where the motor's heat is made and where it goes, as fixed-width text."""
+    losses, paths = motor_heat_W(result, period_s)
+    total = sum(losses.values())
+    lines = [f'{"motor loss":<28} {"W":>7} {"share":>6}']
+    lines += [f'{LOSS_LABELS[k]:<28} {v:7.1f} {v / total:6.1%}' for k, v in losses.items()
+              if v != 0.0]
+    lines += [f'{"total":<28} {total:7.1f}', '', f'{"where it goes":<40} {"W":>7}']
+    lines += [f'{label:<40} {paths[k]:7.1f}' for k, label in HEAT_PATHS]
+    return '\n'.join(lines)
+
+
 def heat_column(name: str) -> str:
     """Return the CSV column of a heat-flow key: the key with ``_W`` unless it has a unit."""
     return name if _UNIT.search(name) else f'{name}_W'
@@ -352,13 +388,39 @@ def _plot_input(ax, x, raw, mean, color, label, n):
     return ax.plot(x, mean, color=color, lw=1.8, label=f'{label}\n(mean over a duty period)')
 
 
+def _plot_heat(ax_made, ax_goes, result, x, n) -> None:
+    """Plot the motor's losses stacked and its heat paths, as means over ``n`` records."""
+    heat = result.heat_W
+    if 'loss_copper_slot' not in heat:
+        return
+
+    def series(key):
+        return _moving_mean(np.asarray(heat[key], dtype=float), n)
+
+    parts = [(LOSS_LABELS[k], series(f'loss_{k}')) for k in LOSS_NAMES]
+    parts = [(label, v) for label, v in parts if np.any(v)]
+    m = len(parts[0][1])
+    ax_made.stackplot(x[:m], [v for _, v in parts], labels=[label for label, _ in parts],
+                      alpha=0.85)
+    ax_made.set_ylabel('motor losses (W)')
+    for key, label in HEAT_PATHS:
+        v = series(key)
+        ax_goes.plot(x[:v.size], v, lw=1.5, label=label)
+    ax_goes.set_ylabel("motor's heat goes (W)")
+    for ax in (ax_made, ax_goes):
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8, loc='upper left', bbox_to_anchor=(1.01, 1.0))
+
+
 def plot(result, cfg: Config, path: Path, title: str,
          period_s: Optional[float] = None) -> None:
     """
-    Plot a run to a PNG in three panels sharing the time axis.
+    Plot a run to a PNG in five panels sharing the time axis.
 
-    Top: winding mean and hot-spot, magnet, frame; middle: oil
-    temperatures; bottom: RMS current and speed on twin axes, as recorded
+    Top: winding mean and hot-spot, magnet, frame; then oil temperatures;
+    where the motor's heat is made (its losses, stacked) and where it goes
+    (its paths), each as the mean over one duty period; bottom: RMS current
+    and speed on twin axes, as recorded
     (over the last step before each recorded time) and, when the duty's
     ``period_s`` spans several records, their mean over one period. A
     limit is drawn as a dashed line where it is within 30 K of the panel's
@@ -390,8 +452,8 @@ def plot(result, cfg: Config, path: Path, title: str,
           ('accumulator', 'accumulator', 'C9', '-')),
          ((oil_lim, f'oil limit ({cfg.fluid.grade})', 'C2'),)),
     )
-    fig, axes = plt.subplots(3, 1, figsize=(12, 10), sharex=True,
-                             gridspec_kw={'height_ratios': (3, 3, 2)})
+    fig, axes = plt.subplots(5, 1, figsize=(12, 16), sharex=True,
+                             gridspec_kw={'height_ratios': (3, 3, 2, 2, 2)})
     for ax, (ylabel, series, limits) in zip(axes, panels):
         top = -math.inf
         for key, label, color, style in series:
@@ -405,8 +467,9 @@ def plot(result, cfg: Config, path: Path, title: str,
         ax.set_ylabel(ylabel)
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8, loc='upper left', bbox_to_anchor=(1.01, 1.0))
-    ax = axes[2]
     n = _window(t, period_s)
+    _plot_heat(axes[2], axes[3], result, x, n)
+    ax = axes[4]
     handles = []
     current = result.inputs.get('current_A_rms')
     if current is not None:

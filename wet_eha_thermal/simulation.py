@@ -61,8 +61,21 @@ def feedback(model: EHAModel) -> ThermalFeedback:
         pump_oil_K=float(T[ci.index('case')]),
         line_oil_K=float(0.5 * (T[ci.index('line_a')] + T[ci.index('line_b')])),
         winding_K=m.outputs()['winding_mean'],
-        airgap_friction_W=lambda w: m.airgap_friction_W(w).sum(axis=1),
-        core_loss_W=m.core_loss_W)
+        drag_W=m.shaft_drag_W, electromagnetic_loss_W=m.electromagnetic_loss_W)
+
+
+def motor_heat(model: EHAModel) -> Dict[str, float]:
+    """
+    Return the model's heat flows of the last step (W), with where the motor's heat is made.
+
+    :attr:`EHAModel.heat_W`, each motor loss as ``loss_<name>``
+    (:data:`~.model.motor.LOSS_NAMES`) and the motor's heat paths as
+    ``motor_<path>`` (:meth:`~.model.motor.WetMotor.heat_paths_W`).
+    """
+    heat = dict(model.heat_W)
+    heat.update({f'loss_{k}': v for k, v in model.motor.losses_W.items()})
+    heat.update({f'motor_{k}': v for k, v in model.motor.heat_paths_W().items()})
+    return heat
 
 
 def simulate(cfg: Config, duty: Duty, duration_s: float, dt_s: float = 1.0,
@@ -105,7 +118,7 @@ def simulate(cfg: Config, duty: Duty, duration_s: float, dt_s: float = 1.0,
         out = model.outputs()
         hottest = max(out.items(), key=lambda kv: kv[1])
         if hottest[1] - C_TO_K > RUNAWAY_C:
-            res.append(float(t[-1]), out, {}, dict(model.heat_W))
+            res.append(float(t[-1]), out, {}, motor_heat(model))
             raise ThermalRunaway(f'thermal runaway: {hottest[0]} passed {RUNAWAY_C:.0f} degC at '
                                  f't = {t[-1]:.0f} s; the cooling cannot hold this duty', res)
         w = np.diff(np.concatenate([[t_start + k * dt_s], t]))
@@ -123,7 +136,7 @@ def simulate(cfg: Config, duty: Duty, duration_s: float, dt_s: float = 1.0,
                         'p_a_MPa': float(acc[2] / span / 1e6),
                         'p_b_MPa': float(acc[3] / span / 1e6),
                         'position_mm': float(s.position_m[-1] * 1e3)},
-                       dict(model.heat_W))
+                       motor_heat(model))
             acc[:] = 0.0
         if progress is not None and (k % report_every == 0 or k == steps - 1):
             progress(k + 1, steps, f't = {t[-1]:.0f} s')

@@ -965,3 +965,337 @@ def radiation_htc(T_surface_K, T_ambient_K, emissivity):
     ts = np.asarray(T_surface_K, dtype=float)
     return _scalar(np.multiply(emissivity, _SIGMA) * (ts * ts + np.square(T_ambient_K))
                    * (ts + T_ambient_K))
+
+
+# ------------------------------------------- the rotor's end faces in the end spaces
+
+#: Daily and Nece (1960): range of their torque data, disc Reynolds number omega a^2 / nu
+#: and axial clearance ratio G = s / a. See :func:`daily_nece_moment_coefficient`.
+DAILY_NECE_RE = (1.0e3, 1.0e7)
+DAILY_NECE_GAP_RATIO = (0.0127, 0.217)
+# Their four laws C_M = c G^e Re^-n (both faces), regimes I to IV.
+_DN_COEF = np.array([2.0 * np.pi, 3.70, 0.080, 0.102])
+_DN_G_EXPO = np.array([-1.0, 0.1, -1.0 / 6.0, 0.1])
+_DN_RE_EXPO = np.array([1.0, 0.5, 0.25, 0.2])
+#: Wall shear tau ~ r^m of each regime (laminar: m = 1, exact for the free disc and for
+#: Couette flow; turbulent: 8/5, the 1/7-power-law boundary layer of von Karman), as
+#: :func:`enclosed_disc_nusselt` integrates it.
+DAILY_NECE_SHEAR_EXPONENT = np.array([1.0, 1.0, 1.6, 1.6])
+#: Swirl of the end space's oil core as a share of the disc speed: between the laminar
+#: (Batchelor flow, 0.31) and turbulent (0.43) values of a rotor-stator cavity without
+#: through-flow (Owen and Rogers 1989; Poncet, Chauve and Schiestel, Phys. Fluids 17,
+#: 075110, 2005). See :func:`end_space_swirl_speed`.
+CORE_SWIRL_RATIO = 0.4
+#: Laminar-turbulent transition of a flat plate's boundary layer (Incropera, 7th ed., 7.2).
+PLATE_RE_CRITICAL = 5.0e5
+
+
+@jit
+def daily_nece_regime(re, gap_ratio):
+    """
+    Return the regime (1-4) of :func:`daily_nece_moment_coefficient` at one ``re`` > 0.
+
+    The regime whose law gives the largest C_M; compiled, scalar, no checks.
+    """
+    best, regime = -1.0, 1
+    for k in range(4):
+        cm = _DN_COEF[k] * gap_ratio ** _DN_G_EXPO[k] * re ** -_DN_RE_EXPO[k]
+        if cm > best:
+            best, regime = cm, k + 1
+    return regime
+
+
+def daily_nece_moment_coefficient(Re, gap_ratio, log: Optional[ValidityLog] = None):
+    """
+    Return the moment coefficient C_M of a disc in a closed housing, and its regime (1-4).
+
+    Source: J. W. Daily and R. E. Nece, "Chamber dimension effects on induced
+    flow and frictional resistance of enclosed rotating disks", J. Basic Eng.
+    82(1), 1960, 217-232. A smooth disc of radius a turns at omega in a
+    cylindrical housing with the axial clearance s on either side;
+    Re = omega a^2 / nu, G = s / a and C_M = 2 M / (rho omega^2 a^5), M the
+    torque on BOTH faces (regime I is the laminar Couette flow of the two
+    clearances, M = pi mu omega a^4 / s, which is C_M = 2 pi / (G Re): the
+    constants belong to both faces; one face takes half):
+
+    ======  ==========================  ==============================
+    regime  flow in the clearance       C_M
+    ======  ==========================  ==============================
+    I       laminar, merged layers      2 pi / (G Re)
+    II      laminar, separate layers    3.70 G^0.1 / Re^0.5
+    III     turbulent, merged layers    0.080 / (G^(1/6) Re^0.25)
+    IV      turbulent, separate layers  0.102 G^0.1 / Re^0.2
+    ======  ==========================  ==============================
+
+    The regime is the one whose law gives the largest C_M: each law is the
+    resistance of one flow structure, the curve is continuous, and the
+    laminar-turbulent crossing of the separate-layer laws falls at
+    Re = 1.6e5 for every G (Daily and Nece saw transition near 1e5-2e5).
+    Validity flagged: Re 1e3-1e7 and G 0.0127-0.217, the range of their data.
+
+    :param Re: disc Reynolds number omega a^2 / nu (> 0).
+    :param gap_ratio: G = s / a.
+    :param log: optional validity log.
+
+    :return: ``(C_M, regime)``.
+
+    Examples
+    --------
+    Hand-checked, one point per regime: regime I at G = 0.0127, Re = 1e3:
+    2 pi / 12.7 = 0.4947; II at G = 0.217, Re = 2.5e4: 3.70 * 0.85831 / 158.114
+    = 0.020085; III at G = 0.0127, Re = 1e6: 0.080 / (0.4831 * 31.623) =
+    0.005237; IV at G = 0.217, Re = 1e6: 0.102 * 0.85831 / 15.849 = 0.005524.
+
+    >>> [(round(float(c), 6), int(k)) for c, k in (daily_nece_moment_coefficient(r, g)
+    ...  for r, g in ((1e3, 0.0127), (2.5e4, 0.217), (1e6, 0.0127), (1e6, 0.217)))]
+    [(0.494739, 1), (0.020085, 2), (0.005237, 3), (0.005524, 4)]
+
+    """
+    if log is not None:
+        check(log, 'Daily-Nece enclosed disc', 'Re', Re, *DAILY_NECE_RE,
+              'disc Reynolds number outside the data of Daily and Nece (1960); extrapolated')
+        check(log, 'Daily-Nece enclosed disc', 's/a', gap_ratio, *DAILY_NECE_GAP_RATIO,
+              'clearance ratio outside the data of Daily and Nece (1960); extrapolated')
+    re, g = np.broadcast_arrays(np.asarray(Re, dtype=float), np.asarray(gap_ratio, dtype=float))
+    regime = np.array([daily_nece_regime(r, s) for r, s in zip(re.ravel(), g.ravel())],
+                      dtype=int).reshape(re.shape)
+    k = regime - 1
+    cm = _DN_COEF[k] * np.power(g, _DN_G_EXPO[k]) * np.power(re, -_DN_RE_EXPO[k])
+    return _scalar(cm), _scalar(regime)
+
+
+@jit
+def enclosed_disc_friction(rho, mu, w, radius_m, clearance_m):
+    """
+    Return the friction power (W) of ONE face of an enclosed disc, its regime and Re.
+
+    :func:`daily_nece_moment_coefficient` at Re = rho w a^2 / mu (``w`` =
+    |omega| in rad/s, a the radius, s the axial clearance, all floats):
+    P = M_face w = C_M rho w^3 a^5 / 4. Compiled, no checks; w = 0 gives 0 W
+    (regime I). The disc's hub (the shaft) is taken as part of the face.
+    """
+    re = rho * w * radius_m * radius_m / mu
+    if re <= 0.0:
+        return 0.0, 1, 0.0
+    regime = daily_nece_regime(re, clearance_m / radius_m)
+    k = regime - 1
+    cm = (_DN_COEF[k] * (clearance_m / radius_m) ** _DN_G_EXPO[k] * re ** -_DN_RE_EXPO[k])
+    return 0.25 * cm * rho * w ** 3 * radius_m ** 5, regime, re
+
+
+def colburn_disc_nusselt(C_M, Re, Pr, shear_exponent):
+    """
+    Return the face-mean Nusselt number h a / k of a disc from its moment coefficient.
+
+    The Reynolds-Colburn analogy (St Pr^(2/3) = C_f / 2; A. P. Colburn,
+    Trans. AIChE 29, 1933, 174-210) applied locally with the disc's own speed
+    omega r as the reference velocity, h(r) = tau(r) c_p Pr^(-2/3) / (omega r),
+    for a wall shear tau = c r^m whose torque on one face is C_M rho omega^2
+    a^5 / 4 (C_M of both faces, as Daily and Nece give it). The mean over the
+    face is Nu_a = C_M Re Pr^(1/3) (m + 3) / (4 pi (m + 1)), a the radius,
+    Re = omega a^2 / nu; m = 1 for a laminar boundary layer (exact for the
+    free disc and for Couette flow), 8/5 for a turbulent one (the 1/7 power
+    law). Checked against an exact result: for the laminar free disc
+    (C_M = 3.87 Re^-0.5 on both faces; Cochran, Proc. Camb. Phil. Soc. 30,
+    1934) it gives 0.616 Re^0.5 Pr^(1/3), where the exact solution at large
+    Prandtl numbers is 0.620 Re^0.5 Pr^(1/3) (the rotating disc of Levich,
+    1942; Sparrow and Gregg, J. Heat Transfer 81, 1959): the analogy holds
+    for oil, Pr 100-1000.
+
+    :param C_M: moment coefficient (both faces).
+    :param Re: disc Reynolds number omega a^2 / nu.
+    :param Pr: Prandtl number.
+    :param shear_exponent: m.
+
+    Examples
+    --------
+    The laminar free disc at Re = 1e4, Pr = 200: C_M = 3.87 / 100 = 0.0387,
+    Nu = 0.0387 * 1e4 * 5.848 / (2 pi) = 360.2 (Levich: 0.620 * 100 * 5.848
+    = 362.6).
+
+    >>> round(float(colburn_disc_nusselt(0.0387, 1.0e4, 200.0, 1.0)), 1)
+    360.2
+
+    """
+    m = np.asarray(shear_exponent, dtype=float)
+    return _scalar(np.multiply(C_M, Re) * np.cbrt(Pr) * (m + 3.0) / (4.0 * np.pi * (m + 1.0)))
+
+
+def enclosed_disc_nusselt(Re, Pr, gap_ratio, log: Optional[ValidityLog] = None):
+    """
+    Return the face-mean Nusselt number h a / k between an enclosed disc and the cavity's oil.
+
+    :func:`colburn_disc_nusselt` with the boundary-layer laws of Daily and
+    Nece (:func:`daily_nece_moment_coefficient`'s regimes II, III and IV with
+    their shear exponents; the largest of the three values, so that the
+    curve is continuous and rises with speed), but never below conduction
+    across the clearance to the well-mixed oil at its middle, Nu_a = 2 / G
+    (h = 2 k / s, as for the airgap). In regime I (merged laminar layers,
+    Couette flow) no fluid crosses the gap, so conduction is the physics
+    there; the boundary-layer value grows from it as omega^0.5, and the curve
+    is continuous. In a closed cavity the torque on the stator wall equals
+    the rotor's (no through-flow), so the stator wall facing the disc takes
+    the same mean coefficient. Validity flagged as Daily and Nece's data.
+
+    :param Re: disc Reynolds number omega a^2 / nu (>= 0).
+    :param Pr: Prandtl number of the oil (film temperature).
+    :param gap_ratio: G = s / a.
+    :param log: optional validity log.
+
+    Examples
+    --------
+    The reference rig's rotor face at 10 000 r/min, oil at 40 degC (Re =
+    1047 * 0.018^2 / 13.5e-6 = 25 128, Pr = 170, G = 0.222): regime II,
+    C_M = 3.70 * 0.8603 / 158.52 = 0.020079, Nu = C_M Re 5.540 / (2 pi) =
+    444.9 (h = Nu k / a = 3200 W/(m^2 K) with k = 0.13); at rest, conduction:
+    2 / G = 9.0.
+
+    >>> [round(float(enclosed_disc_nusselt(re, 170.0, 0.004 / 0.018)), 1) for re in (25128.0, 0.0)]
+    [444.9, 9.0]
+
+    """
+    re = np.asarray(Re, dtype=float)
+    g = np.asarray(gap_ratio, dtype=float)
+    if log is not None:
+        check(log, 'Daily-Nece enclosed disc', 'Re', _positive_or_nan(re), *DAILY_NECE_RE,
+              'disc Reynolds number outside the data of Daily and Nece (1960); extrapolated')
+        check(log, 'Daily-Nece enclosed disc', 's/a', g, *DAILY_NECE_GAP_RATIO,
+              'clearance ratio outside the data of Daily and Nece (1960); extrapolated')
+    re_b, g_b, pr_b = np.broadcast_arrays(re, g, np.asarray(Pr, dtype=float))
+    laws = (_DN_COEF[1:, None] * np.power(g_b.ravel(), _DN_G_EXPO[1:, None])
+            * np.power(np.maximum(re_b.ravel(), 1e-300), -_DN_RE_EXPO[1:, None]))
+    nu_bl = colburn_disc_nusselt(laws, re_b.ravel(), pr_b.ravel(),
+                                 DAILY_NECE_SHEAR_EXPONENT[1:, None]).max(axis=0)
+    nu_bl = nu_bl.reshape(re_b.shape)
+    return _scalar(np.maximum(nu_bl, 2.0 / g_b))
+
+
+def flat_plate_nusselt(Re_L, Pr, log: Optional[ValidityLog] = None):
+    """
+    Return the mean Nusselt number h L / k of a plate of length L in a parallel stream.
+
+    Isothermal plate, Incropera, Fundamentals of Heat and Mass Transfer, 7th
+    ed.: laminar (Pohlhausen) Nu_L = 0.664 Re_L^0.5 Pr^(1/3) up to Re_L =
+    5e5 (eq. 7.30, Pr >= 0.6), mixed laminar-turbulent
+    Nu_L = (0.037 Re_L^0.8 - 871) Pr^(1/3) above (eq. 7.38, transition at
+    5e5, 0.6 <= Pr <= 60, Re_L up to 1e8). The two meet at 5e5 within
+    0.1 %. Validity flagged: Re_L above 1e8; Pr above 60 where the boundary
+    layer is turbulent (the laminar law holds for any Pr >= 0.6).
+
+    :param Re_L: Reynolds number U L / nu.
+    :param Pr: Prandtl number.
+    :param log: optional validity log.
+
+    Examples
+    --------
+    Hand-checked: Re_L = 1e4, Pr = 1: 0.664 * 100 = 66.4; Re_L = 1e6, Pr = 1:
+    0.037 * 63 095.7 - 871 = 1463.5.
+
+    >>> [round(float(flat_plate_nusselt(re, 1.0)), 1) for re in (1.0e4, 1.0e6)]
+    [66.4, 1463.5]
+
+    """
+    re = np.asarray(Re_L, dtype=float)
+    if log is not None:
+        check(log, 'flat plate', 'Re_L', re, 0.0, 1.0e8,
+              'plate Reynolds number above the correlated range; extrapolated')
+        check(log, 'flat plate', 'Pr', np.where(re > PLATE_RE_CRITICAL, Pr, np.nan), 0.6, 60.0,
+              'Prandtl number outside the turbulent plate law; extrapolated')
+    laminar = 0.664 * np.sqrt(re)
+    mixed = 0.037 * np.power(re, 0.8) - 871.0
+    return _scalar(np.where(re <= PLATE_RE_CRITICAL, laminar, mixed) * np.cbrt(Pr))
+
+
+def end_space_swirl_speed(omega, disc_radius_m, r_m, swirl_ratio=CORE_SWIRL_RATIO):
+    """
+    Return the speed (m/s) of the end space's swirling oil at radius ``r_m``.
+
+    Inside the disc's radius the core turns as a solid body at K omega (K the
+    core swirl ratio of a rotor-stator cavity, ``CORE_SWIRL_RATIO``); past
+    it nothing drives the oil and its angular momentum is conserved (a free
+    vortex), so v = K omega a^2 / r. Approximate: an estimate of the oil's
+    speed past the end windings, the stack faces and the housing, for a
+    plate law; the end space's calibration multiplier absorbs its error.
+
+    Examples
+    --------
+    Hand-checked: 1000 rad/s, a = 18 mm: at r = 9 mm 0.4 * 1000 * 0.009 = 3.6
+    m/s; at r = 36 mm 0.4 * 1000 * 0.018^2 / 0.036 = 3.6 m/s.
+
+    >>> [round(float(end_space_swirl_speed(1000.0, 0.018, r)), 3) for r in (0.009, 0.036)]
+    [3.6, 3.6]
+
+    """
+    r = np.asarray(r_m, dtype=float)
+    return _scalar(swirl_ratio * np.abs(omega) * np.where(r <= disc_radius_m, r,
+                                                          disc_radius_m ** 2 / r))
+
+
+# ----------------------------------------------------------------- rolling bearings
+
+#: Palmgren's speed term changes law at nu n = 2000 (nu in mm^2/s, n in r/min).
+PALMGREN_NU_N_MIN = 2000.0
+
+
+@jit
+def palmgren_bearing_torque(nu_m2_s, speed_rad_s, mean_diameter_m, f0, f1, load_N):
+    """
+    Return the friction torque (N m) of a rolling bearing: Palmgren's M0 + M1.
+
+    Source: A. Palmgren, Ball and Roller Bearing Engineering, 3rd ed., SKF
+    Industries, 1959; as given by T. A. Harris and M. N. Kotzalas, Rolling
+    Bearing Analysis, 5th ed., 2007, ch. 12 (SI units converted here):
+
+    - load-independent (viscous) part, nu in mm^2/s, n in r/min, d_m in mm:
+      M0 = 1e-7 f0 (nu n)^(2/3) d_m^3 N mm for nu n >= 2000, else
+      160e-7 f0 d_m^3 N mm (the two meet within 1 % at 2000);
+    - load part M1 = f1 P1 d_m N mm, P1 the load that sets the friction
+      (radial bearings: the radial load).
+
+    f0 depends on the bearing type and its lubrication (larger in an oil
+    bath or running flooded than in oil mist); f1 on the type and load
+    (:func:`deep_groove_ball_f1`). Valid for a bearing at its operating
+    temperature, without seal friction. Compiled; floats or arrays.
+
+    :param nu_m2_s: kinematic viscosity of the oil at the bearing (m^2/s).
+    :param speed_rad_s: shaft speed (rad/s), either sign.
+    :param mean_diameter_m: pitch diameter d_m = (bore + outside) / 2 (m).
+    :param f0: Palmgren's lubrication factor.
+    :param f1: Palmgren's load factor.
+    :param load_N: P1 (N).
+
+    Examples
+    --------
+    Hand-checked: 13.5 mm^2/s at 10 000 r/min (1047.2 rad/s), d_m 16 mm,
+    f0 = 4, f1 = 1.4e-4, 50 N: nu n = 135 000, (nu n)^(2/3) = 2631.6,
+    M0 = 1e-7 * 4 * 2631.6 * 4096 = 4.312 N mm, M1 = 1.4e-4 * 50 * 16 =
+    0.112 N mm, M = 4.424e-3 N m.
+
+    >>> round(float(palmgren_bearing_torque(13.5e-6, 1047.2, 0.016, 4.0, 1.4e-4, 50.0)), 6)
+    0.004424
+
+    """
+    nu_n = (nu_m2_s * 1.0e6) * (np.abs(speed_rad_s) * (30.0 / np.pi))
+    dm3 = (mean_diameter_m * 1.0e3) ** 3
+    m0 = f0 * dm3 * np.where(nu_n >= PALMGREN_NU_N_MIN, 1.0e-7 * np.power(nu_n, 2.0 / 3.0),
+                             160.0e-7)
+    return 1.0e-3 * (m0 + f1 * load_N * mean_diameter_m * 1.0e3)
+
+
+def deep_groove_ball_f1(load_N, static_rating_N):
+    """
+    Return Palmgren's load factor f1 of a deep-groove ball bearing.
+
+    f1 = 0.0007 (P0 / C0)^0.5, P0 the static equivalent load and C0 the
+    static load rating (Harris and Kotzalas, Rolling Bearing Analysis, 5th
+    ed., 2007, ch. 12, after Palmgren 1959).
+
+    Examples
+    --------
+    Hand-checked: 50 N on C0 = 1270 N: 0.0007 * (0.03937)^0.5 = 1.389e-4.
+
+    >>> round(float(deep_groove_ball_f1(50.0, 1270.0)), 7)
+    0.0001389
+
+    """
+    return 0.0007 * np.sqrt(np.divide(load_N, static_rating_N))

@@ -355,8 +355,8 @@ def _line_of_byte(path: Path, offset: int) -> int:
 
 
 # --------------------------------------------------------------- thermal state
-def no_loss(speed_rad_s: np.ndarray) -> np.ndarray:
-    """Return zero loss (W) at every speed: the default of the loss callables."""
+def no_loss(speed_rad_s: np.ndarray, *current_A: np.ndarray) -> np.ndarray:
+    """Return zero loss (W) at every sample: the default of the loss callables."""
     return np.zeros(np.shape(speed_rad_s))
 
 
@@ -368,20 +368,24 @@ class ThermalFeedback:
     :ivar pump_oil_K: oil temperature in the pump (K): leakage and friction viscosity.
     :ivar line_oil_K: oil temperature in the lines (K): line pressure drops.
     :ivar winding_K: winding temperature (K): phase resistance R(T).
-    :ivar airgap_friction_W: oil-friction power (W) of the flooded airgap at the
-        given speed magnitudes |w| (rad/s, array); supplied by the thermal model.
-    :ivar core_loss_W: stator core loss (W) at the given speed magnitudes, as the
-        thermal model's ``WetMotor`` computes it from its geometry.
+    :ivar drag_W: the friction on the motor's shaft (W) at the given speed
+        magnitudes |w| (rad/s, array): airgap, end faces and bearings, as the
+        thermal model's ``WetMotor.shaft_drag_W`` computes it.
+    :ivar electromagnetic_loss_W: the motor's electromagnetic losses but the
+        DC copper loss (W) at the given |w| and RMS currents (A, arrays):
+        stator iron, rotor eddy currents, the copper's AC excess
+        (``WetMotor.electromagnetic_loss_W``).
 
-    The defaults put everything at 40 degC with no airgap or core loss; see
-    :meth:`uniform`.
+    The defaults put everything at 40 degC with no drag and no losses but
+    the DC copper loss; see :meth:`uniform`.
     """
 
     pump_oil_K: float = T40_K
     line_oil_K: float = T40_K
     winding_K: float = T40_K
-    airgap_friction_W: Callable[[np.ndarray], np.ndarray] = field(default=no_loss)
-    core_loss_W: Callable[[np.ndarray], np.ndarray] = field(default=no_loss)
+    drag_W: Callable[[np.ndarray], np.ndarray] = field(default=no_loss)
+    electromagnetic_loss_W: Callable[[np.ndarray, np.ndarray], np.ndarray] = \
+        field(default=no_loss)
 
     @classmethod
     def uniform(cls, T_K: float = T40_K, **kw) -> 'ThermalFeedback':
@@ -404,12 +408,13 @@ class Samples(SampleBlock):
     ``port_b_Pa`` (pump ports), ``q_internal_m3_s`` (port A -> port B,
     signed), ``q_external_m3_s`` (high port -> case, >= 0; equal to the
     make-up from the accumulator into the low port), ``torque_Nm`` (shaft),
-    ``electrical_power_W`` = copper + core + torque speed (negative in
-    regeneration), ``copper_W``, ``core_W``, ``pump_friction_W``,
-    ``airgap_friction_W``.
+    ``electrical_power_W`` = copper + electromagnetic + torque speed
+    (negative in regeneration), ``copper_W`` (DC), ``electromagnetic_W``
+    (the other electromagnetic losses), ``pump_friction_W``, ``drag_W``
+    (airgap, end faces, bearings).
 
     Energy balance (exact, see :class:`KineticModel`): electrical - load =
-    copper + core + pump friction + airgap friction
+    copper + electromagnetic + pump friction + drag
     + q_internal (port_a - port_b) + q_external (p_high - p_acc)
     + q_external (p_acc - p_low) + 2 flow (port_a - p_a).
     """
@@ -423,9 +428,9 @@ class Samples(SampleBlock):
     torque_Nm: np.ndarray
     electrical_power_W: np.ndarray
     copper_W: np.ndarray
-    core_W: np.ndarray
+    electromagnetic_W: np.ndarray
     pump_friction_W: np.ndarray
-    airgap_friction_W: np.ndarray
+    drag_W: np.ndarray
 
 
 # ---------------------------------------------------------------------- model
@@ -461,15 +466,17 @@ class KineticModel:
       (B high), hence D w = Q + Q_int + s Q_ext in all four quadrants
       (motoring or regenerating, either direction), and make-up = leakage to
       the case, so the accumulator's net flow is zero.
-    - torque: T = D dp' + sgn(w) T_f(w, dp', mu) + sgn(w) P_gap(|w|) / max(|w|, eps),
-      T_f from :func:`pump_friction_torque`; no friction torque at w = 0.
-    - current I = |T| / k_t; copper = n_ph I^2 R(T_w); core from the
-      feedback's callable; electrical = copper + core + T w.
+    - torque: T = D dp' + sgn(w) T_f(w, dp', mu) + sgn(w) P_drag(|w|) / max(|w|, eps),
+      T_f from :func:`pump_friction_torque`, P_drag the feedback's shaft
+      friction (airgap, end faces, bearings); no friction torque at w = 0.
+    - current I = |T| / k_t; copper = n_ph I^2 R(T_w); the other
+      electromagnetic losses P_em(|w|, I) from the feedback's callable;
+      electrical = copper + P_em + T w.
 
-    Energy: T w = D w dp' + P_friction + P_gap, and with D w dp' =
+    Energy: T w = D w dp' + P_friction + P_drag, and with D w dp' =
     Q dp + 2 Q dp_l + Q_int dp' + Q_ext (p_high - p_low), the electrical
-    power minus the load power is copper + core + pump friction + airgap
-    friction + Q_int dp' + Q_ext (p_high - p_case) (leakage into the case)
+    power minus the load power is copper + P_em + pump friction + drag
+    + Q_int dp' + Q_ext (p_high - p_case) (leakage into the case)
     + Q_ext (p_case - p_low) (make-up throttled across one line drop into
     the low port; tens of mW on the reference rig, about 1e-4 of the power,
     slightly negative near load reversals where the line drop lifts the low
@@ -560,28 +567,28 @@ class KineticModel:
         t_fric *= sw
         torque = self.d_rad * dpp
         torque += t_fric
-        if fb.airgap_friction_W is no_loss:
-            t_gap = np.zeros(n)
+        if fb.drag_W is no_loss:
+            t_drag = np.zeros(n)
         else:
-            t_gap = sw * np.asarray(fb.airgap_friction_W(aw), dtype=float)
-            t_gap /= np.maximum(aw, SPEED_EPS_RAD_S)
-            torque += t_gap
+            t_drag = sw * np.asarray(fb.drag_W(aw), dtype=float)
+            t_drag /= np.maximum(aw, SPEED_EPS_RAD_S)
+            torque += t_drag
         current = np.abs(torque)
         current /= self._k_t
         copper = current * current
         copper *= self._phases * self.phase_resistance(fb.winding_K)
-        if fb.core_loss_W is no_loss:
-            core = np.zeros(n)
+        if fb.electromagnetic_loss_W is no_loss:
+            em = np.zeros(n)
         else:
-            core = np.asarray(fb.core_loss_W(aw), dtype=float)
-            if core.shape != w.shape:
-                core = np.broadcast_to(core, w.shape).copy()
+            em = np.asarray(fb.electromagnetic_loss_W(aw, current), dtype=float)
+            if em.shape != w.shape:
+                em = np.broadcast_to(em, w.shape).copy()
         electrical = torque * w
         electrical += copper
-        electrical += core
+        electrical += em
         return Samples(
             t_s=t, current_A=current, speed_rad_s=w, p_a_Pa=p_a, p_b_Pa=p_b,
             p_acc_Pa=np.full(n, p_acc), position_m=x, flow_m3_s=q, load_power_W=(p_a - p_b) * q,
             port_a_Pa=port_a, port_b_Pa=port_b, q_internal_m3_s=q_int, q_external_m3_s=q_ext,
             torque_Nm=torque, electrical_power_W=electrical, copper_W=copper,
-            core_W=core, pump_friction_W=t_fric * w, airgap_friction_W=t_gap * w)
+            electromagnetic_W=em, pump_friction_W=t_fric * w, drag_W=t_drag * w)

@@ -7,7 +7,8 @@ Layout (front = oil-inlet side, rear = outlet side; stack slices 1..n):
   ``teeth`` (iron share of the tooth annulus), ``winding`` (slot share),
   ``sleeve``, ``magnet``, ``rotor_core``, ``shaft``; airgap oil ``gap_oil.s1..``;
 - each end: ``frame_end_<side>``, ``end_cap_<side>``, ``end_winding_<side>``,
-  ``shaft_end_<side>`` and the end-space oil ``end_oil_<side>``;
+  ``shaft_end_<side>``, the bearing ``bearing_<side>`` and the end-space oil
+  ``end_oil_<side>``;
 - boundaries ``ambient`` and ``oil_inlet``.
 
 Oil path: oil_inlet -> end_oil_front -> gap_oil.s1 .. s<n> -> end_oil_rear
@@ -23,6 +24,8 @@ import numpy as np
 
 from . import correlations as corr
 from .compiled import jit
+from .loss_table import build_loss_table, COPPER_EXCESS, IRON, MAGNET, ROTOR_CORE, SLEEVE, \
+    table_values
 from .losses import copper_resistance, electrical_frequency, steinmetz_loss_density
 from .mellor import add_cylinder
 from .network import ThermalNetwork
@@ -32,6 +35,17 @@ from .validity import ValidityLog
 from ..config import Motor
 
 C_TO_K = 273.15
+#: the kinds of surface the end-space oil washes (:meth:`WetMotor._end_space_htc`): the
+#: rotor's end face, the end cap (its part facing the rotor, and the rest), a stator
+#: surface in the oil's swirl (end winding, stack faces, frame), the turning shaft end
+END_ROTOR_FACE, END_CAP, END_STATOR, END_SHAFT = range(4)
+#: the motor's loss groups in the order of its sources (:meth:`WetMotor.losses`)
+LOSS_GROUPS = ('copper', 'core_yoke', 'core_teeth', 'gap_friction', 'magnet', 'sleeve',
+               'rotor_core', 'end_face_friction', 'bearings')
+#: the names of :attr:`WetMotor.losses_W`: the groups, copper split into slots and end windings
+LOSS_NAMES = ('copper_slot', 'copper_end') + LOSS_GROUPS[1:]
+#: bearing steel (AISI 52100)
+BEARING_STEEL_SPECIFIC_HEAT_J_KGK = 475.0
 #: how :func:`filter_coefficient_point` moves the filter: start at the input, the running
 #: mean of the first time constant, or the two cascaded first-order stages
 FILTER_START, FILTER_RUNNING_MEAN, FILTER_CASCADE = range(3)
@@ -118,6 +132,19 @@ class WetMotor:
         couette, re_geo, self._gap_ratio, self._gap_in_data, g03, bb_rho, ta_per_re2 = \
             corr.airgap_friction_factors(ro.outer_radius_m, st.bore_radius_m, self.dz)
         self._gap_factors = tuple(float(v) for v in (couette, re_geo, g03, bb_rho, ta_per_re2))
+        # a map's iron loss goes to the yoke and teeth slices as mass x B^2 (Steinmetz's
+        # split when alpha = 2)
+        weights = np.concatenate([self.yoke_mass * st.yoke_flux_density_T ** 2,
+                                  self.teeth_mass * st.teeth_flux_density_T ** 2])
+        self._iron_split = weights / weights.sum()
+        bg = cfg.bearings
+        self._ends = tuple(float(v) for v in (
+            ro.outer_radius_m, cfg.end_spaces.rotor_clearance_m, bg.mean_diameter_m,
+            bg.lubrication_factor_f0,
+            corr.deep_groove_ball_f1(bg.radial_load_N, bg.static_load_rating_N),
+            bg.radial_load_N, bg.friction_factor))
+        #: the electromagnetic losses over speed and current (rotor, AC copper; a map's all)
+        self.loss_table = build_loss_table(cfg)
         # the books' links to ambient (the frame's, then the end caps'), ends in [T; T_b]
         self._ambient_ends = self.net.link_ends(self._to_ambient_ids)
         self.net.hold_changes = defer_refresh
@@ -160,7 +187,8 @@ class WetMotor:
         self._build_airgap_oil()
         self.ambient_links, self.ambient_areas = [], []
         self.cap_links, self.cap_areas = [], []
-        self.end_links, self.end_areas = [], []
+        self.end_links, self.end_areas, self.end_surfaces = [], [], []
+        self.bearing = {}
         self.gap_links_stator, self.gap_links_rotor = [], []
         self._build_slice_contacts(g)
         self.end_winding = {}
@@ -177,9 +205,12 @@ class WetMotor:
         self.ambient_links.append(self.net.add_conductance(node, self.amb))
         self.ambient_areas.append(area_m2)
 
-    def _to_end_oil(self, node: str, side: str, area_m2: float) -> None:
+    def _to_end_oil(self, node: str, side: str, area_m2: float, kind: int, radius_m: float,
+                    length_m: float) -> None:
+        """Link a surface to its end space's oil: its kind, mean radius and plate length (m)."""
         self.end_links.append(self.net.add_conductance(node, self.end_oil[side]))
         self.end_areas.append(area_m2)
+        self.end_surfaces.append((node, self.end_oil[side], kind, radius_m, length_m))
 
     def _build_stack(self, g: '_Radii') -> None:
         """Add the cylinders of the active length, a block per slice: frame to shaft."""
@@ -261,7 +292,8 @@ class WetMotor:
         Add one end of the motor: end winding, stack faces, frame end, end cap, shaft end.
 
         Everything there exchanges heat with the end space's oil; the frame end
-        and the cap also with ambient, the shaft end through the bearing.
+        and the cap also with ambient, the shaft end through the bearing (half its
+        conductance on either side of the bearing node).
         """
         c, net, cyl, n = self.cfg, self.net, self._cylinder, self.cfg.slices
         fr, st, wd, ro, es = c.frame, c.stator, c.winding, c.rotor, c.end_spaces
@@ -291,40 +323,68 @@ class WetMotor:
                           [wd.end_overhang_m], wd.k_radial_W_mK, wd.k_axial_W_mK, rc_end,
                           slot_frac, **joined('winding'))
         self.end_winding[side] = ew
-        self._to_end_oil(ew.faces[outward], side, a_slots)
-        self._to_end_oil(ew.outer[0], side, 2 * np.pi * st.yoke_inner_radius_m * slot_frac
-                         * wd.end_overhang_m)
-        self._to_end_oil(ew.inner[0], side, 2 * np.pi * g.tip * slot_frac * wd.end_overhang_m)
+        # the end turns are one coil per tooth: the oil's swirl meets each as a plate of
+        # one coil pitch; the smooth stack faces, frame and cap as one turn of the swirl
+        r_ew = 0.5 * (st.yoke_inner_radius_m + g.tip)
+        coil = 2 * np.pi * r_ew / c.slots
+        end = self._to_end_oil
+        end(ew.faces[outward], side, a_slots, END_STATOR, r_ew, coil)
+        end(ew.outer[0], side, 2 * np.pi * st.yoke_inner_radius_m * slot_frac * wd.end_overhang_m,
+            END_STATOR, st.yoke_inner_radius_m, coil)
+        end(ew.inner[0], side, 2 * np.pi * g.tip * slot_frac * wd.end_overhang_m, END_STATOR,
+            g.tip, coil)
         # stack faces open to the end space
-        self._to_end_oil(p['yoke'].faces[stack_face], side,
-                         np.pi * (st.outer_radius_m ** 2 - st.yoke_inner_radius_m ** 2))
-        self._to_end_oil(p['teeth'].faces[stack_face], side, st.tooth_fraction * np.pi
-                         * (st.yoke_inner_radius_m ** 2 - st.bore_radius_m ** 2))
+        r_yoke = 0.5 * (st.outer_radius_m + st.yoke_inner_radius_m)
+        end(p['yoke'].faces[stack_face], side,
+            np.pi * (st.outer_radius_m ** 2 - st.yoke_inner_radius_m ** 2), END_STATOR, r_yoke,
+            2 * np.pi * r_yoke)
+        end(p['teeth'].faces[stack_face], side,
+            st.tooth_fraction * np.pi * (st.yoke_inner_radius_m ** 2 - st.bore_radius_m ** 2),
+            END_STATOR, r_ew, coil)
         for part, r1, r2 in (('sleeve', ro.outer_radius_m, g.magnet_outer),
                              ('magnet', g.magnet_outer, g.magnet_inner),
                              ('rotor_core', g.magnet_inner, g.shaft)):
-            self._to_end_oil(p[part].faces[stack_face], side, np.pi * (r1 ** 2 - r2 ** 2))
-        # frame end segment, end cap, shaft end, bearing
+            end(p[part].faces[stack_face], side, np.pi * (r1 ** 2 - r2 ** 2), END_ROTOR_FACE,
+                0.5 * (r1 + r2), r1 - r2)
+        # frame end segment, end cap, bearing, shaft end
         fe = cyl(f'frame_end_{side}', fr.outer_radius_m, fr.inner_radius_m, [L_fend],
                  fr.material, **joined('frame'))
         self._to_ambient(fe.outer[0], 2 * np.pi * fr.outer_radius_m * L_fend)
-        self._to_end_oil(fe.inner[0], side, 2 * np.pi * fr.inner_radius_m * L_fend)
-        cap = cyl(f'end_cap_{side}', fr.outer_radius_m, es.bearing_radius_m,
+        end(fe.inner[0], side, 2 * np.pi * fr.inner_radius_m * L_fend, END_STATOR,
+            fr.inner_radius_m, 2 * np.pi * fr.inner_radius_m)
+        bg = c.bearings
+        cap = cyl(f'end_cap_{side}', fr.outer_radius_m, bg.seat_radius_m,
                   [es.cap_thickness_m], es.cap_material)
         net.add_conductance(cap.outer[0], fe.faces[outward], es.cap_frame_htc_W_m2K * np.pi
                             * (fr.outer_radius_m ** 2 - fr.inner_radius_m ** 2))
         self.cap_links.append(net.add_conductance(cap.faces[outward], self.amb))
-        self.cap_areas.append(np.pi * (fr.outer_radius_m ** 2 - es.bearing_radius_m ** 2))
-        self._to_end_oil(cap.faces[1 - outward], side,
-                         np.pi * (fr.inner_radius_m ** 2 - es.bearing_radius_m ** 2))
+        self.cap_areas.append(np.pi * (fr.outer_radius_m ** 2 - bg.seat_radius_m ** 2))
+        # the cap's face: facing the rotor's end face out to its radius, a swirl plate beyond
+        a, r_seat = ro.outer_radius_m, bg.seat_radius_m
+        self._cap_disc_share = max(a ** 2 - r_seat ** 2, 0.0) / (fr.inner_radius_m ** 2
+                                                                 - r_seat ** 2)
+        r_cap = 0.5 * (fr.inner_radius_m + max(a, r_seat))
+        end(cap.faces[1 - outward], side, np.pi * (fr.inner_radius_m ** 2 - r_seat ** 2),
+            END_CAP, r_cap, 2 * np.pi * r_cap)
         se = cyl(f'shaft_end_{side}', g.shaft, 0.0, [L_send], ro.shaft, **joined('shaft'))
-        self._to_end_oil(se.outer[0], side, 2 * np.pi * g.shaft * min(L_send, L_fend))
-        net.add_conductance(se.outer[0], cap.inner[0], es.bearing_conductance_W_K)
+        end(se.outer[0], side, 2 * np.pi * g.shaft * min(L_send, L_fend), END_SHAFT, g.shaft,
+            2 * np.pi * g.shaft)
+        # the bearing between shaft end and cap: its rings and balls, heated by its friction
+        b = self.bearing[side] = net.add_node(
+            f'bearing_{side}', bg.mass_kg * BEARING_STEEL_SPECIFIC_HEAT_J_KGK)
+        net.add_conductance(se.outer[0], b, 2.0 * bg.conductance_W_K)
+        net.add_conductance(b, cap.inner[0], 2.0 * bg.conductance_W_K)
         p.update({f'end_winding_{side}': ew, f'frame_end_{side}': fe,
                   f'end_cap_{side}': cap, f'shaft_end_{side}': se})
 
     def _build_sources(self) -> None:
-        """Add the heat sources, one per heated node: copper, core, airgap friction."""
+        """
+        Add the heat sources, one per heated node, in groups (:data:`LOSS_GROUPS`).
+
+        Copper (slot slices, end windings), stator iron (yoke and teeth slices),
+        airgap friction (its oil sections), rotor eddy currents (magnet, sleeve,
+        rotor core slices), end-face friction (the end-space oil) and bearings.
+        """
         c, net, p = self.cfg, self.net, self.parts
         wd, n = c.winding, c.slices
         ends = [self.end_winding['front'].mean[0], self.end_winding['rear'].mean[0]]
@@ -332,10 +392,18 @@ class WetMotor:
         turn = c.stack_length_m + wd.end_turn_length_m   # half a turn's conductor length
         self.copper_share = np.array([self.dz / turn] * n
                                      + [wd.end_turn_length_m / (2 * turn)] * 2)
-        self.src_copper = [net.add_source(m) for m in self.copper_nodes]
-        self.src_yoke = [net.add_source(m) for m in p['yoke'].mean]
-        self.src_teeth = [net.add_source(m) for m in p['teeth'].mean]
-        self.src_gap = [net.add_source(m) for m in self.gap]
+        nodes = {'copper': self.copper_nodes, 'core_yoke': p['yoke'].mean,
+                 'core_teeth': p['teeth'].mean, 'gap_friction': self.gap,
+                 'magnet': p['magnet'].mean, 'sleeve': p['sleeve'].mean,
+                 'rotor_core': p['rotor_core'].mean,
+                 'end_face_friction': [self.end_oil['front'], self.end_oil['rear']],
+                 'bearings': [self.bearing['front'], self.bearing['rear']]}
+        #: each loss group's sources: a slice of the power vector
+        self.sources: Dict[str, slice] = {}
+        for group in LOSS_GROUPS:
+            ids = [net.add_source(m) for m in nodes[group]]
+            self.sources[group] = slice(ids[0], ids[-1] + 1)
+        self.src_copper = list(range(self.sources['copper'].start, self.sources['copper'].stop))
         rho_fe = c.stator.material.density_kg_m3
         self.yoke_mass = rho_fe * np.array(p['yoke'].volume_m3)
         self.teeth_mass = rho_fe * np.array(p['teeth'].volume_m3)
@@ -349,15 +417,24 @@ class WetMotor:
         self.idx_copper = np.array([net.index(m) for m in self.copper_nodes])
         self.idx_gap = np.array([net.index(m) for m in self.gap])
         self.idx_oil = np.array([net.index(m) for m in self.oil_nodes])
+        self.idx_end_oil = self.idx_oil[[0, -1]]
+        # the surfaces the end-space oil washes: node, its oil, kind, radius, plate length
+        surf, oil, kind, radius, length = zip(*self.end_surfaces)
+        self.end_surfaces = (np.array([net.index(m) for m in surf]),
+                             np.array([net.index(m) for m in oil]), np.array(kind),
+                             np.array(radius), np.array(length))
         self.idx_frame_outer = np.array([net.index(m) for m in p['frame'].outer])
         self.idx_cap_outer = np.array([net.index(p[f'end_cap_{s}'].faces[o])
                                        for s, o in (('front', 0), ('rear', 1))])
         self.idx_frame = np.array([net.index(m) for m in p['frame'].mean])
         # nodes whose temperature sets a coefficient, with the drift (in units of
         # refresh_dT_K) that triggers a refresh: airgap oil viscosity sets the airgap h
-        # (~1.5 %/K); end-space oil capacity and natural convection move < 0.2 %/K.
-        # Copper R(T) and friction viscosity are evaluated every step.
-        self.idx_watch = np.concatenate([self.idx_gap, [self.idx_oil[0], self.idx_oil[-1]],
+        # (~1.5 %/K); the end spaces' h follow their film temperatures (~0.4 %/K: the end
+        # oil and the end windings, the hottest surface there); end-space oil capacity
+        # and natural convection move < 0.2 %/K. Copper R(T) and friction viscosity are
+        # evaluated every step.
+        ends = [net.index(self.end_winding[s].mean[0]) for s in ('front', 'rear')]
+        self.idx_watch = np.concatenate([self.idx_gap, self.idx_end_oil, ends,
                                          self.idx_frame_outer, self.idx_cap_outer])
         self.watch_scale = np.concatenate([np.ones(self.idx_gap.size),
                                            np.full(self.idx_watch.size - self.idx_gap.size, 4.0)])
@@ -391,9 +468,7 @@ class WetMotor:
         h = np.broadcast_to(gap_h.h, T_gap.shape)
         net.set_conductances(self.gap_links_stator, h * 2 * np.pi * st.bore_radius_m * self.dz)
         net.set_conductances(self.gap_links_rotor, h * 2 * np.pi * ro.outer_radius_m * self.dz)
-        es = c.end_spaces
-        h_end = es.htc_still_W_m2K + es.htc_speed_coeff * (w * ro.outer_radius_m) ** 0.8
-        net.set_conductances(self.end_links, h_end * self.end_areas)
+        net.set_conductances(self.end_links, self._end_space_htc(T, w, p) * self.end_areas)
         Ts_frame = float(np.mean(T[self.idx_frame_outer]))
         net.set_conductances(self.ambient_links, self.ambient_areas * self._to_ambient_htc(
             Ts_frame, u.ambient_K, corr.natural_convection_htc_horizontal_cylinder))
@@ -406,6 +481,41 @@ class WetMotor:
         self._refreshed_at = (w, u.oil_flow_m3_s, u.oil_inlet_K, u.ambient_K,
                               u.case_pressure_Pa)
         self._T_refreshed = T[self.idx_watch]
+
+    def _end_space_htc(self, T: np.ndarray, w: float, p_Pa: float) -> np.ndarray:
+        """
+        Return h (W/(m^2 K)) of each end-space surface at temperatures ``T`` (K), |speed| ``w``.
+
+        docs/model.md (End spaces). Oil properties at each surface's film
+        temperature. The rotor's end face, and the end cap where it faces it:
+        :func:`~.correlations.enclosed_disc_nusselt` (Daily-Nece friction by
+        the Reynolds-Colburn analogy). Stator surfaces (end windings, stack
+        faces, frame, the cap beyond the rotor) and the turning shaft end: a
+        plate (:func:`~.correlations.flat_plate_nusselt`) in the oil's swirl
+        (:func:`~.correlations.end_space_swirl_speed`; relative to the shaft for
+        the shaft), never below conduction through half the end space's depth.
+        All times ``end_spaces.htc_multiplier``.
+        """
+        c, log = self.cfg, self.log
+        surface, oil, kind, radius, length = self.end_surfaces
+        T_film = 0.5 * (T[surface] + T[oil])
+        rho = self.oil.density(T_film, p_Pa, log)
+        mu = self.oil.dynamic_viscosity(T_film, p_Pa, log)
+        k = self.oil.conductivity(T_film)
+        pr = mu * self.oil.specific_heat(T_film) / k
+        a, s = c.rotor.outer_radius_m, c.end_spaces.rotor_clearance_m
+        disc = kind <= END_CAP
+        h_disc = corr.enclosed_disc_nusselt(rho[disc] * w * a * a / mu[disc], pr[disc], s / a,
+                                            log=log) * k[disc] / a
+        v = corr.end_space_swirl_speed(w, a, radius)
+        v = np.where(kind == END_SHAFT, w * radius - v, v)
+        depth = 0.5 * (c.frame.length_m - c.stack_length_m)
+        h = np.maximum(corr.flat_plate_nusselt(rho * v * length / mu, pr, log=log) * k / length,
+                       2.0 * k / depth)
+        h[disc] = np.where(kind[disc] == END_ROTOR_FACE, h_disc,
+                           self._cap_disc_share * h_disc
+                           + (1.0 - self._cap_disc_share) * h[disc])
+        return c.end_spaces.htc_multiplier * h
 
     def _to_ambient_htc(self, Ts_K, T_amb_K, natural_convection) -> np.ndarray:
         """Return the surface-to-ambient h (W/(m^2 K)): fan or natural convection, + radiation."""
@@ -465,31 +575,71 @@ class WetMotor:
 
     def losses(self, u: MotorInputs, T: Optional[np.ndarray] = None) -> np.ndarray:
         """
-        Source powers (W) over a step: copper with R(T), core, oil friction.
+        Source powers (W) over a step, in the order of :data:`LOSS_GROUPS`.
 
-        Order: copper (slot slices, end windings), yoke slices, teeth slices,
-        airgap sections. Core loss and friction are averaged over the speed
-        samples of the step (friction grows as about speed^2.5: the loss at the
-        mean speed would be wrong); copper resistance and oil viscosity are
-        taken at the present temperatures ``T`` (default: the model's).
+        Every loss but copper is averaged over the speed samples of the step
+        (friction grows as about speed^2.5: the loss at the mean speed would be
+        wrong); copper resistance and oil viscosity are taken at the present
+        temperatures ``T`` (default: the model's); the electromagnetic losses
+        at the step's mean current squared (:mod:`.loss_table`).
         """
         T = self.T if T is None else T
         w = np.asarray(u.speed_rad_s, dtype=float).reshape(-1)
         # R(T) at the present winding temperatures: cheap, and the winding is what
         # a filtered coefficient would lag most
-        power, re_bb_max = motor_losses(
-            float(u.current_sq_mean_A2), w, T, self.idx_copper, self.idx_gap,
-            self._case_pressure_Pa, self._copper_weight, self.yoke_mass, self.teeth_mass,
-            self._copper_law, self._iron, self._gap_factors, self.oil.laws)
+        i_sq = float(u.current_sq_mean_A2)
+        lt = self.loss_table
+        power, re_bb_max, outside = motor_losses(
+            i_sq, w, T, self._case_pressure_Pa, (self.idx_copper, self.idx_gap, self.idx_end_oil),
+            self._copper_weight, self._copper_law, self.yoke_mass, self.teeth_mass, self._iron,
+            self._iron_split, self._gap_factors, self._ends, lt.values, lt.grid, lt.from_map,
+            self.oil.laws)
         if re_bb_max > corr.BILGEN_BOULOS_RE_MAX or not self._gap_in_data:
             self.airgap_friction_W(w, T)     # the friction again, to flag it in the log
+        if outside:
+            lt.flag(self.log, np.abs(w), i_sq)
         return power
 
-    def core_loss_W(self, speed_rad_s) -> np.ndarray:
-        """Return the total stator core loss (W) at each speed sample."""
-        d_yoke, d_teeth = core_loss_density(
-            np.abs(np.asarray(speed_rad_s, dtype=float).reshape(-1)), self._iron)
-        return self.yoke_mass.sum() * d_yoke + self.teeth_mass.sum() * d_teeth
+    def shaft_drag_W(self, speed_rad_s, T: Optional[np.ndarray] = None) -> np.ndarray:
+        """
+        Return the friction on the shaft (W) at each speed sample (rad/s).
+
+        The airgap's oil friction, both end faces' and both bearings', with the
+        oil at the temperatures of ``T`` (default: the model's): what the
+        motor's torque must overcome besides the pump.
+        """
+        T = self.T if T is None else T
+        w = np.abs(np.atleast_1d(np.asarray(speed_rad_s, dtype=float)))
+        face, bearing = end_drag(w, T[self.idx_end_oil], self._case_pressure_Pa, self._ends,
+                                 self.oil.laws)
+        return self.airgap_friction_W(w, T).sum(axis=1) + face.sum(axis=1) + bearing.sum(axis=1)
+
+    def electromagnetic_loss_W(self, speed_rad_s, current_A,
+                               T: Optional[np.ndarray] = None) -> np.ndarray:
+        """
+        Return the electromagnetic losses but the DC copper loss (W) at each sample.
+
+        Stator iron, the rotor's eddy currents and the copper's AC excess (at
+        the winding's mean resistance, from ``T``, default the model's), at
+        the samples' speeds (rad/s) and RMS currents (A): with phases I^2 R_dc
+        what the drive's electrical input pays besides the shaft's work.
+        """
+        T = self.T if T is None else T
+        w = np.abs(np.atleast_1d(np.asarray(speed_rad_s, dtype=float)))
+        i_sq = np.square(np.broadcast_to(np.asarray(current_A, dtype=float), w.shape))
+        lt = self.loss_table
+        v, outside = table_values(lt.values, lt.grid, w, np.ascontiguousarray(i_sq))
+        if outside:
+            lt.flag(self.log, w, i_sq)
+        if lt.from_map:
+            iron = v[:, IRON]
+        else:
+            d_yoke, d_teeth = core_loss_density(w, self._iron)
+            iron = self.yoke_mass.sum() * d_yoke + self.teeth_mass.sum() * d_teeth
+        T_w = float(np.dot(self.copper_share, T[self.idx_copper]) / self.copper_share.sum())
+        r_phase = copper_resistance(*self._copper_law, T_w)
+        return (iron + v[:, MAGNET] + v[:, SLEEVE] + v[:, ROTOR_CORE]
+                + self.cfg.winding.phases * r_phase * v[:, COPPER_EXCESS])
 
     def airgap_friction_W(self, speed_rad_s, T: Optional[np.ndarray] = None) -> np.ndarray:
         """
@@ -514,12 +664,12 @@ class WetMotor:
 
     @property
     def losses_W(self) -> Dict[str, float]:
-        """Loss split (W) of the last step or steady state."""
-        n, P = self.cfg.slices, self.power_W
-        return {'copper_slot': float(P[:n].sum()), 'copper_end': float(P[n:n + 2].sum()),
-                'core_yoke': float(P[n + 2:2 * n + 2].sum()),
-                'core_teeth': float(P[2 * n + 2:3 * n + 2].sum()),
-                'oil_friction': float(P[3 * n + 2:].sum())}
+        """Loss split (W) of the last step or steady state: :data:`LOSS_NAMES`."""
+        P, src = self.power_W, self.sources
+        copper = P[src['copper']]
+        out = {'copper_slot': float(copper[:-2].sum()), 'copper_end': float(copper[-2:].sum())}
+        out.update({g: float(P[src[g]].sum()) for g in LOSS_GROUPS[1:]})
+        return out
 
     def boundaries(self, u: MotorInputs) -> np.ndarray:
         """Boundary temperatures (K) in network order: ambient, oil inlet."""
@@ -594,7 +744,7 @@ class WetMotor:
         substeps, h = self._substeps(dt_s, max_substep_s)
         self.last_substeps = substeps
         exact = exact_coefficients
-        Tb = self.boundaries(u)
+        Tb = self._boundary_K = self.boundaries(u)
         for k in range(substeps):
             # changes held by defer_refresh in the previous step come into use, discretised
             # before this step's refresh (which is then held in turn)
@@ -653,12 +803,38 @@ class WetMotor:
         return self.quantities.values(self.T if T is None else T)
 
     def heat_balance(self, T: np.ndarray, u: MotorInputs) -> Dict[str, float]:
-        """Heat flows (W) at temperatures ``T``: losses in, to ambient, carried out by the oil."""
+        """
+        Heat flows (W) at temperatures ``T``: losses in, the paths they take, the heat out.
+
+        ``losses``; ``bore``: from the stator and the rotor into the airgap oil;
+        ``end_spaces``: from the solids into the end-space oil; ``to_ambient``:
+        frame and end caps to the air; ``to_oil``: carried off by the oil
+        (m_dot c_p times its rise), which is the bore's and the end spaces'
+        heat plus the friction made in the oil.
+        """
         flows = self.net.link_heat_flows(T, self.boundaries(u))
         to_amb = float(flows[self.ambient_links].sum() + flows[self.cap_links].sum())
         m_cp = self.net.advection_rate[self.adv[0]]
         to_oil = float(m_cp * (T[self.idx_oil[-1]] - u.oil_inlet_K))
-        return {'losses': float(np.sum(self.power_W)), 'to_ambient': to_amb, 'to_oil': to_oil}
+        bore = float(flows[self.gap_links_stator].sum() + flows[self.gap_links_rotor].sum())
+        return {'losses': float(np.sum(self.power_W)), 'bore': bore,
+                'end_spaces': float(flows[self.end_links].sum()), 'to_ambient': to_amb,
+                'to_oil': to_oil}
+
+    def heat_paths_W(self) -> Dict[str, float]:
+        """
+        Return where the last step's heat went (W), from its mean temperatures.
+
+        ``bore`` and ``end_spaces``: from the solids into the airgap and the
+        end-space oil; ``to_ambient``: frame and end caps to the air (see
+        :meth:`heat_balance`, its steady-state counterpart).
+        """
+        flows = self.net.link_heat_flows(self.T_mean, self._boundary_K)
+        return {'bore': float(flows[self.gap_links_stator].sum()
+                              + flows[self.gap_links_rotor].sum()),
+                'end_spaces': float(flows[self.end_links].sum()),
+                'to_ambient': float(flows[self.ambient_links].sum()
+                                    + flows[self.cap_links].sum())}
 
     @property
     def node_count(self) -> int:
@@ -704,37 +880,86 @@ def gap_friction(speed_abs_rad_s, T_gap_K, p_Pa, gap, laws):
 
 
 @jit
-def motor_losses(current_sq_mean_A2, speed_rad_s, T_K, idx_copper, idx_gap, case_pressure_Pa,
-                 copper_weight, yoke_mass_kg, teeth_mass_kg, copper_law, iron, gap, laws):
+def end_drag(speed_abs_rad_s, T_end_K, p_Pa, ends, laws):
     """
-    Return the source powers (W) of :meth:`WetMotor.losses` and the largest Bilgen-Boulos Re_d.
+    Return the friction (W) of each end face and of each bearing at each |speed| (samples x 2).
 
-    Copper: ``current_sq_mean_A2`` (A^2) x ``copper_weight`` (phases x each
-    source's share of the conductor length) x R(T) at the temperatures (K)
-    of the nodes ``idx_copper`` of ``T_K``, ``copper_law`` the phase
-    resistance at 20 degC (ohm) and its tempco (1/K); core: the yoke's and
-    the teeth's masses (kg) x their Steinmetz loss per kg (``iron``, see
-    :func:`core_loss_density`); friction (:func:`gap_friction`) at the
-    nodes ``idx_gap`` and ``case_pressure_Pa``. Core loss and friction are
-    means over the speed samples (rad/s). The Re_d returned is the largest
-    where Bilgen-Boulos set the friction (0 where it set none): what the
-    validity log would flag.
+    With the end spaces' oil at ``T_end_K`` (K, front and rear) and ``p_Pa``:
+    the rotor's end face, :func:`~.correlations.enclosed_disc_friction`; the
+    bearing, :func:`~.correlations.palmgren_bearing_torque` times the speed
+    and the calibration factor. ``ends``: disc radius (m), its axial
+    clearance (m), bearing pitch diameter (m), f0, f1, load (N), factor.
     """
+    a, s, dm, f0, f1, load, factor = ends
+    rho = oil_density(T_end_K, p_Pa, laws)
+    nu = oil_nu(T_end_K, p_Pa, laws)
+    n = speed_abs_rad_s.size
+    face = np.empty((n, 2))
+    bearing = np.empty((n, 2))
+    for e in range(2):
+        for k in range(n):
+            face[k, e] = corr.enclosed_disc_friction(rho[e], nu[e] * rho[e], speed_abs_rad_s[k],
+                                                     a, s)[0]
+        bearing[:, e] = (factor * speed_abs_rad_s
+                         * corr.palmgren_bearing_torque(nu[e], speed_abs_rad_s, dm, f0, f1, load))
+    return face, bearing
+
+
+@jit
+def motor_losses(current_sq_mean_A2, speed_rad_s, T_K, case_pressure_Pa, nodes, copper_weight,
+                 copper_law, yoke_mass_kg, teeth_mass_kg, iron, iron_split, gap, ends, table,
+                 grid, from_map, laws):
+    """
+    Return the source powers (W), the largest Bilgen-Boulos Re_d, whether the table ran out.
+
+    The powers of :meth:`WetMotor.losses`; whether the loss table was extrapolated.
+
+    ``nodes``: the indices in ``T_K`` (K) of the copper nodes, the airgap
+    sections and the two end spaces. Copper: ``current_sq_mean_A2`` (A^2)
+    plus the table's AC excess, x ``copper_weight`` (phases x each source's
+    share of the conductor length) x R(T) of each copper node,
+    ``copper_law`` the phase resistance at 20 degC (ohm) and its tempco
+    (1/K); iron: the yoke's and the teeth's masses (kg) x their Steinmetz
+    loss per kg (``iron``, see :func:`core_loss_density`), or with
+    ``from_map`` the table's iron loss shared by ``iron_split``; friction
+    (:func:`gap_friction`, :func:`end_drag`) at ``case_pressure_Pa``;
+    magnet, sleeve and rotor core from the table (``table``, ``grid``: see
+    :mod:`.loss_table`), the same in every slice. Every loss but copper is a
+    mean over the speed samples (rad/s). The Re_d returned is the largest
+    where Bilgen-Boulos set the airgap friction (0 where it set none): what
+    the validity log would flag.
+    """
+    idx_copper, idx_gap, idx_end = nodes
     w = np.abs(speed_rad_s)
-    n_cu, n_fe = idx_copper.size, yoke_mass_kg.size
-    power = np.empty(n_cu + 2 * n_fe + idx_gap.size)
-    power[:n_cu] = current_sq_mean_A2 * copper_weight * copper_resistance(
-        copper_law[0], copper_law[1], T_K[idx_copper])
-    d_yoke, d_teeth = core_loss_density(w, iron)
-    power[n_cu:n_cu + n_fe] = yoke_mass_kg * (d_yoke.sum() / w.size)
-    power[n_cu + n_fe:n_cu + 2 * n_fe] = teeth_mass_kg * (d_teeth.sum() / w.size)
+    n_s = w.size
+    n_cu, n = idx_copper.size, idx_gap.size
+    power = np.empty(n_cu + 6 * n + 4)
+    em, outside = table_values(table, grid, w, np.full(n_s, current_sq_mean_A2))
+    em_mean = em.sum(axis=0) / n_s
+    power[:n_cu] = (current_sq_mean_A2 + em_mean[COPPER_EXCESS]) * copper_weight \
+        * copper_resistance(copper_law[0], copper_law[1], T_K[idx_copper])
+    k = n_cu
+    if from_map:
+        power[k:k + 2 * n] = em_mean[IRON] * iron_split
+    else:
+        d_yoke, d_teeth = core_loss_density(w, iron)
+        power[k:k + n] = yoke_mass_kg * (d_yoke.sum() / n_s)
+        power[k + n:k + 2 * n] = teeth_mass_kg * (d_teeth.sum() / n_s)
+    k += 2 * n
     friction, regime, re = gap_friction(w, T_K[idx_gap], case_pressure_Pa, gap, laws)
-    power[n_cu + 2 * n_fe:] = friction.sum(axis=0) / w.size
+    power[k:k + n] = friction.sum(axis=0) / n_s
+    k += n
+    for column in (MAGNET, SLEEVE, ROTOR_CORE):
+        power[k:k + n] = em_mean[column] / n
+        k += n
+    face, bearing = end_drag(w, T_K[idx_end], case_pressure_Pa, ends, laws)
+    power[k:k + 2] = face.sum(axis=0) / n_s
+    power[k + 2:k + 4] = bearing.sum(axis=0) / n_s
     re_bb_max = 0.0
-    for k in range(re.size):
-        if regime.flat[k] != 0 and re.flat[k] > re_bb_max:
-            re_bb_max = re.flat[k]
-    return power, re_bb_max
+    for i in range(re.size):
+        if regime.flat[i] != 0 and re.flat[i] > re_bb_max:
+            re_bb_max = re.flat[i]
+    return power, re_bb_max, outside
 
 
 @jit
