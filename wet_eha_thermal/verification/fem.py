@@ -208,7 +208,7 @@ class GridFE:
         return M.tocsr(), b
 
     def area(self, edges) -> float:
-        """Return the wetted size of the edges of :meth:`face`: m^2 in r-z, m per m in the plane."""
+        """Return the size of the edges of :meth:`face`: m^2 in r-z, m per m in the plane."""
         return float(self._surface(self._facets(edges), 1.0)[1].sum())
 
     def _jump(self, grid_nodes: np.ndarray, group_a: str, group_b: str) -> sp.csr_matrix:
