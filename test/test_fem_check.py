@@ -61,6 +61,21 @@ def test_slot_pitch_against_one_slice_network(checks, point):
     assert fe['bore_W_m'] + fe['frame_W_m'] == pytest.approx(losses, rel=1e-9)
 
 
+@pytest.mark.parametrize('point', POINTS)
+def test_rz_cross_section_reproduces_the_slot_pitch(checks, point):
+    """The r-z stack, fitted on winding and yoke means, gives the 2-D teeth mean and bore heat."""
+    pc = checks[point]
+    prob = fem.slot_problem(pc.motor, pc.inputs)
+    motor, u = fem.slice_motor(pc.motor.cfg, pc.motor.oil, prob)
+    fe = fem.motor_rz(motor, u, pc.coupling, H_RZ_M)
+    oil = prob.oil_K
+    # not fitted: 3 % of the rise (the mesh alone moves it by 1 %)
+    assert fe.mean(fe.blocks_of('teeth')) - oil == pytest.approx(pc.slot['teeth'] - oil,
+                                                                 rel=0.03)
+    bore = fem.fe_figures(fe, motor)['bore'] / pc.motor.cfg.stack_length_m
+    assert bore == pytest.approx(pc.slot['bore_W_m'], rel=0.01)
+
+
 def _rz_targets(pc):
     fe, net = pc.fe, pc.network
     return {'winding_mean': abs(fe['winding_mean'] - net['winding_mean']) <= 1.0,
@@ -73,11 +88,6 @@ def test_rz_motor_against_network(checks, point):
     """Winding mean within 1 K, hot spot within 2 K, magnet within 3 K; energy closes."""
     pc = checks[point]
     met = _rz_targets(pc)
-    if point == (10000, 30.0):
-        # the documented miss (docs/model.md): the network's winding is 1.3 K too warm at 30 A
-        assert met['winding_hotspot'] and met['magnet']
-        pytest.xfail('winding mean 1.3 K above the field at 30 A: the winding blocks join '
-                     'their axial and radial paths only at the mean node')
     assert all(met.values()), {k: (pc.fe[k], pc.network[k]) for k in met}
     # the FE's own energy balance: losses = heat to ambient + enthalpy carried off by the oil
     fe = pc.rz

@@ -529,16 +529,16 @@ def slot_pitch(c, prob: SlotProblem, h_m: float) -> Tuple[GridFE, Dict[str, floa
                 'slot_sides_W_m': c.slots * fe.contact_flow('slot sides', T)}
 
 
-def slot_network(c, oil, prob: SlotProblem) -> Dict[str, float]:
+def slice_motor(c, oil, prob: SlotProblem) -> Tuple[WetMotor, MotorInputs]:
     """
-    Solve the 2-D problem with the production builder: a one-slice ``WetMotor`` of ``c``.
+    Return the 2-D problem built by the production builder: a one-slice ``WetMotor`` of ``c``.
 
     Everything at the ends and the rotor are cut off (end-space, end-cap,
     frame-end and rotor-to-oil links to zero, no end-winding or friction loss):
     they are then dead ends that carry no heat, and the slice is the axially
-    adiabatic cross-section. The
-    frame barrel and the bore get the problem's h, and an oil flow so large
-    that the airgap oil sits at the problem's oil temperature.
+    adiabatic cross-section. The frame barrel and the bore get the problem's h,
+    and an oil flow so large that the airgap oil sits at the problem's oil
+    temperature. The motor is solved: its ``T`` and ``power_W`` are set.
     """
     m = WetMotor(replace(c, slices=1), oil)
     u = MotorInputs(0.0, 0.0, prob.oil_K, 1e-3, prob.ambient_K, 0.0)
@@ -559,10 +559,18 @@ def slot_network(c, oil, prob: SlotProblem) -> Dict[str, float]:
     for k, nm in enumerate(source_names(m)):
         P[k] = {'winding.s1': prob.copper_W_m, 'yoke.s1': prob.yoke_W_m,
                 'teeth.s1': prob.teeth_W_m}.get(nm, 0.0) * L
-    Tb = m.boundaries(u)
-    T = net.steady_state(Tb, P)
-    flows = net.link_heat_flows(T, Tb)
-    frame_links = np.array(m.ambient_links)[is_frame]
+    m.power_W = P
+    m.T = net.steady_state(m.boundaries(u), P)
+    return m, u
+
+
+def slot_network(c, oil, prob: SlotProblem) -> Dict[str, float]:
+    """Solve :func:`slice_motor`; return the figures :func:`slot_pitch` returns (K, W/m)."""
+    m, u = slice_motor(c, oil, prob)
+    net, T, L = m.net, m.T, c.stack_length_m
+    flows = net.link_heat_flows(T, m.boundaries(u))
+    frame_links = [k for k, (a, _) in zip(m.ambient_links, net.link_ends(m.ambient_links))
+                   if a < net.n and net.node_names[a].startswith('frame.')]
     t = {p: float(T[net.index(p + '.s1')]) for p in ('winding', 'teeth', 'yoke', 'frame')}
     t.update({'bore_W_m': float(flows[m.gap_links_stator].sum()) / L,
               'frame_W_m': float(flows[frame_links].sum()) / L})
@@ -656,7 +664,7 @@ def rz_blocks(motor: WetMotor) -> List[Block]:
     stack = [('frame', 'frame', (fr.inner_radius_m, fr.outer_radius_m), ks(fr.material), 1.0),
              ('yoke', 'stator', (st.yoke_inner_radius_m, st.outer_radius_m), ks(st.material),
               1.0),
-             ('teeth', 'stator', (st.bore_radius_m, r_tip), ks(st.material), 1.0),
+             ('teeth', 'tip', (st.bore_radius_m, r_tip), ks(st.material), 1.0),
              ('teeth', 'stator', (r_tip, st.yoke_inner_radius_m), ks(st.material, tf), tf),
              ('winding', 'winding', (r_tip, st.yoke_inner_radius_m), k_wind, sf),
              ('sleeve', 'sleeve', (r_mo, ro.outer_radius_m), ks(ro.sleeve), 1.0),
@@ -691,13 +699,18 @@ def end_space_box(c, side: str):
     return (0.0, c.frame.inner_radius_m), z
 
 
-def motor_rz(motor: WetMotor, u: MotorInputs, g_W_m3K: float, h_m: float) -> GridFE:
+def motor_rz(motor: WetMotor, u: MotorInputs, coupling: Tuple[float, float],
+             h_m: float) -> GridFE:
     """
     Build and solve the r-z model of ``motor``, whose network is solved at ``u``.
 
     Contacts from the configuration (frame fit, slot liner on the slot's bottom
-    and top, sleeve-magnet-core-shaft fits, cap joint); ``g_W_m3K`` couples the
-    winding and teeth continua (:func:`slot_coupling`). Every network link
+    and top, sleeve-magnet-core-shaft fits, cap joint); ``coupling`` the two
+    effective coefficients fitted to the slot pitch (:func:`fit_coupling`): the
+    volumetric conductance of the winding to the teeth continuum (W/(m^3 K))
+    and the conductance per area of the teeth continuum to the tooth-tip ring
+    (W/(m^2 K): the constriction where the tooth meets its tip and the
+    spreading under the slot that r-z cannot resolve). Every network link
     from a solid node to an oil node or to ambient becomes a Robin link of the
     same conductance over the surface of that node (the end-space links over
     the part of it that bounds the end space); the oil nodes are lumped
@@ -712,7 +725,9 @@ def motor_rz(motor: WetMotor, u: MotorInputs, g_W_m3K: float, h_m: float) -> Gri
     contacts = [('frame fit', every('frame'), 'inner', 'stator',
                  st.contact_gap_conductivity_W_mK / st.frame_contact_gap_m, None),
                 ('slot bottom', every('winding'), 'outer', 'stator', liner, None),
-                ('slot top', every('winding'), 'inner', 'stator', liner, None),
+                ('slot top', every('winding'), 'inner', 'tip', liner, None),
+                ('tooth root of the tip', [k for k in every('teeth') if fe.blocks[k].frac < 1.0],
+                 'inner', 'tip', coupling[1], None),
                 ('sleeve-magnet', every('sleeve'), 'inner', 'magnet',
                  ro.sleeve_magnet_htc_W_m2K, None),
                 ('magnet-core', every('magnet'), 'inner', 'core', ro.magnet_core_htc_W_m2K, None),
@@ -728,7 +743,7 @@ def motor_rz(motor: WetMotor, u: MotorInputs, g_W_m3K: float, h_m: float) -> Gri
         fe.add_contact(name, fe.face(blocks, side, box), group, h)
     for k in every('teeth'):
         if fe.blocks[k].frac < 1.0:
-            fe.add_volume_coupling(k, 'winding', g_W_m3K)
+            fe.add_volume_coupling(k, 'winding', coupling[0])
     names = net.node_names + net.boundary_names
     Tb = motor.boundaries(u)
     bvals = dict(zip(net.boundary_names, Tb))
@@ -856,7 +871,7 @@ class PointCheck:
     slot_fe: GridFE
     slot: Dict[str, float]
     slot_net: Dict[str, float]
-    coupling_W_m3K: float
+    coupling: Tuple[float, float]
     rz: GridFE
     network: Dict[str, float]
     fe: Dict[str, float]
@@ -875,7 +890,43 @@ def check_point(cfg, oil, rpm: float, amps: float, h_slot_m: float,
     motor.steady_state(u)
     prob = slot_problem(motor, u)
     slot_fe, slot = slot_pitch(cfg.motor, prob, h_slot_m)
-    g = slot_coupling(slot_fe, cfg.motor)
+    g = fit_coupling(cfg.motor, oil, prob, slot_fe, slot)
     rz = motor_rz(motor, u, g, h_rz_m)
     return PointCheck(rpm, amps, motor, u, slot_fe, slot, slot_network(cfg.motor, oil, prob),
                       g, rz, network_figures(motor, u), fe_figures(rz, motor))
+
+
+def fit_coupling(c, oil, prob: SlotProblem, slot_fe: GridFE, slot: Dict[str, float],
+                 h_m: float = 0.002) -> Tuple[float, float]:
+    """
+    Fit the r-z model's two effective coefficients so that it reproduces the slot pitch.
+
+    The r-z model of the 2-D problem (:func:`slice_motor`: one slice, the ends
+    cut off) must give the winding and yoke means of the 2-D field ``slot``
+    (:func:`slot_pitch`); Newton's method on the logarithms of (winding-teeth
+    conductance per volume, teeth-tip conductance per area), from the slot's own
+    side flux over its winding-to-tooth difference (:func:`slot_coupling`) and
+    the tooth's conduction over half a pitch at the tip. The teeth mean and the
+    bore's heat then follow (``test/test_fem_check.py`` checks them). Returns
+    the pair for :func:`motor_rz`.
+    """
+    st = c.stator
+    motor, u = slice_motor(c, oil, prob)
+    target = np.array([slot['winding_mean'], slot['yoke']])
+
+    def residual(x):
+        fe = motor_rz(motor, u, tuple(np.exp(x)), h_m)
+        return np.array([fe.mean(fe.blocks_of('winding')), fe.mean(fe.blocks_of('yoke'))]) \
+            - target
+    half_pitch = np.pi * (st.bore_radius_m + st.tooth_tip_depth_m) / c.slots
+    x = np.log([slot_coupling(slot_fe, c),
+                st.tooth_fraction * st.material.k_radial_W_mK / half_pitch])
+    for _ in range(12):
+        r = residual(x)
+        if np.max(np.abs(r)) < 1e-3:
+            break
+        jac = np.column_stack([(residual(x + d) - r) / 0.05 for d in np.eye(2) * 0.05])
+        x = x + np.clip(np.linalg.solve(jac, -r), -2.0, 2.0)
+    else:
+        raise RuntimeError(f'the r-z model does not reproduce the slot pitch: {r} K')
+    return float(np.exp(x[0])), float(np.exp(x[1]))
