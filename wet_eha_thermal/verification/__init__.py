@@ -1,0 +1,1 @@
+"""Independent checks of the model (finite elements); nothing at run time imports them."""
