@@ -80,7 +80,7 @@ def winding_coefficients(slots: int, pole_pairs: int, orders, phases: int = 3):
     |coeff| / (2 coils).
 
     >>> c, n = winding_coefficients(12, 4, [4, 8])
-    >>> [round(float(abs(x)) / (2 * n[0]), 3) for x in c[0]]     # k_w1 = k_w8 = 0.866
+    >>> [round(float(abs(x) / (2 * n[0])), 3) for x in c[0]]     # k_w1 = k_w8 = 0.866
     [0.866, 0.866]
     """
     if phases % 2 == 0:
@@ -240,10 +240,10 @@ def slab_skin_factor(width_m, frequency_rad_s, resistivity_ohm_m, mu_r=1.0):
 
     >>> round(float(slab_skin_factor(1e-3, 2 * np.pi * 50.0, 1.5e-6)), 6)   # thin: 1
     1.0
-    >>> d = 1e-2 / 2.0    # a width of two skin depths: F(2) = 0.9696
+    >>> d = 1e-2 / 2.0    # two skin depths: F(2) = 1.5 (3.6269 - 0.9093) / (3.7622 + 0.4161)
     >>> w = 2 * 1.5e-6 / (MU0 * d ** 2)
     >>> round(float(slab_skin_factor(1e-2, w, 1.5e-6)), 4)
-    0.9696
+    0.9756
     """
     delta = np.sqrt(2.0 * resistivity_ohm_m
                     / (np.maximum(frequency_rad_s, 1e-300) * MU0 * mu_r))
@@ -268,8 +268,8 @@ def sheet_end_factor(wavenumber_1_m, length_m):
     at both ends gives psi proportional to 1 - cosh(k z) / cosh(k L / 2), whose
     loss integral is L (1 - tanh(x) / x) against L for the 2-D sheet.
 
-    >>> round(float(sheet_end_factor(8 / 0.01775, 0.055)), 4)
-    0.9194
+    >>> round(float(sheet_end_factor(8 / 0.01775, 0.055)), 4)   # x = 12.39: 1 - 1/x
+    0.9193
     """
     x = np.maximum(np.asarray(wavenumber_1_m, float) * length_m / 2.0, 1e-12)
     return np.where(x < 1e-4, x ** 2 / 3.0, 1.0 - np.tanh(x) / x)
@@ -292,8 +292,8 @@ def piece_end_factor(order, piece_angle_rad, width_m, length_m, modes: int = 63)
     membrane analogy; Timoshenko and Goodier, "Theory of elasticity",
     3rd ed., 1970, sec. 109). The piece's radial profile is taken as uniform.
 
-    >>> round(float(piece_end_factor(1, 1e-6, 0.010, 0.055)), 4)   # torsion series
-    0.8859
+    >>> round(float(piece_end_factor(1, 1e-6, 0.010, 0.055)[0]), 4)  # 1 - 0.6274 x 0.1818 x 1.0044
+    0.8854
     """
     order = np.atleast_1d(np.asarray(order, float))
     m = np.arange(1, modes + 1, dtype=float)
@@ -651,8 +651,11 @@ def pwm_ripple_current_rms_A(motor, speed_rad_s, current_A, log: Optional[Validi
 
     >>> from wet_eha_thermal.config import load_config
     >>> m = load_config().motor
+    >>> float(pwm_ripple_current_rms_A(m, 0.0, 0.0))    # M = 0: the legs switch alike
+    0.0
+    >>> # 10 000 r/min, 15 A: the switched simulation gives 1.11 A too (within 2 %)
     >>> round(float(pwm_ripple_current_rms_A(m, 2 * np.pi * 10000 / 60, 15.0)), 2)
-    1.46
+    1.11
     """
     h = pwm_current_harmonics(motor, speed_rad_s, current_A, log)
     return np.sqrt(np.sum(h['current_A'] ** 2, axis=-1) / 2.0)
@@ -803,6 +806,8 @@ def rotor_eddy_loss_table(motor, speeds_rad_s, currents_A,
         per_h = np.sum(weight * _interpolate(grid, table[key], index, pwm_omega), axis=2)
         total = arm[:, None] * currents[None, :] ** 2 + np.einsum('sch,sh->sc', ih2, per_h)
         out[key + '_W'] = total * motor.electromagnetic.loss_factor
+    if not geo.solid_core:
+        out['core_W'] = np.zeros_like(out['core_W'])     # not the interpolation's 1e-300
     out['ripple_rms_A'] = np.sqrt(np.sum(ih2, axis=-1))
     wdg = motor.winding
     fr = copper_ac_factor(np.abs(wh) / (2.0 * np.pi), wdg.conductor_diameter_m,
