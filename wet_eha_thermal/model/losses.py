@@ -93,8 +93,8 @@ def copper_ac_factor(frequency_Hz, diameter_m: float, layers: int, porosity: flo
     (cosh 2D - cos 2D) (skin), zeta_2 = (sinh D - sin D) / (cosh D + cos D)
     (proximity), Delta = sqrt(eta) h / delta with h = d sqrt(pi) / 2 the side of
     the equal-area square conductor, eta the porosity (:func:`layer_porosity`)
-    and delta = sqrt(rho / (pi f mu0)) the skin depth (Dowell 1966, eq. 21
-    and his porosity factor). Below Delta = 0.01 the series
+    and delta = sqrt(rho / (pi f mu0)) the skin depth (Dowell 1966, with his
+    porosity factor). Below Delta = 0.01 the series
     1 + (5 p^2 - 1) Delta^4 / 45 is used (the same function). One-dimensional
     field across the layers that fill the slot's breadth; for round wire an
     approximation whose error grows past d / delta of about 2 (Dowell's
