@@ -13,9 +13,9 @@ import inspect
 import io
 
 import pytest
-from wet_eha_thermal.model import correlations, mellor, oil
+from wet_eha_thermal.model import correlations, losses, mellor, oil, rotor_losses
 
-MODULES = (correlations, oil, mellor)
+MODULES = (correlations, oil, mellor, losses, rotor_losses)
 
 #: Public functions and methods of MODULES without an example of their own, and why.
 NO_EXAMPLE = {
@@ -38,6 +38,18 @@ NO_EXAMPLE = {
     'oil.Oil.bulk_modulus': 'a datum of the grade',
     'mellor.add_cylinder': 'wires mellor_resistances into a network (test_mellor.py)',
     'mellor.Cylinder.slices': 'counts node names',
+    'rotor_losses.harmonic_losses': 'checked against FE and Bessel solutions (test_rotor_losses)',
+    'rotor_losses.magnet_fundamental_field_T': 'through implied_turns_per_phase (its test)',
+    'rotor_losses.fundamental_sheet_per_amp': 'through implied_turns_per_phase (its test)',
+    'rotor_losses.implied_turns_per_phase': 'test_rotor_losses: about 36 turns on the rig',
+    'rotor_losses.pwm_current_harmonics': 'pwm_ripple_current_rms_A sums it (its example)',
+    'rotor_losses.pwm_ripple_ac_factor': 'copper_ac_factor over pwm_current_harmonics',
+    'rotor_losses.rotor_eddy_loss_breakdown': 'harmonic_losses per wave (test_rotor_losses)',
+    'rotor_losses.rotor_eddy_loss_table': 'the breakdown tabulated (test_rotor_losses)',
+    'rotor_losses.RotorGeometry.radii': 'a datum of the geometry',
+    'rotor_losses.RotorGeometry.mu_r': 'a datum of the geometry',
+    'rotor_losses.RotorGeometry.piece_angle_rad': 'a datum of the geometry',
+    'rotor_losses.RotorGeometry.piece_width_m': 'a datum of the geometry',
 }
 
 # Fewer would mean the collection below lost docstrings (31 docstrings and 59 examples

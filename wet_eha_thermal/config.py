@@ -250,6 +250,10 @@ class Winding:
     insulation_limit_C: float = spec(0.0, 300.0, doc=(
         'insulation class limit: the winding hot-spot limit of the reports, the forecast and '
         'the margin current'))
+    conductor_diameter_m: float = spec(0.0, 0.01, low_open=True, doc=(
+        "bare diameter of the round wire: Dowell's AC resistance of the copper"))
+    layers_per_slot_side: int = spec(1, 50, doc=(
+        'conductor layers of one coil side, from the slot bottom to the opening (Dowell p)'))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -332,6 +336,34 @@ class LossMap:
 
 
 @dataclass(frozen=True, kw_only=True)
+class Electromagnetic:
+    """Data of the rotor's eddy-current losses and of the inverter's PWM ripple."""
+
+    magnet_resistivity_ohm_m: float = positive('electrical resistivity of the magnets')
+    magnet_relative_permeability: float = spec(1.0, 2.0, doc='recoil permeability')
+    magnet_remanence_T: float = spec(0.1, 2.0, doc=(
+        "at 20 degC: the magnets' airgap field, which with the torque constant sets the "
+        'current sheet of the winding'))
+    pole_arc_fraction: float = fraction('magnet arc over pole pitch')
+    magnet_pieces_per_pole: int = spec(1, 100, doc='magnet pieces of one pole around the rotor')
+    magnet_pieces_axial: int = spec(1, 100, doc='magnet pieces of one pole along the stack')
+    sleeve_resistivity_ohm_m: float = positive('electrical resistivity of the retaining sleeve')
+    slot_opening_m: float = spec(0.0, None, doc=(
+        'width of the slot openings at the bore; the current sheet is spread over it'))
+    pwm_frequency_Hz: float = positive('switching (carrier) frequency of the two-level inverter')
+    dc_link_voltage_V: float = positive("the inverter's DC link")
+    phase_inductance_H: float = positive('line to neutral, at the PWM frequencies')
+    rotor_core: str = spec(choices=('solid', 'laminated'), doc=(
+        'the steel under the magnets: solid (eddy loss by its surface impedance) or '
+        'laminated (no loss)'))
+    core_resistivity_ohm_m: float = positive('of a solid rotor core')
+    core_relative_permeability: float = spec(1.0, 1.0e5, doc=(
+        "of a solid rotor core, incremental, under the magnets' bias"))
+    loss_factor: float = spec(0.0, 10.0, default=1.0, doc=(
+        'calibration multiplier on the rotor eddy losses (magnets, sleeve, core)'))
+
+
+@dataclass(frozen=True, kw_only=True)
 class Motor:
     """The wet motor: geometry, materials, contacts and discretisation."""
 
@@ -355,6 +387,9 @@ class Motor:
     rotor: Rotor = spec(doc='rotor and shaft')
     end_spaces: EndSpaces = spec(doc='the oil-filled spaces between the stack and the end caps')
     bearings: Bearings = spec(doc='the two shaft bearings, in the end caps')
+    electromagnetic: Electromagnetic = spec(doc=(
+        "rotor eddy losses and PWM ripple: the magnets', sleeve's and core's electrical data "
+        'and the drive'))
     loss_map: Optional[LossMap] = spec(default=None, doc=(
         'losses from an electromagnetic FEA instead of the analytical laws; null: analytical'))
 
