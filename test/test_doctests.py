@@ -13,9 +13,9 @@ import inspect
 import io
 
 import pytest
-from wet_eha_thermal.model import correlations, losses, mellor, oil, rotor_losses
+from wet_eha_thermal.model import correlations, fluid_power, losses, mellor, oil, rotor_losses
 
-MODULES = (correlations, oil, mellor, losses, rotor_losses)
+MODULES = (correlations, oil, mellor, losses, rotor_losses, fluid_power)
 
 #: Public functions and methods of MODULES without an example of their own, and why.
 NO_EXAMPLE = {
@@ -35,7 +35,13 @@ NO_EXAMPLE = {
     'oil.OilGrade.walther_cold': "walther_fit of the grade's data (Oil.kinematic_viscosity)",
     'oil.Oil.name': 'a datum of the grade',
     'oil.Oil.alpha_p': 'a datum of the grade',
-    'oil.Oil.bulk_modulus': 'a datum of the grade',
+    'oil.secant_bulk_modulus': 'the law of Oil.secant_bulk_modulus without checks',
+    'fluid_power.displacement_per_rad': 'a unit conversion',
+    'fluid_power.check_gap_reynolds': 'flags the validity of gap_leakage; no value',
+    'fluid_power.check_line_reynolds': 'flags the validity of line_pressure_drop; no value',
+    'fluid_power.pump_friction_torque': 'the lumped friction law of docs/model.md (test_kinetics)',
+    'fluid_power.line_pressure_drop': 'Darcy with 64/Re and Blasius (test_kinetics, test_eha)',
+    'fluid_power.line_drop_and_reynolds': 'compiled kernel of line_pressure_drop',
     'mellor.add_cylinder': 'wires mellor_resistances into a network (test_mellor.py)',
     'mellor.Cylinder.slices': 'counts node names',
     'rotor_losses.harmonic_losses': 'checked against FE and Bessel solutions (test_rotor_losses)',

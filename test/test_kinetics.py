@@ -328,7 +328,8 @@ def test_hot_oil_leaks_more(cfg, model):
     assert hot.port_a_Pa[0] == cold.port_a_Pa[0]
     ratio = oil.dynamic_viscosity(T40_K, p_gap) / oil.dynamic_viscosity(T40_K + 60.0, p_gap)
     assert ratio > 2.5  # 13.5 cSt at 40 degC, 5.1 cSt at 100 degC
-    assert hot.q_external_m3_s[0] / cold.q_external_m3_s[0] == pytest.approx(ratio, rel=1e-12)
+    # laminar: the blend into the orifice law takes off 1e-8 at 100 degC (Re_gap 60)
+    assert hot.q_external_m3_s[0] / cold.q_external_m3_s[0] == pytest.approx(ratio, rel=1e-7)
     assert hot.speed_rad_s[0] > cold.speed_rad_s[0]
 
 

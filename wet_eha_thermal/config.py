@@ -443,8 +443,16 @@ class Pump:
     """Bidirectional axial piston pump without shaft seal (case drains through the motor)."""
 
     displacement_m3_rev: float = positive('geometric displacement per shaft revolution')
-    internal_leak_coeff_m3: float = spec(0.0, None, doc='Q = C dp / mu, port to port')
-    external_leak_coeff_m3: float = spec(0.0, None, doc='Q = C dp / mu, port to case')
+    internal_leak_coeff_m3: float = spec(0.0, None, doc='laminar Q = C dp / mu, port to port')
+    external_leak_coeff_m3: float = spec(0.0, None, doc='laminar Q = C dp / mu, port to case')
+    leak_gap_height_m: float = positive(
+        'height h of the equivalent gap of both leakage paths (width b = 12 C l / h^3): with '
+        'its length it sets the gap Reynolds number and where the laminar law turns into the '
+        'orifice law', default=1.0e-5)
+    leak_gap_length_m: float = positive('length l of that gap along the flow', default=2.0e-3)
+    leak_discharge_coeff: float = fraction(
+        'C_d of the orifice law Q = C_d b h sqrt(2 dp / rho) the leakage tends to at high gap '
+        'Reynolds numbers', default=0.61)
     viscous_friction_coeff: float = spec(0.0, None, doc='C_v of T_loss = C_v mu D w')
     pressure_friction_coeff: float = spec(0.0, None, doc='C_f of T_loss = C_f D dp')
     coulomb_torque_Nm: float = spec(0.0, None, doc='T_c')

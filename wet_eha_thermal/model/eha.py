@@ -99,8 +99,11 @@ class EHAModel:
         h = cfg.hydraulics
         self.area = h.actuator.area_m2
         self.d_rad = fp.displacement_per_rad(h.pump.displacement_m3_rev)
+        # the leakage gaps: laminar coefficients (internal, external) and the gap geometry
         self._leak_coeffs = np.array([[h.pump.internal_leak_coeff_m3],
                                       [h.pump.external_leak_coeff_m3]])
+        self._leak_gap = (h.pump.leak_gap_height_m, h.pump.leak_gap_length_m,
+                          h.pump.leak_discharge_coeff)
         # the constants of the flows kernel (see step_flows_kernel)
         self._geometry = (self.area, self.d_rad, h.lines.length_m, h.lines.bore_m,
                           h.actuator.dead_volume_m3, h.actuator.half_stroke_m)
@@ -173,12 +176,13 @@ class EHAModel:
         t0, x0, raw0, p0 = self._last
         h, ci = self.cfg.hydraulics, self.circuit
         (flow, work, P_end, vdp, x_mean, dx, fric_W, q_ext, dt, wgt, raw_end,
-         re, seg, i_sq) = step_flows_kernel(
+         re, re_gap, seg, i_sq) = step_flows_kernel(
             t0, x0, raw0, p0, b.t_s, b.position_m, b.p_a_Pa, b.p_b_Pa, b.p_acc_Pa,
             b.speed_rad_s, b.current_A, 0.5 * (self.T_hyd[LINE_A] + self.T_hyd[LINE_B]),
-            float(self.T_hyd[CASE]), self._geometry, self._leak_coeffs, self._friction,
-            self.oil.laws, ci.u, ci.d, ci.oil_volumes, self.oil_substep_s)
+            float(self.T_hyd[CASE]), self._geometry, self._leak_coeffs, self._leak_gap,
+            self._friction, self.oil.laws, ci.u, ci.d, ci.oil_volumes, self.oil_substep_s)
         fp.check_line_reynolds(self.log, re)
+        fp.check_gap_reynolds(self.log, re_gap)
         act = h.actuator
         chambers = (act.dead_volume_m3 + self.area * (act.half_stroke_m + x_mean),
                     act.dead_volume_m3 + self.area * (act.half_stroke_m - x_mean))
@@ -361,22 +365,26 @@ def node_pressures(sensed, flow_m3_s, T_line_K, length_m, bore_m, laws):
 
 @jit
 def step_flows_kernel(t0, x0, raw0, p0, t_s, position_m, p_a, p_b, p_acc, speed, current,
-                      T_line_K, T_case_K, geometry, leak_coeffs, friction, laws, link_up,
-                      link_down, oil_volumes, substep_s):
+                      T_line_K, T_case_K, geometry, leak_coeffs, leak_gap, friction, laws,
+                      link_up, link_down, oil_volumes, substep_s):
     """
     Return the flows of one block of samples, as :meth:`EHAModel.step_flows` uses them.
 
     ``t0, x0, raw0, p0``: the last sample of the previous block (time s,
     position m, sensed pressures Pa, node pressures Pa); ``geometry``: actuator
     area m^2, pump displacement m^3/rad, line length and bore m, chamber dead
-    volume m^3 and half stroke m; ``friction``: the pump's viscous and pressure
+    volume m^3 and half stroke m; ``leak_coeffs``: the laminar coefficients
+    of the internal and external leakage (2 x 1, m^3); ``leak_gap``: the gap
+    height m, length m and discharge coefficient of :func:`~.fluid_power.gap_leakage`;
+    ``friction``: the pump's viscous and pressure
     coefficients and Coulomb torque N m; ``link_up``/``link_down``: the oil
     nodes of each link of LINKS. Returns (mean flow of each link m^3/s, mean
     flow x pressure drop W, end node pressures Pa, integral of V dp per oil
     node m^3 Pa, mean position m, position change m, pump friction W, mean
     external leakage m^3/s, step length s, interval weights, end sensed
-    pressures Pa, line Reynolds numbers, the sub-steps: see
-    :func:`segment_sums`, and the mean of the ``current`` (A) squared).
+    pressures Pa, line Reynolds numbers, gap Reynolds numbers of both leakage
+    paths, the sub-steps: see :func:`segment_sums`, and the mean of the
+    ``current`` (A) squared).
     """
     area, d_rad, line_length, line_bore, dead_volume, half_stroke = geometry
     n = t_s.size
@@ -401,7 +409,7 @@ def step_flows_kernel(t0, x0, raw0, p0, t_s, position_m, p_a, p_b, p_acc, speed,
     P, re = node_pressures(0.5 * (raw[:, 1:] + raw[:, :-1]), q, T_line_K, line_length,
                            line_bore, laws)
     # the two leakage gaps, in one evaluation: port to port (internal) and high port
-    # to case (external), each with the viscosity at its mean pressure
+    # to case (external), each with the viscosity and density at its mean pressure
     p_high = np.maximum(P[PORT_A], P[PORT_B])
     gap_dp = np.empty((2, n))
     gap_dp[0] = P[PORT_A] - P[PORT_B]
@@ -410,8 +418,10 @@ def step_flows_kernel(t0, x0, raw0, p0, t_s, position_m, p_a, p_b, p_acc, speed,
     gap_p[0] = P[PORT_A] + P[PORT_B]
     gap_p[1] = p_high + P[CASE]
     gap_p *= 0.5
-    gap_mu = oil_nu(T_case_K, gap_p, laws) * oil_density(T_case_K, gap_p, laws)
-    leak = fp.laminar_leakage(leak_coeffs, gap_dp, gap_mu)
+    gap_rho = oil_density(T_case_K, gap_p, laws)
+    gap_mu = oil_nu(T_case_K, gap_p, laws) * gap_rho
+    leak, re_gap = fp.gap_leakage(leak_coeffs, gap_dp, gap_mu, gap_rho, leak_gap[0], leak_gap[1],
+                                  leak_gap[2])
     q_int = leak[0]
     high_a = P[PORT_A] >= P[PORT_B]
     q_ext = np.maximum(leak[1], 0.0)
@@ -466,8 +476,8 @@ def step_flows_kernel(t0, x0, raw0, p0, t_s, position_m, p_a, p_b, p_acc, speed,
     seg = segment_sums(t, x, dts, F, F * (P[link_up] - P[link_down]), vdp_int, P, fric_W, q_ext,
                        substep_s)
     return (flow, work, P[:, -1].copy(), vdp, x_mean, x[-1] - x[0],
-            np.dot(fric_W, wgt), np.dot(q_ext, wgt), dt, wgt, raw[:, -1].copy(), re, seg,
-            np.dot(current * current, wgt))
+            np.dot(fric_W, wgt), np.dot(q_ext, wgt), dt, wgt, raw[:, -1].copy(), re,
+            re_gap.ravel(), seg, np.dot(current * current, wgt))
 
 
 @jit
