@@ -223,7 +223,8 @@ class EHAModel:
         # longer (draining faster than in one step would overshoot and ring)
         q_drive = max(q_ext + self.case_buffer_m3 / max(self.buffer_time_s, dt), 0.0)
         u = MotorInputs(current_sq_mean_A2=i_sq, speed_rad_s=b.speed_rad_s, oil_inlet_K=T_case,
-                        oil_flow_m3_s=q_drive, ambient_K=ambient_K, case_pressure_Pa=p_case)
+                        oil_flow_m3_s=q_drive, ambient_K=ambient_K, case_pressure_Pa=p_case,
+                        current_A=b.current_A)
         self.motor.step(dt, u, max_substep_s=max_substep_s,
                         exact_coefficients=dt > self.buffer_time_s)
         m = self.motor

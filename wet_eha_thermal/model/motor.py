@@ -31,6 +31,7 @@ from .mellor import add_cylinder
 from .network import ThermalNetwork
 from .oil import density as oil_density, kinematic_viscosity as oil_nu, Oil
 from .quantities import motor_outputs, QuantityMap
+from .rotor_losses import rotor_eddy_loss_breakdown
 from .validity import ValidityLog
 from ..config import Motor
 
@@ -67,6 +68,9 @@ class MotorInputs:
     oil_flow_m3_s: float
     ambient_K: float
     case_pressure_Pa: float = 0.0
+    # RMS current samples (A) beside the speed samples: the electromagnetic losses that do
+    # not grow as I^2 (PWM ripple) are averaged over them; None: all at the mean I^2
+    current_A: Optional[np.ndarray] = None
 
 
 class _Radii(NamedTuple):
@@ -145,6 +149,7 @@ class WetMotor:
             bg.radial_load_N, bg.friction_factor))
         #: the electromagnetic losses over speed and current (rotor, AC copper; a map's all)
         self.loss_table = build_loss_table(cfg)
+        self._em_checked = set()    # (speed, current) bins whose rotor-loss validity is logged
         # the books' links to ambient (the frame's, then the end caps'), ends in [T; T_b]
         self._ambient_ends = self.net.link_ends(self._to_ambient_ids)
         self.net.hold_changes = defer_refresh
@@ -478,9 +483,26 @@ class WetMotor:
         # enthalpy flow: one c_p for the whole chain (the inlet's) keeps it conservative
         m_cp = u.oil_flow_m3_s * self._oil_rho_cp(u.oil_inlet_K, p)
         net.set_advection_rates(self.adv, np.full(len(self.adv), m_cp))
+        self._check_electromagnetic(w, float(u.current_sq_mean_A2))
         self._refreshed_at = (w, u.oil_flow_m3_s, u.oil_inlet_K, u.ambient_K,
                               u.case_pressure_Pa)
         self._T_refreshed = T[self.idx_watch]
+
+    def _check_electromagnetic(self, w: float, i_sq: float) -> None:
+        """
+        Log the validity of the analytical rotor losses near |speed| ``w`` and I^2 ``i_sq``.
+
+        The table holds values, not their validity: the harmonic sum is run
+        with the log once per bin of 1000 r/min and 5 A that the model visits
+        (about 30 ms each).
+        """
+        if self.loss_table.from_map:
+            return
+        current = float(np.sqrt(max(i_sq, 0.0)))
+        key = (int(w * 30.0 / np.pi // 1000.0), int(current // 5.0))
+        if key not in self._em_checked:
+            self._em_checked.add(key)
+            rotor_eddy_loss_breakdown(self.cfg, w, current, self.log)
 
     def _end_space_htc(self, T: np.ndarray, w: float, p_Pa: float) -> np.ndarray:
         """
@@ -588,16 +610,19 @@ class WetMotor:
         # R(T) at the present winding temperatures: cheap, and the winding is what
         # a filtered coefficient would lag most
         i_sq = float(u.current_sq_mean_A2)
+        i_sq_samples = (np.full(w.size, i_sq) if u.current_A is None
+                        else np.square(np.asarray(u.current_A, dtype=float).reshape(-1)))
         lt = self.loss_table
         power, re_bb_max, outside = motor_losses(
-            i_sq, w, T, self._case_pressure_Pa, (self.idx_copper, self.idx_gap, self.idx_end_oil),
+            i_sq, i_sq_samples, w, T, self._case_pressure_Pa,
+            (self.idx_copper, self.idx_gap, self.idx_end_oil),
             self._copper_weight, self._copper_law, self.yoke_mass, self.teeth_mass, self._iron,
             self._iron_split, self._gap_factors, self._ends, lt.values, lt.grid, lt.from_map,
             self.oil.laws)
         if re_bb_max > corr.BILGEN_BOULOS_RE_MAX or not self._gap_in_data:
             self.airgap_friction_W(w, T)     # the friction again, to flag it in the log
         if outside:
-            lt.flag(self.log, np.abs(w), i_sq)
+            lt.flag(self.log, np.abs(w), i_sq_samples)
         return power
 
     def shaft_drag_W(self, speed_rad_s, T: Optional[np.ndarray] = None) -> np.ndarray:
@@ -906,16 +931,18 @@ def end_drag(speed_abs_rad_s, T_end_K, p_Pa, ends, laws):
 
 
 @jit
-def motor_losses(current_sq_mean_A2, speed_rad_s, T_K, case_pressure_Pa, nodes, copper_weight,
-                 copper_law, yoke_mass_kg, teeth_mass_kg, iron, iron_split, gap, ends, table,
-                 grid, from_map, laws):
+def motor_losses(current_sq_mean_A2, current_sq_A2, speed_rad_s, T_K, case_pressure_Pa, nodes,
+                 copper_weight, copper_law, yoke_mass_kg, teeth_mass_kg, iron, iron_split, gap,
+                 ends, table, grid, from_map, laws):
     """
     Return the source powers (W), the largest Bilgen-Boulos Re_d, whether the table ran out.
 
     The powers of :meth:`WetMotor.losses`; whether the loss table was extrapolated.
 
     ``nodes``: the indices in ``T_K`` (K) of the copper nodes, the airgap
-    sections and the two end spaces. Copper: ``current_sq_mean_A2`` (A^2)
+    sections and the two end spaces. The table (``table``, ``grid``: see
+    :mod:`.loss_table`) at each speed sample (rad/s) and its current squared
+    ``current_sq_A2`` (A^2). Copper: ``current_sq_mean_A2`` (A^2)
     plus the table's AC excess, x ``copper_weight`` (phases x each source's
     share of the conductor length) x R(T) of each copper node,
     ``copper_law`` the phase resistance at 20 degC (ohm) and its tempco
@@ -923,9 +950,8 @@ def motor_losses(current_sq_mean_A2, speed_rad_s, T_K, case_pressure_Pa, nodes, 
     loss per kg (``iron``, see :func:`core_loss_density`), or with
     ``from_map`` the table's iron loss shared by ``iron_split``; friction
     (:func:`gap_friction`, :func:`end_drag`) at ``case_pressure_Pa``;
-    magnet, sleeve and rotor core from the table (``table``, ``grid``: see
-    :mod:`.loss_table`), the same in every slice. Every loss but copper is a
-    mean over the speed samples (rad/s). The Re_d returned is the largest
+    magnet, sleeve and rotor core from the table, the same in every slice.
+    Every loss but the DC copper is a mean over the samples. The Re_d returned is the largest
     where Bilgen-Boulos set the airgap friction (0 where it set none): what
     the validity log would flag.
     """
@@ -934,7 +960,7 @@ def motor_losses(current_sq_mean_A2, speed_rad_s, T_K, case_pressure_Pa, nodes, 
     n_s = w.size
     n_cu, n = idx_copper.size, idx_gap.size
     power = np.empty(n_cu + 6 * n + 4)
-    em, outside = table_values(table, grid, w, np.full(n_s, current_sq_mean_A2))
+    em, outside = table_values(table, grid, w, current_sq_A2)
     em_mean = em.sum(axis=0) / n_s
     power[:n_cu] = (current_sq_mean_A2 + em_mean[COPPER_EXCESS]) * copper_weight \
         * copper_resistance(copper_law[0], copper_law[1], T_K[idx_copper])

@@ -650,7 +650,7 @@ def rz_blocks(motor: WetMotor) -> List[Block]:
     dz = Ls / n
     r_mo = ro.outer_radius_m - ro.sleeve_thickness_m
     r_mi = r_mo - ro.magnet_thickness_m
-    r_sh, r_b = ro.core_inner_radius_m, es.bearing_radius_m
+    r_sh, r_b = ro.core_inner_radius_m, c.bearings.seat_radius_m
     r_tip = st.bore_radius_m + st.tooth_tip_depth_m
     l_fe = 0.5 * (fr.length_m - Ls)
     l_se = 0.5 * (ro.shaft_length_m - Ls)
