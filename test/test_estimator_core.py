@@ -50,8 +50,10 @@ def test_current_is_averaged_as_mean_square(cfg):
     right = winding(lambda t: math.sqrt(275.0))
     wrong = winding(lambda t: 15.0)
     assert right - wrong > 0.2                     # the distinction matters
-    # 20 samples per 20 ms step cover two whole periods: the sampled mean is exact
-    assert got == pytest.approx(right, abs=1e-6)
+    # 20 samples per 20 ms step cover two whole periods: the sampled mean is exact for the
+    # copper; the PWM ripple's losses, which do not grow as I^2 (the modulation index moves
+    # with the current), follow the samples and differ by about 1e-3 K
+    assert got == pytest.approx(right, abs=5e-3)
 
 
 def test_stale_input_falls_back_and_recovers(cfg):
