@@ -24,6 +24,11 @@ NO_EXAMPLE = {
     'correlations.airgap_friction_factors': "airgap_friction's geometry constants (its examples)",
     'correlations.check_airgap_friction': 'flags the validity of airgap_friction; no value',
     'correlations.daily_nece_regime': 'compiled regime choice of daily_nece_moment_coefficient',
+    'correlations.daily_nece_laws': "daily_nece_moment_coefficient's constants at one G",
+    'correlations.check_enclosed_disc': 'flags the validity of enclosed_disc_nusselt; no value',
+    'correlations.disc_nusselt': 'compiled kernel of enclosed_disc_nusselt (its examples)',
+    'correlations.check_flat_plate': 'flags the validity of flat_plate_nusselt; no value',
+    'correlations.plate_nusselt': 'compiled kernel of flat_plate_nusselt (its examples)',
     'correlations.enclosed_disc_friction': 'compiled power of daily_nece_moment_coefficient '
                                            '(its examples; test_end_spaces.py)',
     'oil.density': 'the law of Oil.density without checks (its example)',

@@ -29,7 +29,7 @@ def test_merged_laminar_regime_is_the_exact_couette_torque():
     r = np.linspace(0.0, a, 20001)
     shear = MU * w * r / s
     torque = 2.0 * np.trapezoid(shear * 2.0 * math.pi * r ** 2, r)
-    power, regime, re = c.enclosed_disc_friction(RHO, MU, w, a, s)
+    power, regime, re = c.enclosed_disc_friction(RHO, MU, w, a, c.daily_nece_laws(s / a))
     assert regime == 1
     assert 2.0 * power == pytest.approx(torque * w, rel=1e-6)
 
@@ -57,7 +57,7 @@ def test_disc_torque_against_the_published_coefficients(re, g, regime, cm):
     """
     a = 0.1
     w = re * MU / (RHO * a * a)
-    power, got_regime, got_re = c.enclosed_disc_friction(RHO, MU, w, a, g * a)
+    power, got_regime, got_re = c.enclosed_disc_friction(RHO, MU, w, a, c.daily_nece_laws(g))
     assert got_regime == regime
     assert got_re == pytest.approx(re, rel=1e-12)
     assert power == pytest.approx(0.25 * cm * RHO * w ** 3 * a ** 5, rel=0.10)

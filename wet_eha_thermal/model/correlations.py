@@ -990,19 +990,25 @@ CORE_SWIRL_RATIO = 0.4
 PLATE_RE_CRITICAL = 5.0e5
 
 
-@jit
-def daily_nece_regime(re, gap_ratio):
-    """
-    Return the regime (1-4) of :func:`daily_nece_moment_coefficient` at one ``re`` > 0.
+def daily_nece_laws(gap_ratio: float) -> np.ndarray:
+    """Return the four laws' log constants at ``gap_ratio`` G: ln(c G^e) of C_M = c G^e Re^-n."""
+    return np.log(_DN_COEF) + _DN_G_EXPO * np.log(float(gap_ratio))
 
-    The regime whose law gives the largest C_M; compiled, scalar, no checks.
+
+@jit
+def daily_nece_regime(log_re, laws):
     """
-    best, regime = -1.0, 1
+    Return the regime (1-4) of :func:`daily_nece_moment_coefficient` and its C_M.
+
+    The regime whose law gives the largest C_M, at ln Re = ``log_re``;
+    ``laws``: :func:`daily_nece_laws`. Compiled, scalar, no checks.
+    """
+    best, regime = -np.inf, 1
     for k in range(4):
-        cm = _DN_COEF[k] * gap_ratio ** _DN_G_EXPO[k] * re ** -_DN_RE_EXPO[k]
-        if cm > best:
-            best, regime = cm, k + 1
-    return regime
+        log_cm = laws[k] - _DN_RE_EXPO[k] * log_re
+        if log_cm > best:
+            best, regime = log_cm, k + 1
+    return regime, np.exp(best)
 
 
 def daily_nece_moment_coefficient(Re, gap_ratio, log: Optional[ValidityLog] = None):
@@ -1057,32 +1063,32 @@ def daily_nece_moment_coefficient(Re, gap_ratio, log: Optional[ValidityLog] = No
         check(log, 'Daily-Nece enclosed disc', 's/a', gap_ratio, *DAILY_NECE_GAP_RATIO,
               'clearance ratio outside the data of Daily and Nece (1960); extrapolated')
     re, g = np.broadcast_arrays(np.asarray(Re, dtype=float), np.asarray(gap_ratio, dtype=float))
-    regime = np.array([daily_nece_regime(r, s) for r, s in zip(re.ravel(), g.ravel())],
-                      dtype=int).reshape(re.shape)
-    k = regime - 1
-    cm = _DN_COEF[k] * np.power(g, _DN_G_EXPO[k]) * np.power(re, -_DN_RE_EXPO[k])
+    out = [daily_nece_regime(np.log(r), daily_nece_laws(s)) for r, s in zip(re.ravel(), g.ravel())]
+    regime = np.array([k for k, _ in out], dtype=int).reshape(re.shape)
+    cm = np.array([c for _, c in out]).reshape(re.shape)
     return _scalar(cm), _scalar(regime)
 
 
 @jit
-def enclosed_disc_friction(rho, mu, w, radius_m, clearance_m):
+def enclosed_disc_friction(rho, mu, w, radius_m, laws):
     """
     Return the friction power (W) of ONE face of an enclosed disc, its regime and Re.
 
     :func:`daily_nece_moment_coefficient` at Re = rho w a^2 / mu (``w`` =
-    |omega| in rad/s, a the radius, s the axial clearance, all floats):
-    P = M_face w = C_M rho w^3 a^5 / 4. Compiled, no checks; w = 0 gives 0 W
-    (regime I). The disc's hub (the shaft) is taken as part of the face.
+    |omega| in rad/s, a the radius, floats; ``laws``: :func:`daily_nece_laws`
+    at the clearance ratio): P = M_face w = C_M rho w^3 a^5 / 4. Compiled, no
+    checks; w = 0 gives 0 W (regime I). The disc's hub (the shaft) is taken
+    as part of the face.
     """
-    re = rho * w * radius_m * radius_m / mu
+    a2 = radius_m * radius_m
+    re = rho * w * a2 / mu
     if re <= 0.0:
         return 0.0, 1, 0.0
-    regime = daily_nece_regime(re, clearance_m / radius_m)
-    k = regime - 1
-    cm = (_DN_COEF[k] * (clearance_m / radius_m) ** _DN_G_EXPO[k] * re ** -_DN_RE_EXPO[k])
-    return 0.25 * cm * rho * w ** 3 * radius_m ** 5, regime, re
+    regime, cm = daily_nece_regime(np.log(re), laws)
+    return 0.25 * cm * rho * w * w * w * a2 * a2 * radius_m, regime, re
 
 
+@jit
 def colburn_disc_nusselt(C_M, Re, Pr, shear_exponent):
     """
     Return the face-mean Nusselt number h a / k of a disc from its moment coefficient.
@@ -1117,8 +1123,7 @@ def colburn_disc_nusselt(C_M, Re, Pr, shear_exponent):
     360.2
 
     """
-    m = np.asarray(shear_exponent, dtype=float)
-    return _scalar(np.multiply(C_M, Re) * np.cbrt(Pr) * (m + 3.0) / (4.0 * np.pi * (m + 1.0)))
+    return C_M * Re * np.cbrt(Pr) * (shear_exponent + 3.0) / (4.0 * np.pi * (shear_exponent + 1.0))
 
 
 def enclosed_disc_nusselt(Re, Pr, gap_ratio, log: Optional[ValidityLog] = None):
@@ -1154,20 +1159,38 @@ def enclosed_disc_nusselt(Re, Pr, gap_ratio, log: Optional[ValidityLog] = None):
     [444.9, 9.0]
 
     """
-    re = np.asarray(Re, dtype=float)
-    g = np.asarray(gap_ratio, dtype=float)
+    check_enclosed_disc(log, Re, gap_ratio)
+    re, g, pr = np.broadcast_arrays(np.asarray(Re, dtype=float),
+                                    np.asarray(gap_ratio, dtype=float),
+                                    np.asarray(Pr, dtype=float))
+    nu = np.array([disc_nusselt(r, p, daily_nece_laws(x), x)
+                   for r, p, x in zip(re.ravel(), pr.ravel(), g.ravel())])
+    return _scalar(nu.reshape(re.shape))
+
+
+def check_enclosed_disc(log: Optional[ValidityLog], Re, gap_ratio) -> None:
+    """Flag in ``log`` the Re and G outside the data of Daily and Nece (Re = 0 never)."""
     if log is not None:
-        check(log, 'Daily-Nece enclosed disc', 'Re', _positive_or_nan(re), *DAILY_NECE_RE,
+        check(log, 'Daily-Nece enclosed disc', 'Re', _positive_or_nan(Re), *DAILY_NECE_RE,
               'disc Reynolds number outside the data of Daily and Nece (1960); extrapolated')
-        check(log, 'Daily-Nece enclosed disc', 's/a', g, *DAILY_NECE_GAP_RATIO,
+        check(log, 'Daily-Nece enclosed disc', 's/a', gap_ratio, *DAILY_NECE_GAP_RATIO,
               'clearance ratio outside the data of Daily and Nece (1960); extrapolated')
-    re_b, g_b, pr_b = np.broadcast_arrays(re, g, np.asarray(Pr, dtype=float))
-    laws = (_DN_COEF[1:, None] * np.power(g_b.ravel(), _DN_G_EXPO[1:, None])
-            * np.power(np.maximum(re_b.ravel(), 1e-300), -_DN_RE_EXPO[1:, None]))
-    nu_bl = colburn_disc_nusselt(laws, re_b.ravel(), pr_b.ravel(),
-                                 DAILY_NECE_SHEAR_EXPONENT[1:, None]).max(axis=0)
-    nu_bl = nu_bl.reshape(re_b.shape)
-    return _scalar(np.maximum(nu_bl, 2.0 / g_b))
+
+
+@jit
+def disc_nusselt(re, pr, laws, gap_ratio):
+    """
+    Return :func:`enclosed_disc_nusselt` at one point (floats); compiled, no checks.
+
+    ``laws``: :func:`daily_nece_laws` at ``gap_ratio``.
+    """
+    best = 2.0 / gap_ratio
+    if re > 0.0:
+        log_re = np.log(re)
+        for k in range(1, 4):
+            cm = np.exp(laws[k] - _DN_RE_EXPO[k] * log_re)
+            best = max(best, colburn_disc_nusselt(cm, re, pr, DAILY_NECE_SHEAR_EXPONENT[k]))
+    return best
 
 
 def flat_plate_nusselt(Re_L, Pr, log: Optional[ValidityLog] = None):
@@ -1196,16 +1219,29 @@ def flat_plate_nusselt(Re_L, Pr, log: Optional[ValidityLog] = None):
 
     """
     re = np.asarray(Re_L, dtype=float)
+    check_flat_plate(log, re, Pr)
+    re_b, pr_b = np.broadcast_arrays(re, np.asarray(Pr, dtype=float))
+    return _scalar(plate_nusselt(re_b.ravel(), pr_b.ravel()).reshape(re_b.shape))
+
+
+def check_flat_plate(log: Optional[ValidityLog], Re_L, Pr) -> None:
+    """Flag in ``log`` what :func:`flat_plate_nusselt` evaluates outside its laws' ranges."""
     if log is not None:
-        check(log, 'flat plate', 'Re_L', re, 0.0, 1.0e8,
+        check(log, 'flat plate', 'Re_L', Re_L, 0.0, 1.0e8,
               'plate Reynolds number above the correlated range; extrapolated')
-        check(log, 'flat plate', 'Pr', np.where(re > PLATE_RE_CRITICAL, Pr, np.nan), 0.6, 60.0,
-              'Prandtl number outside the turbulent plate law; extrapolated')
+        check(log, 'flat plate', 'Pr', np.where(np.greater(Re_L, PLATE_RE_CRITICAL), Pr, np.nan),
+              0.6, 60.0, 'Prandtl number outside the turbulent plate law; extrapolated')
+
+
+@jit
+def plate_nusselt(re, pr):
+    """Return :func:`flat_plate_nusselt` for 1-D arrays; compiled, no checks."""
     laminar = 0.664 * np.sqrt(re)
     mixed = 0.037 * np.power(re, 0.8) - 871.0
-    return _scalar(np.where(re <= PLATE_RE_CRITICAL, laminar, mixed) * np.cbrt(Pr))
+    return np.where(re <= PLATE_RE_CRITICAL, laminar, mixed) * np.cbrt(pr)
 
 
+@jit
 def end_space_swirl_speed(omega, disc_radius_m, r_m, swirl_ratio=CORE_SWIRL_RATIO):
     """
     Return the speed (m/s) of the end space's swirling oil at radius ``r_m``.
@@ -1226,16 +1262,11 @@ def end_space_swirl_speed(omega, disc_radius_m, r_m, swirl_ratio=CORE_SWIRL_RATI
     [3.6, 3.6]
 
     """
-    r = np.asarray(r_m, dtype=float)
-    return _scalar(swirl_ratio * np.abs(omega) * np.where(r <= disc_radius_m, r,
-                                                          disc_radius_m ** 2 / r))
+    return swirl_ratio * np.abs(omega) * np.where(r_m <= disc_radius_m, r_m,
+                                                  disc_radius_m ** 2 / r_m)
 
 
 # ----------------------------------------------------------------- rolling bearings
-
-#: Palmgren's speed term changes law at nu n = 2000 (nu in mm^2/s, n in r/min).
-PALMGREN_NU_N_MIN = 2000.0
-
 
 @jit
 def palmgren_bearing_torque(nu_m2_s, speed_rad_s, mean_diameter_m, f0, f1, load_N):
@@ -1248,7 +1279,8 @@ def palmgren_bearing_torque(nu_m2_s, speed_rad_s, mean_diameter_m, f0, f1, load_
 
     - load-independent (viscous) part, nu in mm^2/s, n in r/min, d_m in mm:
       M0 = 1e-7 f0 (nu n)^(2/3) d_m^3 N mm for nu n >= 2000, else
-      160e-7 f0 d_m^3 N mm (the two meet within 1 % at 2000);
+      160e-7 f0 d_m^3 N mm (the two meet within 1 % at 2000; the larger of
+      the two is taken, which keeps the torque continuous there);
     - load part M1 = f1 P1 d_m N mm, P1 the load that sets the friction
       (radial bearings: the radial load).
 
@@ -1277,8 +1309,7 @@ def palmgren_bearing_torque(nu_m2_s, speed_rad_s, mean_diameter_m, f0, f1, load_
     """
     nu_n = (nu_m2_s * 1.0e6) * (np.abs(speed_rad_s) * (30.0 / np.pi))
     dm3 = (mean_diameter_m * 1.0e3) ** 3
-    m0 = f0 * dm3 * np.where(nu_n >= PALMGREN_NU_N_MIN, 1.0e-7 * np.power(nu_n, 2.0 / 3.0),
-                             160.0e-7)
+    m0 = f0 * dm3 * np.maximum(1.0e-7 * np.square(np.cbrt(nu_n)), 160.0e-7)
     return 1.0e-3 * (m0 + f1 * load_N * mean_diameter_m * 1.0e3)
 
 

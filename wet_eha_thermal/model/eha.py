@@ -182,7 +182,8 @@ class EHAModel:
             float(self.T_hyd[CASE]), self._geometry, self._leak_coeffs, self._leak_gap,
             self._friction, self.oil.laws, ci.u, ci.d, ci.oil_volumes, self.oil_substep_s)
         fp.check_line_reynolds(self.log, re)
-        fp.check_gap_reynolds(self.log, re_gap)
+        if re_gap.max() > fp.GAP_LAMINAR_RE:       # laminar, the usual case: nothing to flag
+            fp.check_gap_reynolds(self.log, re_gap)
         act = h.actuator
         chambers = (act.dead_volume_m3 + self.area * (act.half_stroke_m + x_mean),
                     act.dead_volume_m3 + self.area * (act.half_stroke_m - x_mean))

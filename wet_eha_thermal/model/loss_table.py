@@ -44,36 +44,28 @@ class LossTable:
     """
     A uniform table of :data:`COLUMNS` over |speed| (rad/s) and I^2 (A^2).
 
-    :ivar speed0_rad_s: first speed line; ``speed_step_rad_s`` the spacing.
-    :ivar isq0_A2: first current-squared line; ``isq_step_A2`` the spacing.
+    :ivar grid: first speed line (rad/s), speed spacing, first current-squared
+        line (A^2) and its spacing: what :func:`table_values` takes.
     :ivar values: ``(speeds, currents squared, COLUMNS)``.
     :ivar from_map: True when an FEA loss map filled it (its iron loss then
         replaces Steinmetz's).
     :ivar source: what filled it, for the validity flag of its extrapolation.
     """
 
-    speed0_rad_s: float
-    speed_step_rad_s: float
-    isq0_A2: float
-    isq_step_A2: float
+    grid: tuple
     values: np.ndarray
     from_map: bool
     source: str
 
-    @property
-    def grid(self) -> tuple:
-        """Return the constants :func:`table_losses` takes."""
-        return (self.speed0_rad_s, self.speed_step_rad_s, self.isq0_A2, self.isq_step_A2)
-
     def speed_range_rad_s(self) -> tuple:
         """Return the lowest and highest |speed| (rad/s) of the grid."""
-        return (self.speed0_rad_s,
-                self.speed0_rad_s + self.speed_step_rad_s * (self.values.shape[0] - 1))
+        w0, dw = self.grid[:2]
+        return w0, w0 + dw * (self.values.shape[0] - 1)
 
     def current_range_A(self) -> tuple:
         """Return the lowest and highest RMS current (A) of the grid."""
-        return (np.sqrt(self.isq0_A2),
-                np.sqrt(self.isq0_A2 + self.isq_step_A2 * (self.values.shape[1] - 1)))
+        q0, dq = self.grid[2:]
+        return np.sqrt(q0), np.sqrt(q0 + dq * (self.values.shape[1] - 1))
 
     def flag(self, log: Optional[ValidityLog], speed_abs_rad_s, current_sq_A2) -> None:
         """Flag in ``log`` the speeds and current outside the grid (the table extrapolated)."""
@@ -134,7 +126,7 @@ def _analytical_table(cfg: Motor) -> LossTable:
     # Dowell's excess at the fundamental on I^2, and the ripple's copper loss
     values[..., COPPER_EXCESS] = ((fr1[:, None] - 1.0) * isq[None, :]
                                   + rotor['ripple_ac_factor'] * rotor['ripple_rms_A'] ** 2)
-    return LossTable(0.0, float(w[1] - w[0]), 0.0, float(isq[1] - isq[0]), values, False,
+    return LossTable((0.0, float(w[1] - w[0]), 0.0, float(isq[1] - isq[0])), values, False,
                      'analytical')
 
 
@@ -161,7 +153,7 @@ def _map_table(cfg: Motor) -> LossTable:
     r_map = copper_resistance(wd.phase_resistance_20C_ohm, wd.copper_tempco_1_K,
                               lm.copper_temperature_C + 273.15)
     values[..., COPPER_EXCESS] = resample('copper_W') / (wd.phases * r_map) - points[..., 1]
-    return LossTable(float(w[0]), float(w[1] - w[0]), float(isq[0]), float(isq[1] - isq[0]),
+    return LossTable((float(w[0]), float(w[1] - w[0]), float(isq[0]), float(isq[1] - isq[0])),
                      values, True, f'map {lm.file}')
 
 

@@ -29,7 +29,8 @@ from .loss_table import build_loss_table, COPPER_EXCESS, IRON, MAGNET, ROTOR_COR
 from .losses import copper_resistance, electrical_frequency, steinmetz_loss_density
 from .mellor import add_cylinder
 from .network import ThermalNetwork
-from .oil import density as oil_density, kinematic_viscosity as oil_nu, Oil
+from .oil import conductivity as oil_conductivity, density as oil_density, \
+    kinematic_viscosity as oil_nu, Oil, specific_heat as oil_cp
 from .quantities import motor_outputs, QuantityMap
 from .rotor_losses import rotor_eddy_loss_breakdown
 from .validity import ValidityLog
@@ -142,11 +143,17 @@ class WetMotor:
                                   self.teeth_mass * st.teeth_flux_density_T ** 2])
         self._iron_split = weights / weights.sum()
         bg = cfg.bearings
-        self._ends = tuple(float(v) for v in (
-            ro.outer_radius_m, cfg.end_spaces.rotor_clearance_m, bg.mean_diameter_m,
-            bg.lubrication_factor_f0,
-            corr.deep_groove_ball_f1(bg.radial_load_N, bg.static_load_rating_N),
-            bg.radial_load_N, bg.friction_factor))
+        self._ends = (float(ro.outer_radius_m),
+                      corr.daily_nece_laws(cfg.end_spaces.rotor_clearance_m / ro.outer_radius_m),
+                      float(bg.mean_diameter_m), float(bg.lubrication_factor_f0),
+                      float(corr.deep_groove_ball_f1(bg.radial_load_N, bg.static_load_rating_N)),
+                      float(bg.radial_load_N), float(bg.friction_factor))
+        self._loss_nodes = (self.idx_copper, self.idx_gap, self.idx_end_oil)
+        # the end-space geometry of end_space_htc
+        g = cfg.end_spaces.rotor_clearance_m / ro.outer_radius_m
+        self._end_geometry = (float(ro.outer_radius_m), corr.daily_nece_laws(g), float(g),
+                              float(self._cap_disc_share),
+                              0.5 * (cfg.frame.length_m - cfg.stack_length_m))
         #: the electromagnetic losses over speed and current (rotor, AC copper; a map's all)
         self.loss_table = build_loss_table(cfg)
         self._em_checked = set()    # (speed, current) bins whose rotor-loss validity is logged
@@ -493,13 +500,13 @@ class WetMotor:
         Log the validity of the analytical rotor losses near |speed| ``w`` and I^2 ``i_sq``.
 
         The table holds values, not their validity: the harmonic sum is run
-        with the log once per bin of 1000 r/min and 5 A that the model visits
+        with the log once per bin of 2000 r/min and 10 A that the model visits
         (about 30 ms each).
         """
         if self.loss_table.from_map:
             return
         current = float(np.sqrt(max(i_sq, 0.0)))
-        key = (int(w * 30.0 / np.pi // 1000.0), int(current // 5.0))
+        key = (int(w * 30.0 / np.pi // 2000.0), int(current // 10.0))
         if key not in self._em_checked:
             self._em_checked.add(key)
             rotor_eddy_loss_breakdown(self.cfg, w, current, self.log)
@@ -508,36 +515,15 @@ class WetMotor:
         """
         Return h (W/(m^2 K)) of each end-space surface at temperatures ``T`` (K), |speed| ``w``.
 
-        docs/model.md (End spaces). Oil properties at each surface's film
-        temperature. The rotor's end face, and the end cap where it faces it:
-        :func:`~.correlations.enclosed_disc_nusselt` (Daily-Nece friction by
-        the Reynolds-Colburn analogy). Stator surfaces (end windings, stack
-        faces, frame, the cap beyond the rotor) and the turning shaft end: a
-        plate (:func:`~.correlations.flat_plate_nusselt`) in the oil's swirl
-        (:func:`~.correlations.end_space_swirl_speed`; relative to the shaft for
-        the shaft), never below conduction through half the end space's depth.
-        All times ``end_spaces.htc_multiplier``.
+        docs/model.md (End spaces); :func:`end_space_htc`, times
+        ``end_spaces.htc_multiplier``, with the correlations' ranges flagged.
         """
-        c, log = self.cfg, self.log
         surface, oil, kind, radius, length = self.end_surfaces
-        T_film = 0.5 * (T[surface] + T[oil])
-        rho = self.oil.density(T_film, p_Pa, log)
-        mu = self.oil.dynamic_viscosity(T_film, p_Pa, log)
-        k = self.oil.conductivity(T_film)
-        pr = mu * self.oil.specific_heat(T_film) / k
-        a, s = c.rotor.outer_radius_m, c.end_spaces.rotor_clearance_m
-        disc = kind <= END_CAP
-        h_disc = corr.enclosed_disc_nusselt(rho[disc] * w * a * a / mu[disc], pr[disc], s / a,
-                                            log=log) * k[disc] / a
-        v = corr.end_space_swirl_speed(w, a, radius)
-        v = np.where(kind == END_SHAFT, w * radius - v, v)
-        depth = 0.5 * (c.frame.length_m - c.stack_length_m)
-        h = np.maximum(corr.flat_plate_nusselt(rho * v * length / mu, pr, log=log) * k / length,
-                       2.0 * k / depth)
-        h[disc] = np.where(kind[disc] == END_ROTOR_FACE, h_disc,
-                           self._cap_disc_share * h_disc
-                           + (1.0 - self._cap_disc_share) * h[disc])
-        return c.end_spaces.htc_multiplier * h
+        h, re_disc, re_plate, pr = end_space_htc(T, surface, oil, kind, radius, length, w, p_Pa,
+                                                 self._end_geometry, self.oil.laws)
+        corr.check_enclosed_disc(self.log, re_disc, self._end_geometry[2])
+        corr.check_flat_plate(self.log, re_plate, pr)
+        return self.cfg.end_spaces.htc_multiplier * h
 
     def _to_ambient_htc(self, Ts_K, T_amb_K, natural_convection) -> np.ndarray:
         """Return the surface-to-ambient h (W/(m^2 K)): fan or natural convection, + radiation."""
@@ -610,12 +596,14 @@ class WetMotor:
         # R(T) at the present winding temperatures: cheap, and the winding is what
         # a filtered coefficient would lag most
         i_sq = float(u.current_sq_mean_A2)
-        i_sq_samples = (np.full(w.size, i_sq) if u.current_A is None
-                        else np.square(np.asarray(u.current_A, dtype=float).reshape(-1)))
+        if u.current_A is None:
+            i_sq_samples = np.full(w.size, i_sq)
+        else:
+            i_sq_samples = np.asarray(u.current_A, dtype=float).reshape(-1)
+            i_sq_samples = i_sq_samples * i_sq_samples
         lt = self.loss_table
         power, re_bb_max, outside = motor_losses(
-            i_sq, i_sq_samples, w, T, self._case_pressure_Pa,
-            (self.idx_copper, self.idx_gap, self.idx_end_oil),
+            i_sq, i_sq_samples, w, T, self._case_pressure_Pa, self._loss_nodes,
             self._copper_weight, self._copper_law, self.yoke_mass, self.teeth_mass, self._iron,
             self._iron_split, self._gap_factors, self._ends, lt.values, lt.grid, lt.from_map,
             self.oil.laws)
@@ -905,6 +893,44 @@ def gap_friction(speed_abs_rad_s, T_gap_K, p_Pa, gap, laws):
 
 
 @jit
+def end_space_htc(T_K, surface, oil, kind, radius_m, length_m, w, p_Pa, geometry, laws):
+    """
+    Return h (W/(m^2 K)) of each end-space surface, and the disc's and plates' Re and Pr.
+
+    The surfaces: node ``surface`` washed by node ``oil`` of ``T_K`` (K), of
+    ``kind`` (END_*), mean radius and plate length (m); ``w`` |speed|
+    (rad/s); oil properties at the film temperature and ``p_Pa``.
+    ``geometry``: disc radius a (m), the Daily-Nece laws and G at its
+    clearance, the share of the cap facing the disc, the end space's depth
+    (m). The rotor's end face, and the cap where it faces it:
+    :func:`~.correlations.disc_nusselt`; the stator surfaces and the shaft
+    end: :func:`~.correlations.plate_nusselt` in the swirl of
+    :func:`~.correlations.end_space_swirl_speed` (relative to the shaft for
+    the shaft), never below conduction through half the end space's depth.
+    """
+    a, disc_laws, g, cap_share, depth = geometry
+    T_film = 0.5 * (T_K[surface] + T_K[oil])
+    rho = oil_density(T_film, p_Pa, laws)
+    nu = oil_nu(T_film, p_Pa, laws)
+    k = oil_conductivity(T_film, laws)
+    pr = nu * rho * oil_cp(T_film, laws) / k
+    v = corr.end_space_swirl_speed(w, a, radius_m, corr.CORE_SWIRL_RATIO)
+    v = np.where(kind == END_SHAFT, w * radius_m - v, v)
+    re_plate = v * length_m / nu
+    h = np.maximum(corr.plate_nusselt(re_plate, pr) * k / length_m, 2.0 * k / depth)
+    re_disc = np.zeros(kind.size)
+    for i in range(kind.size):
+        if kind[i] <= END_CAP:
+            re_disc[i] = w * a * a / nu[i]
+            h_disc = corr.disc_nusselt(re_disc[i], pr[i], disc_laws, g) * k[i] / a
+            if kind[i] == END_ROTOR_FACE:
+                h[i] = h_disc
+            else:
+                h[i] = cap_share * h_disc + (1.0 - cap_share) * h[i]
+    return h, re_disc, re_plate, pr
+
+
+@jit
 def end_drag(speed_abs_rad_s, T_end_K, p_Pa, ends, laws):
     """
     Return the friction (W) of each end face and of each bearing at each |speed| (samples x 2).
@@ -912,21 +938,23 @@ def end_drag(speed_abs_rad_s, T_end_K, p_Pa, ends, laws):
     With the end spaces' oil at ``T_end_K`` (K, front and rear) and ``p_Pa``:
     the rotor's end face, :func:`~.correlations.enclosed_disc_friction`; the
     bearing, :func:`~.correlations.palmgren_bearing_torque` times the speed
-    and the calibration factor. ``ends``: disc radius (m), its axial
-    clearance (m), bearing pitch diameter (m), f0, f1, load (N), factor.
+    and the calibration factor. ``ends``: disc radius (m), the Daily-Nece
+    laws at its clearance (:func:`~.correlations.daily_nece_laws`), bearing
+    pitch diameter (m), f0, f1, load (N), factor.
     """
-    a, s, dm, f0, f1, load, factor = ends
+    a, disc, dm, f0, f1, load, factor = ends
     rho = oil_density(T_end_K, p_Pa, laws)
     nu = oil_nu(T_end_K, p_Pa, laws)
     n = speed_abs_rad_s.size
     face = np.empty((n, 2))
     bearing = np.empty((n, 2))
     for e in range(2):
+        mu = nu[e] * rho[e]
         for k in range(n):
-            face[k, e] = corr.enclosed_disc_friction(rho[e], nu[e] * rho[e], speed_abs_rad_s[k],
-                                                     a, s)[0]
-        bearing[:, e] = (factor * speed_abs_rad_s
-                         * corr.palmgren_bearing_torque(nu[e], speed_abs_rad_s, dm, f0, f1, load))
+            w = speed_abs_rad_s[k]
+            face[k, e] = corr.enclosed_disc_friction(rho[e], mu, w, a, disc)[0]
+            torque = corr.palmgren_bearing_torque(nu[e], w, dm, f0, f1, load)
+            bearing[k, e] = factor * w * torque
     return face, bearing
 
 
