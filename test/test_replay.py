@@ -2,6 +2,7 @@
 
 import math
 import shutil
+from types import SimpleNamespace
 
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
@@ -14,7 +15,7 @@ from wet_eha_thermal import replay as rp
 from wet_eha_thermal.bag.reader import iter_raw, open_bag
 from wet_eha_thermal.bag.writer import BagWriter
 from wet_eha_thermal.cli import main
-from wet_eha_thermal.config import default_config_path, with_values
+from wet_eha_thermal.config import ConfigError, default_config_path, with_values
 from wet_eha_thermal.estimator.core import Estimator
 
 SECONDS = 20.0
@@ -225,3 +226,15 @@ def test_open_loop_replay_leaves_the_thermocouples_out_of_the_model(bag, tmp_pat
     corrected = np.genfromtxt(closed / 'estimates.csv', delimiter=',', names=True)
     assert np.max(np.abs(corrected['winding_mean_C'] - table['winding_mean_C'])) > 1e-3
     assert 'Off (`--open-loop`' in (opened / 'report.md').read_text()
+
+
+def test_a_stored_configuration_of_an_older_model_says_to_give_one(tmp_path):
+    """A bag recorded before the end spaces took published laws: its key is unknown now."""
+    old = default_config_path().read_text().replace(
+        '    htc_multiplier: 1.0', '    htc_still_W_m2K: 100.0')
+    info = SimpleNamespace(path=tmp_path / 'old.mcap',
+                           metadata={rp.CONFIG_METADATA: {rp.CONFIG_METADATA_KEY: old}})
+    with pytest.raises(ConfigError, match=r'htc_still_W_m2K.*replay it with --config'):
+        rp.choose_config(info, None)
+    cfg, source, _ = rp.choose_config(info, default_config_path())
+    assert source == str(default_config_path()) and cfg.motor.end_spaces.htc_multiplier == 1.0

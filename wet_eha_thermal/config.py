@@ -19,6 +19,8 @@ from typing import Any, Dict, Optional, Tuple
 
 import yaml
 
+from .loss_map import LossMapError, read_loss_map
+
 
 #: The oil grades a configuration may name; model/oil.py holds the properties of each.
 OIL_GRADE_NAMES = ('MIL-PRF-5606', 'MIL-PRF-83282')
@@ -328,7 +330,6 @@ class LossMap:
 
     def check(self, key: str) -> None:
         """Read and check the CSV now, so that a bad map stops the load naming this key."""
-        from .loss_map import LossMapError, read_loss_map
         try:
             read_loss_map(self.file)
         except LossMapError as exc:

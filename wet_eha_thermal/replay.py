@@ -35,7 +35,8 @@ import numpy as np
 from . import interface
 from .bag.reader import (BagError, BagInfo, Columns, iter_column_blocks, open_bag,
                          TEMPERATURE)
-from .config import Config, config_from_yaml, default_config_path, load_config, with_values
+from .config import (Config, config_from_yaml, ConfigError, default_config_path, load_config,
+                     with_values)
 from .estimator.core import Estimator, INPUTS, sensor_inputs
 from .outputs import atomic, markdown_table, save_figure, write_text
 
@@ -117,8 +118,15 @@ def choose_config(info: BagInfo, config_path: Optional[os.PathLike]) -> tuple:
         return cfg, str(config_path), Path(config_path).read_text()
     stored = info.metadata.get(CONFIG_METADATA, {}).get(CONFIG_METADATA_KEY)
     if stored:
-        return config_from_yaml(stored, f'{info.path} (stored configuration)'), \
-            f'stored in {info.path.name}', stored
+        try:
+            cfg = config_from_yaml(stored, f'{info.path} (stored configuration)')
+        except ConfigError as exc:
+            # a bag outlives the model it was recorded with: its configuration may lack what
+            # a later model needs (or hold what it dropped)
+            raise ConfigError(f'{exc}; the configuration stored in the bag does not fit this '
+                              'version of the model (recorded by an older one?): replay it '
+                              'with --config YOUR_RIG.yaml') from exc
+        return cfg, f'stored in {info.path.name}', stored
     return load_config(None), 'shipped reference_eha.yaml (the bag stores none)', \
         default_config_path().read_text()
 

@@ -38,7 +38,7 @@ from .hydraulics import (ACCUMULATOR, CASE, CHAMBER_A, CHAMBER_B, HydraulicCircu
 from .motor import MotorInputs, WetMotor
 from .oil import density as oil_density, get_oil, kinematic_viscosity as oil_nu, Oil
 from .quantities import coupled_outputs, QuantityMap
-from .validity import ValidityLog
+from .validity import ValidityLog, within
 from ..config import Config
 
 #: the case oil may fall this far below its nominal volume (a fraction), never further
@@ -182,7 +182,7 @@ class EHAModel:
             float(self.T_hyd[CASE]), self._geometry, self._leak_coeffs, self._leak_gap,
             self._friction, self.oil.laws, ci.u, ci.d, ci.oil_volumes, self.oil_substep_s)
         fp.check_line_reynolds(self.log, re)
-        if re_gap.max() > fp.GAP_LAMINAR_RE:       # laminar, the usual case: nothing to flag
+        if not within(re_gap, 0.0, fp.GAP_LAMINAR_RE):   # laminar, the usual case: no flag
             fp.check_gap_reynolds(self.log, re_gap)
         act = h.actuator
         chambers = (act.dead_volume_m3 + self.area * (act.half_stroke_m + x_mean),
