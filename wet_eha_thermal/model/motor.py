@@ -142,16 +142,17 @@ class WetMotor:
         weights = np.concatenate([self.yoke_mass * st.yoke_flux_density_T ** 2,
                                   self.teeth_mass * st.teeth_flux_density_T ** 2])
         self._iron_split = weights / weights.sum()
+        # the rotor's end faces as Daily and Nece's disc: its laws at the clearance ratio
+        g = cfg.end_spaces.rotor_clearance_m / ro.outer_radius_m
+        disc_laws = corr.daily_nece_laws(g)
         bg = cfg.bearings
-        self._ends = (float(ro.outer_radius_m),
-                      corr.daily_nece_laws(cfg.end_spaces.rotor_clearance_m / ro.outer_radius_m),
-                      float(bg.mean_diameter_m), float(bg.lubrication_factor_f0),
+        self._ends = (float(ro.outer_radius_m), disc_laws, float(bg.mean_diameter_m),
+                      float(bg.lubrication_factor_f0),
                       float(corr.deep_groove_ball_f1(bg.radial_load_N, bg.static_load_rating_N)),
                       float(bg.radial_load_N), float(bg.friction_factor))
         self._loss_nodes = (self.idx_copper, self.idx_gap, self.idx_end_oil)
         # the end-space geometry of end_space_htc
-        g = cfg.end_spaces.rotor_clearance_m / ro.outer_radius_m
-        self._end_geometry = (float(ro.outer_radius_m), corr.daily_nece_laws(g), float(g),
+        self._end_geometry = (float(ro.outer_radius_m), disc_laws, float(g),
                               float(self._cap_disc_share),
                               0.5 * (cfg.frame.length_m - cfg.stack_length_m))
         #: the electromagnetic losses over speed and current (rotor, AC copper; a map's all)
