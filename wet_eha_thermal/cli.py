@@ -14,6 +14,7 @@ import sys
 import time
 from typing import List, Optional, Tuple
 
+from . import interface
 from .config import ConfigError, load_config
 from .model.kinetics import DutyError
 from .model.validity import ValidityLog
@@ -270,6 +271,15 @@ def _add_live_parser(sub) -> None:
                         'makes, or one MCAP file when PATH ends in .mcap; never overwritten '
                         '(default: runs/live_<UTC time>)')
     p.add_argument('--no-record', action='store_true', help='do not record the run')
+    p.add_argument('--max-bag-size', type=int, default=interface.LIVE_SPLIT_BYTES,
+                   metavar='BYTES',
+                   help='start a new file of the recording after this many bytes, as ros2 bag '
+                        'record -b; 0: no size split (default: %(default)d, 1 GiB)')
+    p.add_argument('--max-bag-duration', type=float,
+                   default=interface.LIVE_SPLIT_DURATION_S, metavar='SECONDS',
+                   help='start a new file of the recording after this much time, as ros2 bag '
+                        'record -d; 0: no time split (default: %(default)g s). Each closed '
+                        'file is complete: a crash or a full disk cannot take the run whole')
     p.add_argument('--foxglove', default='127.0.0.1:8765', metavar='HOST:PORT',
                    help='where the estimator serves the Foxglove view (estimates with their '
                         'bands, margins, alerts, inputs, thermocouples; open it with '
@@ -290,6 +300,12 @@ def _check_live_args(args: argparse.Namespace) -> None:
         raise BadArgument(f'--duration {args.duration:g}: must be a number of seconds > 0')
     if not (math.isfinite(args.rate_Hz) and 50.0 <= args.rate_Hz <= 10000.0):
         raise BadArgument(f'--rate-Hz {args.rate_Hz:g}: must be 50..10000 Hz')
+    if args.max_bag_size < 0:
+        raise BadArgument(f'--max-bag-size {args.max_bag_size}: must be a number of bytes >= 0 '
+                          '(0: no size split)')
+    if not (math.isfinite(args.max_bag_duration) and args.max_bag_duration >= 0.0):
+        raise BadArgument(f'--max-bag-duration {args.max_bag_duration:g}: must be a number of '
+                          'seconds >= 0 (0: no time split)')
 
 
 def _foxglove_address(text: str) -> Tuple[str, int]:
@@ -328,7 +344,8 @@ def _live(args: argparse.Namespace) -> int:
     opts = live.LiveOptions(stage=stage, duty=args.duty, duration_s=args.duration,
                             rate_Hz=args.rate_Hz, config=args.config, noise=not args.no_noise,
                             executor=args.executor, record=not args.no_record,
-                            record_path=args.record, foxglove=foxglove)
+                            record_path=args.record, max_bag_size_B=args.max_bag_size,
+                            max_bag_duration_s=args.max_bag_duration, foxglove=foxglove)
     return live.run(opts, domain=domain)
 
 

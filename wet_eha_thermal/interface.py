@@ -26,7 +26,9 @@ each element on /eha/state_names (std_msgs/String holding JSON, transient-local:
 the names do not change within a run); /diagnostics
 (diagnostic_msgs/DiagnosticArray, 1 Hz); /eha/alerts (std_msgs/String holding
 JSON, transient-local so a late subscriber gets the last one); acknowledgements
-on /eha/alerts/ack (std_msgs/String: a quantity, or empty for all).
+on /eha/alerts/ack (std_msgs/String: a quantity, or empty for all). The recorder
+reports its health on /eha/recorder/health (std_msgs/String holding JSON,
+transient-local) and in /diagnostics.
 
 The estimator, the offline tools and the ROS nodes take these names from
 here; :mod:`.ros.topics` adds what needs rclpy (QoS profiles, publishing).
@@ -61,7 +63,22 @@ ACK_TOPIC = f'{PREFIX}/alerts/ack'
 #: latched std_msgs/String JSON of each node that is ready ({"node", "ready", ...}); the
 #: simulated rig starts its duty once the nodes it waits for are, and says so here too
 READY_TOPIC = f'{PREFIX}/ready'
+#: latched std_msgs/String JSON of the recorder's health, at 1 Hz and at once on a change:
+#: {"node", "hardware_id", "stamp_s", "level" (0 OK, 1 WARN, 2 ERROR), "level_name",
+#: "message", "state" (recording, suspended, closed), "messages_written",
+#: "messages_dropped", "bytes_written", "write_rate_B_s", "free_bytes", "time_left_s"
+#: (free space over the write rate; null while nothing is written), "errors",
+#: "last_error", "file" (being written; null while suspended), "files"}
+RECORDER_HEALTH_TOPIC = f'{PREFIX}/recorder/health'
 DIAGNOSTICS_TOPIC = '/diagnostics'
+#: Splits of ``live``'s recording (``--max-bag-duration``, ``--max-bag-size``): a new file
+#: every 10 minutes or 1 GiB, whichever comes first. A file is strictly readable (the mcap
+#: library, rosbags, ros2 bag) once closed with its summary: a crash or a full disk leaves at
+#: most the one being written without it (our reader still recovers it to its last second),
+#: and the writer's indexes, which grow with a file, are dropped at each split. At the twin's
+#: 850 MiB an hour a file is about 140 MiB.
+LIVE_SPLIT_DURATION_S = 600.0
+LIVE_SPLIT_BYTES = 2 ** 30
 ESTIMATES = ('winding_mean', 'winding_hotspot', 'frame', 'magnet', 'airgap_oil_outlet',
              'motor_oil_outlet', 'pump_case', 'pump_outlet', 'chamber_a', 'chamber_b',
              'accumulator', 'oil')

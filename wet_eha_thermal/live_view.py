@@ -22,7 +22,11 @@ default; see :data:`CHANNELS`):
 - ``input_health``: per input OK or STALE, with the received and rejected
   counts of the last snapshot, at the inputs' rate;
 - ``thermocouples``: each thermocouple's last reading beside the estimate it
-  measures and their difference, at the inputs' rate.
+  measures and their difference, at the inputs' rate;
+- ``recorder``: the recorder's health (its level, state, what it wrote and
+  dropped, the write rate, the free space and the time it leaves, the file
+  being written, its errors), as the recorder reports it: at 1 Hz and at
+  once on a change; a change of level is also an event.
 
 Every message is stamped with the estimate's sample time (``timestamp`` and
 the WebSocket log time), never the wall clock, so all channels share one
@@ -76,7 +80,10 @@ CHANNELS = {
     'inputs': SCHEMA_PREFIX + 'Inputs',
     'input_health': SCHEMA_PREFIX + 'InputHealth',
     'thermocouples': SCHEMA_PREFIX + 'Thermocouples',
+    'recorder': SCHEMA_PREFIX + 'Recorder',
 }
+#: Recorder health levels (as diagnostic_msgs has them) and their foxglove.Log levels.
+RECORDER_LEVELS = ('OK', 'WARN', 'ERROR')
 
 _NUMBER = {'type': 'number'}
 _MAYBE_NUMBER = {'type': ['number', 'null']}
@@ -176,6 +183,23 @@ def schemas(estimates: Sequence[str], limited: Sequence[str], inputs: Sequence[s
                            **head, **{n: dict(_MAYBE_NUMBER, description=n) for n in inputs}}),
         'input_health': _obj(CHANNELS['input_health'], 'input health', {
             **head, 'stale_count': {'type': 'integer'}, **{n: health for n in inputs}}),
+        'recorder': _obj(CHANNELS['recorder'], "the recorder's health (null: not known)", {
+            'timestamp': _TIME,
+            'level': {'type': 'integer', 'description': '0 OK, 1 WARN, 2 ERROR'},
+            'level_name': {'type': 'string', 'enum': list(RECORDER_LEVELS)},
+            'message': {'type': 'string'},
+            'state': {'type': 'string', 'enum': ['recording', 'suspended', 'closed']},
+            'messages_written': {'type': 'integer'},
+            'messages_dropped': {'type': 'integer'},
+            'bytes_written': {'type': 'integer'},
+            'write_rate_B_s': dict(_MAYBE_NUMBER, description='bytes written per second'),
+            'free_bytes': {'type': ['integer', 'null'],
+                           'description': 'free space at the destination'},
+            'time_left_s': dict(_MAYBE_NUMBER, description='free space over the write rate'),
+            'errors': {'type': 'integer'},
+            'last_error': {'type': 'string'},
+            'file': {'type': ['string', 'null'], 'description': 'file being written'},
+            'files': {'type': 'integer'}}),
         'thermocouples': _obj(CHANNELS['thermocouples'], 'thermocouples beside their estimates '
                               '(null: no reading yet)', {
                                   **head, **{t: _group(f'{t} measures {q}', tc,
@@ -258,6 +282,8 @@ class LiveView:
         # the hand-off: deque appends are atomic, so the estimator's thread never waits
         self._estimates: Deque[tuple] = deque(maxlen=PENDING_ESTIMATES)
         self._summaries: Deque[dict] = deque(maxlen=PENDING_SUMMARIES)
+        self._recorder: Deque[dict] = deque(maxlen=PENDING_SUMMARIES)
+        self._recorder_level: Optional[str] = None
         self._health: Optional[Dict[str, Tuple[int, int]]] = None
         self._wake = threading.Event()
         self._stop = False
@@ -295,6 +321,11 @@ class LiveView:
     def offer_alerts(self, summary: dict) -> None:
         """Hand over an alert summary as published (its ``events`` are shown once)."""
         self._summaries.append(summary)
+        self._wake.set()
+
+    def offer_recorder(self, health: Mapping[str, Any]) -> None:
+        """Hand over the recorder's health as it published it (shown at once)."""
+        self._recorder.append(dict(health))
         self._wake.set()
 
     def offer_health(self, counts: Mapping[str, Tuple[int, int]]) -> None:
@@ -358,10 +389,12 @@ class LiveView:
         while not self._stop:
             self._wake.wait()
             self._wake.clear()
-            while self._summaries or self._estimates:
+            while self._summaries or self._recorder or self._estimates:
                 try:
                     if self._summaries:
                         self._on_summary(self._summaries.popleft())
+                    elif self._recorder:
+                        self._on_recorder(self._recorder.popleft())
                     else:
                         self._on_estimate(*self._estimates.popleft())
                         self.shown += 1
@@ -384,6 +417,23 @@ class LiveView:
             self._log('events', {'timestamp': _time(stamp), 'level': level,
                                  'message': str(text), 'name': 'wet_eha_thermal estimator',
                                  'file': '', 'line': 0}, stamp)
+
+    def _on_recorder(self, health: dict) -> None:
+        # on the estimates' time line: the last estimate's stamp (0 before the first)
+        stamp = self._last_stamp or 0.0
+        level = health.get('level_name')
+        if level != self._recorder_level and self._recorder_level is not None:
+            self._log('events', {
+                'timestamp': _time(stamp), 'message': f'recorder {level}: '
+                f'{health.get("message", "")}', 'name': 'wet_eha_thermal recorder',
+                'level': LOG_LEVELS[RECORDER_LEVELS.index(level)] if level in RECORDER_LEVELS
+                else LOG_LEVELS[2], 'file': '', 'line': 0}, stamp)
+        self._recorder_level = level
+        if self._channels['recorder'].has_sinks():
+            fields = self.schemas['recorder']['properties']
+            self._log('recorder', {'timestamp': _time(stamp),
+                                   **{k: health.get(k) for k in fields if k != 'timestamp'}},
+                      stamp)
 
     def _on_estimate(self, est, measured: Mapping[str, Tuple[float, float]]) -> None:
         t = est.stamp_s

@@ -257,6 +257,10 @@ class EstimatorNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.view_error = ''
         self.view = self._start_view(view_at, p) if view_at is not None else None
+        if self.view is not None:
+            # the recorder's health, shown in the view beside the estimates
+            self.create_subscription(String, self._topic(interface.RECORDER_HEALTH_TOPIC),
+                                     self._on_recorder_health, topics.latched_qos())
         self._publish_alerts(force=True)
         self.readiness = Readiness(self, self._topic(interface.READY_TOPIC), input_subs,
                                    self.hardware_id, require_all=True,
@@ -372,6 +376,14 @@ class EstimatorNode(Node):
                 self.est.add_measured(name, t, float(msg.temperature))
         except Exception as exc:  # noqa: B902
             self._failed(f'measured/{name}', exc)
+
+    def _on_recorder_health(self, msg: String) -> None:
+        try:
+            health = json.loads(msg.data)
+            if isinstance(health, dict):
+                self.view.offer_recorder(health)
+        except Exception as exc:  # noqa: B902
+            self._failed('recorder health', exc)
 
     def _on_ack(self, msg: String) -> None:
         try:

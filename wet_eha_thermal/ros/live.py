@@ -91,6 +91,7 @@ START_TIMEOUT_S = 120.0
 #: History depth of the recorder's subscriptions (1 s of a 1 kHz topic).
 RECORDER_DEPTH = 1000
 ESTIMATE_STATUS = 'wet_eha_thermal: estimate'
+RECORDER_STATUS = 'wet_eha_thermal: recorder'
 INPUT_STATUS = 'wet_eha_thermal: input '
 RIG_STATUS = 'eha_sim_rig: rig'
 PARAMS_FILE = Path(__file__).resolve().parents[2] / 'config' / 'estimator.params.yaml'
@@ -110,6 +111,9 @@ class LiveOptions:
     executor: str = 'events'
     record: bool = True
     record_path: Optional[Path] = None      # None: the bag directory runs/live_<UTC time>
+    # splits of the recording, as ros2 bag record's --max-bag-size and --max-bag-duration
+    max_bag_size_B: int = interface.LIVE_SPLIT_BYTES
+    max_bag_duration_s: float = interface.LIVE_SPLIT_DURATION_S
     foxglove: Optional[Tuple[str, int]] = ('127.0.0.1', 8765)    # None: no Foxglove view
 
 
@@ -193,7 +197,9 @@ def child_commands(opts: LiveOptions, hardware_id: str,
         rec += ['--params-file', str(PARAMS_FILE), '-p', f'params_file:={PARAMS_FILE}']
     # its own depth, not the file's 100: a 20 ms stall of the recorder would lose samples
     rec += ['-p', 'qos:=reliable', '-p', f'qos_depth:={RECORDER_DEPTH}',
-            '-p', f'hardware_id:={hardware_id}', '-p', f'output:={record_path}']
+            '-p', f'hardware_id:={hardware_id}', '-p', f'output:={record_path}',
+            '-p', f'split_bytes:={int(opts.max_bag_size_B)}',
+            '-p', f'split_duration_s:={float(opts.max_bag_duration_s)!r}']
     if opts.config is not None:
         cfg = str(Path(opts.config).resolve())
         rig += ['-p', f'config_file:={cfg}']
@@ -335,6 +341,10 @@ class TwinState:
     stale_events: Dict[str, int] = field(default_factory=dict)
     received: Dict[str, int] = field(default_factory=dict)
     rig: Dict[str, str] = field(default_factory=dict)
+    recorder: Dict[str, str] = field(default_factory=dict)    # its last diagnostics' values
+    recorder_level: str = ''                                   # '' until it reports
+    recorder_message: str = ''
+    recorder_faults: List[str] = field(default_factory=list)  # each change to WARN or ERROR
     ready: Dict[str, dict] = field(default_factory=dict)      # node -> its ready message
     rig_started: Optional[float] = None                       # when the duty started
     hardware_id: str = field(default_factory=lambda: f'wet-eha-live-{os.getpid()}')
@@ -394,6 +404,14 @@ class TwinState:
                         pass
             elif st.name == RIG_STATUS:
                 self.rig = kv
+            elif st.name == RECORDER_STATUS:
+                self.on_recorder(level_name(st.level), st.message, kv)
+
+    def on_recorder(self, level: str, message: str, values: Dict[str, str]) -> None:
+        """Take the recorder's status: level (OK, WARN, ERROR), message and values."""
+        if level != self.recorder_level and level in ('WARN', 'ERROR'):
+            self.recorder_faults.append(f'{level}: {message}')
+        self.recorder_level, self.recorder_message, self.recorder = level, message, values
 
     def on_ready(self, text: str, rx: float) -> None:
         """Take one ready message (JSON); the rig's ``running`` starts the run's clock."""
@@ -447,7 +465,30 @@ class TwinState:
         return (f't {elapsed_s:5.1f}/{duration_s:g} s | winding hot-spot {t("winding_hotspot")}'
                 f' mean {t("winding_mean")} | magnet {t("magnet")} | oil {t("oil")} degC | '
                 f'margin {margin} | limit: {self.limit_text()} | alerts {alert} | '
-                f'stale: {self.fallback}')
+                f'stale: {self.fallback}' + self.recorder_text())
+
+    def recorder_text(self) -> str:
+        """Return the recorder's part of the status line ('' when not recording)."""
+        if not self.recorder_level:
+            return ''
+        if self.recorder_level == 'OK':
+            written = self.recorder.get('bytes written', '')
+            return f' | rec OK {_mib_text(written)}'
+        return f' | REC {self.recorder_level}: {self.recorder_message}'
+
+
+def level_name(level) -> str:
+    """Return a DiagnosticStatus level's name (rclpy gives a byte field as 1-byte bytes)."""
+    value = level[0] if isinstance(level, (bytes, bytearray)) else int(level)
+    return ('OK', 'WARN', 'ERROR', 'STALE')[value] if 0 <= value <= 3 else str(value)
+
+
+def _mib_text(n_bytes: str) -> str:
+    """Return a byte count (text) in MiB, or the text as it is when it is no number."""
+    try:
+        return f'{int(n_bytes) / 2 ** 20:.1f} MiB'
+    except ValueError:
+        return n_bytes
 
 
 def _is_number(text: str) -> bool:
@@ -572,6 +613,18 @@ def sample_counts(estimator: Optional[Child], rig: Optional[Child]) -> Dict[str,
     return out
 
 
+def recorder_health_text(state: TwinState) -> str:
+    """Return the recorder's last status for the summary: level, what it dropped and why."""
+    if not state.recorder_level:
+        return 'no report from the recorder'
+    kv = state.recorder
+    text = (f'{state.recorder_level} at the end ({state.recorder_message}); '
+            f'{kv.get("messages written", "?")} messages written, '
+            f'{kv.get("messages dropped", "?")} dropped, {kv.get("errors", "?")} errors; '
+            f'{len(state.recorder_faults)} fault report(s) during the run')
+    return text
+
+
 def summary(opts: LiveOptions, state: TwinState, children: List[Child], run_s: float,
             domain: int, stopped_by: str, recording: Optional[Path] = None,
             start_s: float = 0.0) -> List[str]:
@@ -645,6 +698,9 @@ def summary(opts: LiveOptions, state: TwinState, children: List[Child], run_s: f
     if recording is not None:
         text = recording_text(recording) if recording.exists() else f'{recording}: not written'
         out.append(f'  recording       {text}')
+        out.append(f'  recorder health {recorder_health_text(state)}')
+        for fault in state.recorder_faults[-5:]:
+            out.append(f'                  {fault}')
     if opts.foxglove is not None:
         said = state.ready.get(ESTIMATOR_NODE, {})
         if said.get('foxglove'):

@@ -112,6 +112,12 @@ PARAMETERS = {
         'start a new file after this much log time, s (0 = never)', 0.0, 1.0e7)),
     'flush_interval_s': (1.0, descriptor(
         'close a chunk after this much time: the most a SIGKILL loses, s', 0.05, 60.0)),
+    'free_space_warn_s': (600.0, descriptor(
+        'warn when the free space at the destination holds less than this much recording at '
+        'the present write rate, s', 0.0, 1.0e6)),
+    'reserve_bytes': (8 * 2 ** 20, descriptor(
+        'space held in reserve beside the bag, freed to close a file cleanly when the disk is '
+        'full, bytes', 0, 2 ** 40)),
     'compression': ('zstd', descriptor('chunk compression: ' + ', '.join(COMPRESSIONS))),
     'qos': ('sensor_data', descriptor(
         "QoS of the sensor subscriptions: 'sensor_data' (best effort) or 'reliable'")),
