@@ -255,6 +255,8 @@ def test_messages_match_the_estimates(view, run):
         client.close()
     by_step = {e.step: (e, measured) for e, measured, _ in items}
     for name, topic in names.items():
+        if name == 'recorder':      # only when the recorder reports: its own test
+            continue
         got = client.messages(topic)
         assert got, f'nothing on {topic}'
         for log_time, m in got:
@@ -494,3 +496,37 @@ def test_replay_layout_names_only_recorded_topics():
         topic, fields = split_path(path)
         assert topic in recorded, f'{path}: a live recording has no topic {topic}'
         _ros_fields_exist(recorded[topic][0], fields, path)
+
+
+def test_the_recorder_health_is_shown_at_once_and_a_fault_is_an_event(view, run):
+    """A recorder's report reaches its channel on the estimates' time line; ERROR is logged."""
+    health = {'node': 'eha_recorder', 'hardware_id': 'rig', 'stamp_s': 1.0e9, 'level': 0,
+              'level_name': 'OK', 'message': 'recording to x_0.mcap', 'state': 'recording',
+              'messages_written': 1000, 'messages_dropped': 0, 'bytes_written': 123456,
+              'write_rate_B_s': 2.5e5, 'free_bytes': 10 ** 9, 'time_left_s': 4000.0,
+              'errors': 0, 'last_error': '', 'file': 'x_0.mcap', 'files': 1}
+    fault = dict(health, level=2, level_name='ERROR', message='disk full: writing suspended',
+                 state='suspended', messages_dropped=42, file=None, time_left_s=None,
+                 errors=1, last_error='OSError: [Errno 28] No space left on device')
+    client = _advertised(view)
+    try:
+        names = view_topics()
+        client.subscribe([names['recorder'], names['events']])
+        _wait(lambda: len(view.watched()) == 2)
+        _offer(view, run[:3])
+        view.offer_recorder(health)
+        view.offer_recorder(fault)
+        client.read(lambda: len(client.messages(names['recorder'])) == 2)
+        client.read(lambda: any('recorder ERROR' in m['message']
+                                for _, m in client.messages(names['events'])))
+    finally:
+        client.close()
+    got = client.messages(names['recorder'])
+    stamp = round(run[2][0].stamp_s * 1e9)            # the last estimate's sample time
+    for (log_time, m), sent in zip(got, (health, fault)):
+        _conforms(m, view.schemas['recorder'], names['recorder'])
+        assert log_time == stamp
+        assert {k: m[k] for k in sent if k in m} == {k: v for k, v in sent.items() if k in m}
+    event = next(m for _, m in client.messages(names['events']) if 'recorder' in m['message'])
+    assert event['level'] == 4 and 'disk full' in event['message']
+    assert view.errors == 0, view.last_error
