@@ -1,7 +1,9 @@
 """Fixtures shared by the tests."""
 
 import importlib.util
+import os
 from pathlib import Path
+import subprocess
 
 import pytest
 import rclpy
@@ -92,3 +94,20 @@ def record_rig_log():
                       seconds, metadata=meta)
         return path
     return record
+
+
+@pytest.fixture
+def small_fs(tmp_path):
+    """Mount a 3 MiB tmpfs (root only); unmount it afterwards: a disk that fills up for real."""
+    if os.geteuid() != 0:
+        pytest.skip('mounting a tmpfs needs root')
+    mount = tmp_path / 'small'
+    mount.mkdir()
+    done = subprocess.run(['mount', '-t', 'tmpfs', '-o', 'size=3m', 'tmpfs', str(mount)],
+                          capture_output=True, text=True)
+    if done.returncode:
+        pytest.skip(f'mount -t tmpfs failed: {done.stderr.strip()}')
+    try:
+        yield mount
+    finally:
+        subprocess.run(['umount', '--lazy', str(mount)], check=True)  # even with a file open

@@ -402,23 +402,6 @@ def test_each_split_is_complete_and_listed_as_soon_as_the_next_begins(tmp_path, 
 
 
 # ------------------------------------------------------------ a real small file system
-@pytest.fixture
-def small_fs(tmp_path):
-    """Mount a 3 MiB tmpfs (root only); unmount it afterwards."""
-    if os.geteuid() != 0:
-        pytest.skip('mounting a tmpfs needs root')
-    mount = tmp_path / 'small'
-    mount.mkdir()
-    done = subprocess.run(['mount', '-t', 'tmpfs', '-o', 'size=3m', 'tmpfs', str(mount)],
-                          capture_output=True, text=True)
-    if done.returncode:
-        pytest.skip(f'mount -t tmpfs failed: {done.stderr.strip()}')
-    try:
-        yield mount
-    finally:
-        subprocess.run(['umount', '--lazy', str(mount)], check=True)  # even with a file open
-
-
 def test_a_real_full_file_system(small_fs):
     ballast = small_fs / 'ballast'
     ballast.write_bytes(os.urandom(1024 * KIB))

@@ -207,7 +207,12 @@ def test_records_every_field_qos_and_config(context, tmp_path):
             assert [d.data for _, d in decoded_by_topic[topic]] == [msg.data], (reader, topic)
     # topics without a message are not in the file
     assert interface.INPUT_TOPICS['p_a_Pa'] not in channels
-    assert set(channels) == {*sent, *latched, interface.READY_TOPIC}
+    assert set(channels) == {*sent, *latched, interface.READY_TOPIC,
+                             interface.RECORDER_HEALTH_TOPIC}
+    # the recorder recorded its own health: OK, recording to the bag's file
+    health = [json.loads(d.data) for _, d in by_topic[interface.RECORDER_HEALTH_TOPIC]]
+    assert health and health[-1]['level_name'] == 'OK' and health[-1]['state'] == 'recording'
+    assert health[-1]['file'].endswith('.mcap') and health[-1]['messages_dropped'] == 0
     # the recorder said it was ready once its inputs matched, and recorded that too
     ready = [json.loads(d.data) for _, d in by_topic[interface.READY_TOPIC]]
     assert ready and ready[0]['node'] == recorder_node.NODE_NAME and ready[0]['ready']
@@ -335,3 +340,62 @@ def test_sigkill_loses_at_most_about_one_flush_interval(context, tmp_path):
     print(f'SIGKILL after {sent} messages at 1 kHz: {len(values)} kept, {lost} lost '
           f'({lost / 1000.0:.2f} s)')
     assert lost <= 1500, f'{lost} of {sent} lost'
+
+
+def test_a_full_disk_is_reported_at_once_and_the_recording_goes_on_when_room_returns(
+        context, small_fs):
+    """
+    On a 3 MiB file system: ERROR within a second of the fault, files closed, then resumed.
+
+    A probe publishes incompressible 40 kB strings (about 1.6 MB/s) until the disk is
+    full; the recorder's health topic must say ERROR (suspended) within 1 s of the fault
+    the writer met; deleting a file makes room, and it must go on in the next file. Every
+    file is then read by mcap's strict reader (it needs the summary) and by rosbags.
+    """
+    filler = small_fs / 'filler'
+    filler.write_bytes(os.urandom(1024 * 1024))
+    output = small_fs / 'run'
+    node = RecorderNode(context=context, parameter_overrides=[
+        Parameter('output', value=str(output)), Parameter('reserve_bytes', value=256 * 1024),
+        Parameter('resume_margin_bytes', value=256 * 1024)])
+    probe = rclpy.create_node('recorder_test_filler', context=context)
+    pub = probe.create_publisher(String, interface.ACK_TOPIC, QoSProfile(depth=100))
+    health = []
+    probe.create_subscription(
+        String, interface.RECORDER_HEALTH_TOPIC,
+        lambda m: health.append((time.time(), json.loads(m.data))), topics.latched_qos())
+    executor = EventsExecutor(context=context)
+    executor.add_node(node)
+    executor.add_node(probe)
+
+    def publish_until(condition, timeout_s=20.0):
+        end = time.monotonic() + timeout_s
+        while not condition():
+            assert time.monotonic() < end, health[-1:] if health else 'no health'
+            pub.publish(String(data=os.urandom(30000).hex()[:40000]))
+            _spin(executor, 0.025)
+
+    try:
+        assert _spin(executor, 10.0, until=lambda: pub.get_subscription_count() > 0)
+        publish_until(lambda: health and health[-1][1]['level_name'] == 'ERROR')
+        fault = node.writer.health()
+        received, said = health[-1]
+        assert said['state'] == 'suspended' and 'No space left' in said['message']
+        assert received - fault.last_error_time_s < 1.0     # seen within a second
+        publish_until(lambda: node.writer.health().messages_dropped > 20)
+        filler.unlink()                                        # room again
+        publish_until(lambda: health[-1][1]['state'] == 'recording'
+                      and health[-1][1]['file'].endswith('run_1.mcap'))
+        summary = node.close()
+    finally:
+        executor.shutdown()
+        probe.destroy_node()
+        node.destroy_node()
+    assert 'write errors' in summary and node.write_failed
+    listed = yaml.safe_load((output / ROSBAG2_METADATA).read_text())[
+        'rosbag2_bagfile_information']
+    assert listed['relative_file_paths'] == ['run_0.mcap', 'run_1.mcap']
+    for entry in listed['files']:
+        with open(output / entry['path'], 'rb') as f:
+            assert sum(1 for _ in make_reader(f).iter_messages()) == entry['message_count']
+    assert sum(len(v) for v in _read_rosbags(output).values()) == listed['message_count']

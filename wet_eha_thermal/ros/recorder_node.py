@@ -46,10 +46,23 @@ The writer closes a chunk every ``flush_interval_s``, so a SIGKILL loses
 about that much; metadata.yaml is rewritten at each split, so it lists every
 file begun. SIGINT or SIGTERM stop it cleanly: the messages already
 received are written, the bag is closed (summary, rosbag2 metadata,
-metadata.yaml) and a one-line summary goes to stderr. /diagnostics at 1 Hz
-(status ``wet_eha_thermal: recorder``): messages written, dropped, errors,
-bytes, files. An existing file or directory, even an empty one (as
-``ros2 bag record`` refuses it), is never overwritten (exit status 2).
+metadata.yaml) and a one-line summary goes to stderr. An existing file or
+directory, even an empty one (as ``ros2 bag record`` refuses it), is never
+overwritten (exit status 2).
+
+A full disk or a write error never stops the recorder: the writer
+(``on_error='suspend'``) closes the file being written cleanly with the
+space of a reserve (``reserve_bytes``), drops and counts the messages while
+there is no room, and goes on in the next split file once ``reserve_bytes +
+resume_margin_bytes`` are free again. Its health (the JSON of
+``interface.RECORDER_HEALTH_TOPIC``: state, messages written and dropped,
+bytes, write rate, free space and the time it leaves, errors, the file
+being written) goes out on that latched topic and as the /diagnostics status
+``wet_eha_thermal: recorder`` once a second, and at once (within
+``WATCH_PERIOD_S``) when the writer's state changes: ERROR while suspended,
+WARN when the free space holds less than ``free_space_warn_s`` of recording
+at the present rate or after a fault it recovered from. A run that lost
+messages to the disk ends with exit status 1.
 
 Run: ``wet-eha-thermal-record --ros-args -p output:=runs/test`` or
 ``python -m wet_eha_thermal.ros.recorder_node``.
@@ -59,6 +72,7 @@ from datetime import datetime, timezone
 import functools
 from importlib import import_module
 from importlib.metadata import version
+import json
 from pathlib import Path
 import signal
 import sys
@@ -72,8 +86,11 @@ from rclpy.exceptions import NameValidationException, ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import String
 from wet_eha_thermal import interface
-from wet_eha_thermal.bag.writer import BagWriter, COMPRESSIONS, qos_profiles
+from wet_eha_thermal.bag.writer import (BagHealth, BagWriter, COMPRESSIONS,
+                                        DEFAULT_RESERVE_BYTES, DEFAULT_RESUME_MARGIN_BYTES,
+                                        qos_profiles, RECORDING, SUSPENDED)
 from wet_eha_thermal.config import ConfigError, default_config_path, load_config
 from wet_eha_thermal.ros import topics
 from wet_eha_thermal.ros.runtime import (accept_whole_numbers, descriptor, EXECUTORS,
@@ -87,6 +104,11 @@ PARAMS_METADATA = 'wet_eha_thermal.params'
 RECORDER_METADATA = 'wet_eha_thermal.recorder'
 STATUS_NAME = 'wet_eha_thermal: recorder'
 DIAGNOSTICS_PERIOD_S = 1.0
+#: The writer's state is looked at this often (steady clock, s): a change (a fault, a file
+#: closed, writing resumed) is reported at once, not at the next second.
+WATCH_PERIOD_S = 0.2
+#: The write rate is the bytes written over this much time (s).
+RATE_WINDOW_S = 10.0
 #: How often the graph is searched for extra topics not subscribed yet (steady clock, s).
 DISCOVERY_PERIOD_S = 0.5
 #: After a stop signal, messages are written until none came for DRAIN_IDLE_S (s), at most
@@ -115,9 +137,12 @@ PARAMETERS = {
     'free_space_warn_s': (600.0, descriptor(
         'warn when the free space at the destination holds less than this much recording at '
         'the present write rate, s', 0.0, 1.0e6)),
-    'reserve_bytes': (8 * 2 ** 20, descriptor(
+    'reserve_bytes': (DEFAULT_RESERVE_BYTES, descriptor(
         'space held in reserve beside the bag, freed to close a file cleanly when the disk is '
         'full, bytes', 0, 2 ** 40)),
+    'resume_margin_bytes': (DEFAULT_RESUME_MARGIN_BYTES, descriptor(
+        'after a full disk, writing resumes (in a new file) once this much more than the '
+        'reserve is free again, bytes', 0, 2 ** 40)),
     'compression': ('zstd', descriptor('chunk compression: ' + ', '.join(COMPRESSIONS))),
     'qos': ('sensor_data', descriptor(
         "QoS of the sensor subscriptions: 'sensor_data' (best effort) or 'reliable'")),
@@ -157,6 +182,7 @@ def recorded_topics(prefix: str = interface.PREFIX) -> Dict[str, Tuple[str, str]
     found[interface.STATE_NAMES_TOPIC] = ('std_msgs/msg/String', 'latched')
     found[interface.ALERT_TOPIC] = ('std_msgs/msg/String', 'latched')
     found[interface.READY_TOPIC] = ('std_msgs/msg/String', 'latched')
+    found[interface.RECORDER_HEALTH_TOPIC] = ('std_msgs/msg/String', 'latched')
     found[interface.ACK_TOPIC] = ('std_msgs/msg/String', 'output')
     found[interface.DIAGNOSTICS_TOPIC] = ('diagnostic_msgs/msg/DiagnosticArray', 'output')
     return {interface.prefixed(topic, prefix): spec for topic, spec in found.items()}
@@ -187,6 +213,10 @@ def _text_record(path: Path) -> Dict[str, str]:
 
 def _mib(n_bytes: int) -> str:
     return f'{n_bytes / 2 ** 20:.2f} MiB'
+
+
+def _fmt(value: Optional[float]) -> str:
+    return 'unknown' if value is None else f'{value:.0f}'
 
 
 class RecorderNode(Node):
@@ -223,11 +253,14 @@ class RecorderNode(Node):
         self.output = Path(p['output']) if p['output'] else default_output()
         self.output.parent.mkdir(parents=True, exist_ok=True)
         try:
+            # a full disk or a write error suspends the bag (files closed cleanly, messages
+            # counted as dropped) until there is room again: the run is never stopped by it
             self.writer = BagWriter(
                 self.output, metadata=metadata, flush_interval_s=p['flush_interval_s'],
                 split_bytes=p['split_bytes'] or None,
                 split_duration_s=p['split_duration_s'] or None, compression=p['compression'],
-                directory=not is_single_file(self.output))
+                directory=not is_single_file(self.output), on_error='suspend',
+                reserve_bytes=p['reserve_bytes'], resume_margin_bytes=p['resume_margin_bytes'])
         except FileExistsError as exc:   # the directory, or the first file
             raise FileExistsError(f'{exc.filename} exists: a recording is never '
                                   'overwritten') from None
@@ -237,9 +270,12 @@ class RecorderNode(Node):
         self.counts: Dict[str, int] = {}            # topics written so far -> messages
         self.total = 0
         self.before_clock = 0                       # dropped: no /clock yet under use_sim_time
-        self.errors = 0
+        self.errors = 0                             # of this node (the writer counts its own)
         self.last_error = ''
-        self.write_failed = False                   # the writer gave up (disk full, ...)
+        self.write_failed = False                   # the bag lost messages (disk full, ...)
+        self.free_space_warn_s = p['free_space_warn_s']
+        self._rates: List[Tuple[float, int]] = []   # (time, bytes written) over RATE_WINDOW_S
+        self._reported: Optional[tuple] = None      # what the last report said, to see news
         self.started_s = time.monotonic()
         self.clock = FastClock(self)
         inputs = {interface.prefixed(t, p['topic_prefix'])
@@ -253,7 +289,12 @@ class RecorderNode(Node):
         self.extra_wanted = [t for t in extra if t not in self.types]
         self.diag_pub = self.create_publisher(DiagnosticArray, interface.DIAGNOSTICS_TOPIC,
                                               QoSProfile(depth=10))
-        self.create_timer(DIAGNOSTICS_PERIOD_S, self._on_diagnostics)
+        self.health_pub = self.create_publisher(
+            String, interface.prefixed(interface.RECORDER_HEALTH_TOPIC, p['topic_prefix']),
+            topics.latched_qos())
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(DIAGNOSTICS_PERIOD_S, self._report, clock=steady)
+        self.create_timer(WATCH_PERIOD_S, self._watch, clock=steady)
         # ready once every input topic that has a publisher is matched (a rig publishes
         # either the three pressures or the differential one)
         self.readiness = Readiness(
@@ -321,11 +362,10 @@ class RecorderNode(Node):
                 self.writer.add_topic(topic, self.types[topic],
                                       qos_profiles(self._offered_qos(topic)))
                 self.counts[topic] = 0
-            self.writer.write(topic, data, log_time_ns)
+            self.writer.write(topic, data, log_time_ns)     # dropped (counted) if suspended
             self.counts[topic] += 1
             self.total += 1
         except Exception as exc:  # noqa: B902 - never raise into the executor
-            self.write_failed = self.write_failed or isinstance(exc, OSError)
             self._failed(topic, exc)
 
     def _failed(self, where: str, exc: BaseException) -> None:
@@ -336,27 +376,96 @@ class RecorderNode(Node):
     # ------------------------------------------------------------ reporting
     def bytes_written(self) -> int:
         """Return the size of the files written so far."""
-        return sum(path.stat().st_size for path in self.writer.paths if path.exists())
+        return self.writer.health().bytes_written
 
-    def _on_diagnostics(self) -> None:
+    def _watch(self) -> None:
+        """Report at once when the writer's state or the level changed (a fault, a resume)."""
         try:
-            level, message = _OK, f'recording to {self.writer.paths[-1]}'
-            if self.write_failed:
-                level, message = _ERROR, f'writing failed: {self.last_error}'
-            elif self.errors:
-                level, message = _WARN, f'{self.errors} errors, last: {self.last_error}'
-            elif self.before_clock:
-                level, message = _WARN, f'{self.before_clock} messages before the first /clock'
-            values = [('messages written', self.total), ('topics written', len(self.counts)),
-                      ('topics subscribed', len(self.types)),
-                      ('dropped before /clock', self.before_clock), ('errors', self.errors),
-                      ('bytes', self.bytes_written()),
-                      ('files', ', '.join(str(p) for p in self.writer.paths)),
+            h = self.writer.health()
+            if self._news(h) != self._reported:
+                self._report(h)
+        except Exception as exc:  # noqa: B902
+            self._failed('health', exc)
+
+    def _news(self, h: BagHealth) -> tuple:
+        """Return what, changed, is worth a report at once: state, faults, file, level."""
+        return (h.state, h.changes, h.current_file, self.errors, self._level(h)[0])
+
+    def _rate(self, h: BagHealth) -> Optional[float]:
+        """Return the bytes written per second over the last RATE_WINDOW_S (None: too soon)."""
+        self._rates.append((h.time_s, h.bytes_written))
+        while len(self._rates) > 2 and h.time_s - self._rates[1][0] >= RATE_WINDOW_S:
+            self._rates.pop(0)
+        t0, b0 = self._rates[0]
+        return (h.bytes_written - b0) / (h.time_s - t0) if h.time_s - t0 >= 1.0 else None
+
+    def _time_left(self, h: BagHealth, rate: Optional[float]) -> Optional[float]:
+        """Return how long the free space lasts at ``rate`` (s; None: unknown or no writing)."""
+        if h.free_bytes is None or rate is None or rate <= 0.0:
+            return None
+        return h.free_bytes / rate
+
+    def _level(self, h: BagHealth, rate: Optional[float] = None) -> Tuple[int, str]:
+        """Return the level (OK, WARN, ERROR) and the message of the recorder's health."""
+        if h.state == SUSPENDED:
+            since = time.strftime('%H:%M:%S', time.localtime(h.last_error_time_s or time.time()))
+            return _ERROR, (f'writing suspended since {since} ({h.last_error}); '
+                            f'{h.messages_dropped} messages dropped; resumes in a new file when '
+                            'there is room')
+        if h.state != RECORDING:
+            return _ERROR, f'the bag is {h.state}'
+        left = self._time_left(h, rate)
+        if left is not None and left < self.free_space_warn_s:
+            return _WARN, (f'{left / 60.0:.1f} min of recording left at {rate / 1e3:.0f} kB/s '
+                           f'({_mib(h.free_bytes)} free)')
+        if h.errors:
+            return _WARN, (f'writing again after {h.errors} write error(s), last: '
+                           f'{h.last_error}; {h.messages_dropped} messages dropped')
+        if self.errors:
+            return _WARN, f'{self.errors} errors, last: {self.last_error}'
+        if self.before_clock:
+            return _WARN, f'{self.before_clock} messages before the first /clock'
+        return _OK, f'recording to {h.current_file}'
+
+    def health(self, h: Optional[BagHealth] = None) -> dict:
+        """Return the recorder's health as it publishes it (interface.RECORDER_HEALTH_TOPIC)."""
+        h = self.writer.health() if h is None else h
+        rate = self._rate(h)
+        level, message = self._level(h, rate)
+        left = self._time_left(h, rate)
+        return {'node': NODE_NAME, 'hardware_id': self.hardware_id, 'stamp_s': time.time(),
+                'level': level, 'level_name': ('OK', 'WARN', 'ERROR')[level],
+                'message': message, 'state': h.state,
+                'messages_written': h.messages_written, 'messages_dropped': h.messages_dropped,
+                'bytes_written': h.bytes_written, 'write_rate_B_s': rate,
+                'free_bytes': h.free_bytes, 'time_left_s': left,
+                'errors': h.errors + self.errors,
+                'last_error': h.last_error or self.last_error,
+                'file': None if h.current_file is None else str(h.current_file),
+                'files': len(h.files)}
+
+    def _report(self, h: Optional[BagHealth] = None) -> None:
+        """Publish the health (topic) and the status (/diagnostics), now."""
+        try:
+            h = self.writer.health() if h is None else h
+            health = self.health(h)
+            self._reported = self._news(h)
+            self.health_pub.publish(String(data=json.dumps(health)))
+            values = [('state', h.state), ('messages written', h.messages_written),
+                      ('messages dropped', h.messages_dropped),
+                      ('bytes written', h.bytes_written),
+                      ('write rate [B/s]', _fmt(health['write_rate_B_s'])),
+                      ('free [B]', h.free_bytes), ('time left [s]', _fmt(health['time_left_s'])),
+                      ('errors', health['errors']), ('last error', health['last_error']),
+                      ('file', health['file'] or 'none'),
+                      ('files', ', '.join(str(f) for f in h.files)),
+                      ('topics written', len(self.counts)), ('topics subscribed', len(self.types)),
+                      ('dropped before /clock', self.before_clock),
                       ('waiting for', ', '.join(self.extra_wanted) or 'none')]
             arr = DiagnosticArray()
             arr.header.stamp = self.get_clock().now().to_msg()
             arr.status = [DiagnosticStatus(
-                level=bytes([level]), name=STATUS_NAME, message=message,
+                level=bytes([health['level']]), name=STATUS_NAME, message=health['message'],
                 hardware_id=self.hardware_id,
                 values=[KeyValue(key=k, value=str(v)) for k, v in values])]
             self.diag_pub.publish(arr)
@@ -377,18 +486,18 @@ class RecorderNode(Node):
 
     def close(self) -> str:
         """Close the bag (summary, rosbag2 metadata) and return the one-line summary."""
-        try:
-            self.writer.close()
-        except OSError as exc:
-            self.write_failed = True
-            self._failed('close', exc)
+        h = self.writer.close()
+        # a run that lost messages to the disk ends with status 1, however it recovered
+        self.write_failed = h.errors > 0
         run_s = time.monotonic() - self.started_s
         per_topic = ', '.join(f'{t} {n}' for t, n in sorted(self.counts.items()))
-        paths = self.writer.paths
+        paths = h.files
         where = (', '.join(str(p) for p in paths) if is_single_file(self.output)
                  else f'{self.output} ({len(paths)} file{"s" if len(paths) > 1 else ""})')
-        return (f'recorder summary: {self.total} messages on {len(self.counts)} topics in '
-                f'{run_s:.1f} s to {where} ({_mib(self.bytes_written())}); dropped before '
+        lost = (f'; write errors {h.errors} (last: {h.last_error}), {h.messages_dropped} '
+                'messages dropped' if h.errors or h.messages_dropped else '')
+        return (f'recorder summary: {h.messages_written} messages on {len(self.counts)} topics '
+                f'in {run_s:.1f} s to {where} ({_mib(h.bytes_written)}){lost}; dropped before '
                 f'/clock {self.before_clock}, errors {self.errors}; per topic: '
                 f'{per_topic or "none"}')
 
