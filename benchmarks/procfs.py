@@ -7,7 +7,7 @@ No dependency beyond the standard library; every function takes the root
 
 import os
 from pathlib import Path
-from typing import Dict, List, Optional
+from typing import Dict, List, Optional, Tuple
 
 PROC = Path('/proc')
 
@@ -35,6 +35,22 @@ def rss_bytes(pid: int, root: Path = PROC) -> int:
         if line.startswith('VmRSS:'):
             return int(line.split()[1]) * 1024      # the kernel's kB are KiB
     raise ValueError(f'process {pid}: no VmRSS (a kernel thread or a zombie)')
+
+
+def machine_cpu_seconds(root: Path = PROC) -> Tuple[float, float]:
+    """
+    Return the CPU time of the whole machine: busy and stolen, summed over its cores (s).
+
+    Busy: user, nice, system, irq and softirq of ``/proc/stat`` (guest time is
+    in user already); stolen: what the hypervisor gave to other machines.
+    """
+    for line in (root / 'stat').read_text().splitlines():
+        if line.startswith('cpu '):
+            ticks = [int(v) for v in line.split()[1:]]
+            busy = ticks[0] + ticks[1] + ticks[2] + ticks[5] + ticks[6]
+            steal = ticks[7] if len(ticks) > 7 else 0
+            return busy / os.sysconf('SC_CLK_TCK'), steal / os.sysconf('SC_CLK_TCK')
+    raise ValueError(f'no cpu line in {root / "stat"}')
 
 
 def children(parent: int, root: Path = PROC) -> List[int]:

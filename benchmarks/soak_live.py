@@ -13,8 +13,11 @@ rig ``sim_rig_node``, the estimator ``estimator_node``, the recorder
 for ``live``'s own process (the monitor): the RSS (``VmRSS`` of
 ``/proc/<pid>/status``) and the CPU time (utime + stime of
 ``/proc/<pid>/stat``, as a share of one core over the interval); the
-recording's size on disk (all its files); and the monitor's last status line
-(the estimated winding hot-spot, the inputs on fallback).
+recording's size on disk (all its files); the monitor's last status line
+(the estimated winding hot-spot, the inputs on fallback); and, since the
+machine may be shared, the CPU its other processes took (the busy time of
+``/proc/stat`` less that of live's processes) and the time the hypervisor
+stole.
 
 Time counts from the rig's start (``duty_s``, read from ``live``'s status
 line), so the start-up (model loading, discovery) is left out of the figures.
@@ -24,7 +27,8 @@ the RSS slope after the warm-up (a least-squares line, MB/h, with the
 standard error of its slope), the mean CPU over the duty and its drift (the
 slope of the CPU share over the duty, % of a core per hour); then the
 samples the rig published, the estimator received and lost, the stale
-events, the recording's size and its growth after the warm-up (MiB/h). MB
+events, the recording's size and its growth after the warm-up (MiB/h), the
+other processes' mean CPU. MB
 are 10^6 bytes, MiB 2^20. It writes every sample to ``soak.csv``, a plot
 (RSS, CPU and recording against time) to ``soak.png``, the table to
 ``soak.txt`` and ``live``'s output to ``live.log`` in ``--out`` (default
@@ -143,7 +147,7 @@ class Sampler:
         self.pids: Dict[str, int] = {'monitor': live_pid}
         self.starts: Dict[int, int] = {}
         self.record = record
-        self._last: Dict[str, tuple] = {}           # name -> (monotonic, cpu seconds)
+        self._last: Dict[str, tuple] = {}           # name -> (monotonic, cpu seconds, ...)
         self._remember(live_pid)
 
     def _remember(self, pid: int) -> None:
@@ -179,6 +183,18 @@ class Sampler:
             if last is not None and now > last[0]:
                 row[f'{name}_cpu_pct'] = 100.0 * (cpu - last[1]) / (now - last[0])
             self._last[name] = (now, cpu)
+        try:
+            busy, steal = procfs.machine_cpu_seconds()
+        except (OSError, ValueError):
+            busy = steal = None
+        last = self._last.get('machine')
+        ours = [row.get(f'{n}_cpu_pct') for n in self.pids]
+        if busy is not None and last is not None and now > last[0] and None not in ours:
+            # the machine is shared: what the others took is the context of every CPU figure
+            row['others_cpu_pct'] = 100.0 * (busy - last[1]) / (now - last[0]) - sum(ours)
+            row['steal_pct'] = 100.0 * (steal - last[2]) / (now - last[0])
+        if busy is not None:
+            self._last['machine'] = (now, busy, steal)
         size = path_bytes(self.record) if self.record is not None else None
         if size is not None:
             row['bag_MiB'] = size / MiB
@@ -305,6 +321,11 @@ def figures(rows: List[Dict[str, object]], duration_s: float, warmup_s: float,
             f['cpu_mean'] = sum(shares) / len(shares)
             f['cpu_drift'] = _per_hour(linear_fit([r['duty_s'] for r in cpu], shares))
         out[name] = f
+    for key in ('others_cpu_pct', 'steal_pct'):
+        values = [r[key] for r in cpu_rows if key in r]
+        if values:
+            out.setdefault('machine', {})[key] = (sum(values) / len(values), min(values),
+                                                  max(values))
     return out
 
 
@@ -358,6 +379,14 @@ def report(fig, summary: Dict[str, object], args, rc: int, pids: Dict[str, int],
         if 'recording_messages' in summary:
             text += f'; {summary["recording_messages"]} messages'
         lines.append(text)
+    machine = fig.get('machine', {})
+    if 'others_cpu_pct' in machine:
+        mean, low, high = machine['others_cpu_pct']
+        text = (f'machine     {os.cpu_count()} cores; the other processes took {mean:.0f} % of a '
+                f'core over the duty (samples {low:.0f} to {high:.0f} %)')
+        if 'steal_pct' in machine:
+            text += f', the hypervisor stole {machine["steal_pct"][0]:.1f} %'
+        lines.append(text)
     if 'duty_s' in summary:
         lines.append(f'live        {summary["duty_s"]:g} s of duty after {summary["start_s"]:g} '
                      f's of start-up ({summary["stopped_by"]}); exit status {rc}; '
@@ -370,7 +399,7 @@ def report(fig, summary: Dict[str, object], args, rc: int, pids: Dict[str, int],
 def write_csv(path: Path, rows: List[Dict[str, object]]) -> None:
     """Write every sample: times (from the start of live, of the duty), figures, status."""
     cols = ['t_s', 'duty_s'] + [f'{p}_{q}' for p in PROCESSES for q in ('rss_MB', 'cpu_pct')] + [
-        'bag_MiB', 'hotspot_C', 'stale']
+        'others_cpu_pct', 'steal_pct', 'bag_MiB', 'hotspot_C', 'stale']
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator='\n')
     writer.writerow(cols)
@@ -397,7 +426,11 @@ def plot(path: Path, rows: List[Dict[str, object]], warmup_s: float, duration_s:
                 ax.plot(*zip(*pts), label=name, lw=1.0)
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
+    pts = [(r['duty_s'] / 60.0, r['others_cpu_pct']) for r in rows if 'others_cpu_pct' in r]
+    if pts:
+        axes[1].plot(*zip(*pts), label='other processes', color='grey', ls='--', lw=0.8)
     axes[0].legend(fontsize=8, ncol=4)
+    axes[1].legend(fontsize=8, ncol=5)
     pts = [(r['duty_s'] / 60.0, r['bag_MiB']) for r in rows if 'bag_MiB' in r]
     if pts:
         axes[2].plot(*zip(*pts), color='k', lw=1.0)

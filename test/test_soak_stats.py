@@ -152,6 +152,10 @@ def test_proc_fields_of_a_fake_tree(tmp_path):
     _fake_process(tmp_path, 13, 99, 'python3', 'python -m wet_eha_thermal.ros.estimator_node',
                   10, 0, 0, 602)        # another session's estimator: not live's child
     (tmp_path / 'self').mkdir()
+    # cpu user nice system idle iowait irq softirq steal guest guest_nice
+    (tmp_path / 'stat').write_text(f'cpu  {50 * tick} {tick} {9 * tick} 7000 30 {tick} {tick} '
+                                   f'{3 * tick} {20 * tick} 0\ncpu0 1 2 3 4 5 6 7 8 9 10\n')
+    assert procfs.machine_cpu_seconds(tmp_path) == pytest.approx((62.0, 3.0))
     assert procfs.cpu_seconds(10, tmp_path) == pytest.approx(4.0)
     assert procfs.rss_bytes(11, tmp_path) == 2048 * 1024
     assert procfs.start_ticks(11, tmp_path) == 600
