@@ -68,6 +68,7 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 import numpy as np
+from procfs import cpu_seconds
 import rclpy
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
@@ -101,13 +102,6 @@ def reliable(depth: int) -> QoSProfile:
     return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
                       reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.VOLATILE)
-
-
-def cpu_seconds(pid: int) -> float:
-    """Return utime + stime of process ``pid`` (s) from /proc/<pid>/stat."""
-    text = Path(f'/proc/{pid}/stat').read_text()
-    fields = text[text.rindex(')') + 2:].split()     # after the command name
-    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
 # ------------------------------------------------------------------ publisher

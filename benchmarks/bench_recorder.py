@@ -33,8 +33,9 @@ import sys
 import tempfile
 import time
 
-from bench_estimator import cpu_seconds, reliable
+from bench_estimator import reliable
 import numpy as np
+from procfs import cpu_seconds
 import rclpy
 from std_msgs.msg import Float64
 from wet_eha_thermal.bag.reader import FLOAT64, read_columns
