@@ -426,6 +426,27 @@ def test_a_real_full_file_system(small_fs):
     check_bag(run, health)
 
 
+def test_a_small_file_system_records_with_the_default_reserve(small_fs):
+    """
+    3 MiB, and the default reserve of 4 MiB: it shrinks to half the free space, not to none.
+
+    The user's case of issue 29 (a recorder on a 3 MB file system): the bag must hold what
+    fitted, closed cleanly, and the writer must resume once the file system is empty enough
+    (half of it free), not after a 20 MiB that can never be free there.
+    """
+    run = Run(small_fs / 'run', flush_interval_s=60.0, compression='none', on_error='suspend')
+    assert run.writer.health().reserve_bytes <= 1.6 * 2 ** 20
+    run.send_until(SUSPENDED)
+    fault = run.changes[-1]
+    assert fault.messages_written > 5000 and strict_count(run.bag / 'run_0.mcap') == \
+        fault.messages_written
+    (run.bag / 'run_0.mcap').unlink()           # room again: the first file taken away
+    run.send_until(RECORDING)
+    assert run.changes[-1].current_file == run.bag / 'run_1.mcap'
+    health = run.writer.close()
+    assert health.errors == 1 and strict_count(run.bag / 'run_1.mcap') > 0
+
+
 # ------------------------------------------------------------ SIGKILL with splits
 CHILD = """
 import sys, time

@@ -473,7 +473,13 @@ class BagWriter:
             self._reserve_path = (self._path / RESERVE_NAME if directory else
                                   self._path.with_name(f'.{self._path.name}{RESERVE_NAME}'))
         self._reserve_bytes = reserve_bytes
-        self._resume_free_bytes = reserve_bytes + resume_margin_bytes
+        # on a small file system (a few MiB) the reserve and the room to resume in scale with
+        # it: at most half of it each, or nothing would ever be recorded there
+        try:
+            half = shutil.disk_usage(self._path.parent).total // 2   # the bag is not made yet
+        except OSError:
+            half = reserve_bytes + resume_margin_bytes
+        self._resume_free_bytes = min(reserve_bytes + resume_margin_bytes, half)
         self._on_state_change = on_state_change
         self._make_sink = sink
         self._free_space = free_space
@@ -835,7 +841,7 @@ class BagWriter:
             return
         self._next_check_s = now + RESUME_CHECK_S
         free = self._measure_free()
-        if free is None or free < self._resume_free_bytes:
+        if free is None or free < max(self._resume_free_bytes, 2 * self._close_cost()):
             return
         try:
             self._open_file()
@@ -858,13 +864,25 @@ class BagWriter:
                 + 3 * self._bag_yaml_bytes + _CLOSE_SLACK_BYTES)
 
     def _ensure_reserve(self) -> None:
-        """Hold the reserve: ``reserve_bytes``, or twice the close of a file that needs more."""
+        """
+        Hold the reserve: ``reserve_bytes``, or twice the close of a file that needs more.
+
+        Never more than half of what is free (the reserve held counted as free), but never
+        less than the close: a small file system still records, and closes cleanly.
+        """
         if self._reserve_path is None:
             return
         need = self._close_cost()
-        if self._reserve_held >= max(self._reserve_bytes, need):
+        free = self._measure_free()
+        target = self._reserve_bytes if free is None else \
+            min(self._reserve_bytes, (free + self._reserve_held) // 2)
+        if self._reserve_held >= max(target, need):
             return
-        size = max(self._reserve_bytes, 2 * need)
+        if need <= target:
+            size = target
+        else:   # twice the close when there is room for it: a long file grows it seldom
+            room = 2 * need if free is None else min(2 * need, free + self._reserve_held)
+            size = max(need, room)
         fd = os.open(self._reserve_path, os.O_WRONLY | os.O_CREAT | os.O_CLOEXEC, 0o600)
         try:
             os.posix_fallocate(fd, 0, size)

@@ -259,6 +259,8 @@ class Child:
                                      stderr=subprocess.STDOUT, start_new_session=True,
                                      preexec_fn=_die_with_parent)
         self.signals: List[str] = []     # what it took to stop it
+        #: what its exit statuses other than 0 mean when it stopped as asked (by SIGINT)
+        self.meanings: Dict[int, str] = {}
 
     def running(self) -> bool:
         """Return whether the process is still running."""
@@ -297,6 +299,8 @@ class Child:
         how = f'exit status {rc}' if rc >= 0 else f'killed by {signal.Signals(-rc).name}'
         if self.clean():
             return f'exited cleanly ({how})'
+        if rc in self.meanings and not set(self.signals) - {'SIGINT'}:
+            return f'exited ({how}: {self.meanings[rc]})'
         if not self.signals:
             return f'ended by itself ({how})'
         return f'did not exit cleanly ({how}; sent {", ".join(self.signals)})'
@@ -769,6 +773,9 @@ def run(opts: LiveOptions, out: TextIO = sys.stdout, err: TextIO = sys.stderr,
         # all at once: the rig waits for the others to be ready before its duty starts
         children = [Child(name, commands[name], env, log_dir)
                     for name in ('rig', 'estimator', 'recorder') if name in commands]
+        for c in children:
+            if c.name == 'recorder':     # the recorder's own summary line says what it lost
+                c.meanings[1] = 'the recording lost messages to write errors'
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node)
         # the rig starts anyway after START_TIMEOUT_S; a little later the run gives up
