@@ -57,12 +57,13 @@ def linear_fit(t: Sequence[float], y: Sequence[float]) -> Fit:
 
 _STATUS_T = re.compile(r'^t\s+(\d+(?:\.\d*)?)/\S+ s \|')
 _STATUS_HOTSPOT = re.compile(r'\| winding hot-spot\s+(-?\d+(?:\.\d*)?)')
-_STATUS_STALE = re.compile(r'\| stale: (.*?)\s*$')
+_STATUS_STALE = re.compile(r'\| stale: ([^|]*?)\s*(?:\||$)')
+_STATUS_RECORDER = re.compile(r'\| (rec OK|REC WARN|REC ERROR)\b')
 
 
 def parse_status_line(line: str) -> Optional[Dict[str, object]]:
     """
-    Return ``t_s`` (time since the rig's start), and ``hotspot_C``, ``stale`` when shown.
+    Return ``t_s`` (time since the rig's start), and ``hotspot_C``, ``stale``, ``recorder`` shown.
 
     None for a line that is not a status line of the duty (start-up lines,
     anything else). ``live`` prints one such line every few seconds when its
@@ -70,8 +71,8 @@ def parse_status_line(line: str) -> Optional[Dict[str, object]]:
 
     >>> parse_status_line('t  14.0/20 s | winding hot-spot   20.3 mean   20.3 | magnet   23.1 '
     ...                   '| oil   26.0 degC | margin 19.5 A | limit: pending | alerts OK | '
-    ...                   'stale: none')
-    {'t_s': 14.0, 'hotspot_C': 20.3, 'stale': 'none'}
+    ...                   'stale: none | rec OK 3.2 MiB')
+    {'t_s': 14.0, 'hotspot_C': 20.3, 'stale': 'none', 'recorder': 'OK'}
     """
     m = _STATUS_T.match(line.strip())
     if m is None:
@@ -83,6 +84,9 @@ def parse_status_line(line: str) -> Optional[Dict[str, object]]:
     m = _STATUS_STALE.search(line)
     if m:
         out['stale'] = m.group(1)
+    m = _STATUS_RECORDER.search(line)
+    if m:
+        out['recorder'] = m.group(1).split()[-1]
     return out
 
 

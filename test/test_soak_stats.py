@@ -125,6 +125,9 @@ def test_status_lines():
     line = ('t 125.0/3600 s | winding hot-spot    --- mean    --- | magnet    --- | oil    --- '
             'degC | margin pending | limit: pending | alerts OK | stale: current_A, speed_rad_s')
     assert parse_status_line(line) == {'t_s': 125.0, 'stale': 'current_A, speed_rad_s'}
+    line += ' | REC ERROR: writing suspended since 09:13:51 (No space left on device)'
+    assert parse_status_line(line) == {'t_s': 125.0, 'stale': 'current_A, speed_rad_s',
+                                       'recorder': 'ERROR'}
 
 
 def _fake_process(root: Path, pid: int, ppid: int, name: str, cmd: str, rss_kB: int,
