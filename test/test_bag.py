@@ -10,13 +10,12 @@ import multiprocessing
 import os
 from pathlib import Path
 import shutil
-import signal
 import struct
-import subprocess
 import sys
 import time
 
 from builtin_interfaces.msg import Time
+from child_process import sigkill_after
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from mcap.reader import make_reader
 from mcap.writer import CompressionType, IndexType, Writer
@@ -346,17 +345,7 @@ while True:
 
 def test_sigkill_loses_at_most_about_a_second(tmp_path):
     path = tmp_path / 'killed.mcap'
-    env = dict(os.environ, OPENBLAS_NUM_THREADS='1')
-    child = subprocess.Popen([sys.executable, '-c', CHILD, str(path)], stdout=subprocess.PIPE,
-                             text=True, env=env)
-    try:
-        assert child.stdout.readline().strip() == 'ready'
-        time.sleep(3.0)
-        kill_ns = time.time_ns()
-        child.send_signal(signal.SIGKILL)
-    finally:
-        child.kill()
-        child.wait()
+    kill_ns = sigkill_after(CHILD, path, 3.0)
     info = open_bag(path)
     assert info.truncated and info.metadata['estimator'] == {'config': 'rate_Hz: 1000'}
     data = read_columns(path, {'/f': FLOAT64, '/p': FLUID_PRESSURE})

@@ -16,11 +16,9 @@ suspended, which the writer counts. A real 3 MiB tmpfs repeats this as root.
 import errno
 import os
 from pathlib import Path
-import signal
-import subprocess
-import sys
 import time
 
+from child_process import sigkill_after
 from mcap.reader import make_reader
 from mcap.records import Chunk
 from mcap.stream_reader import StreamReader
@@ -465,16 +463,7 @@ while True:
 
 def test_sigkill_while_splitting_loses_at_most_about_a_second(tmp_path):
     bag = tmp_path / 'killed'
-    child = subprocess.Popen([sys.executable, '-c', CHILD, str(bag)], stdout=subprocess.PIPE,
-                             text=True, env=dict(os.environ, OPENBLAS_NUM_THREADS='1'))
-    try:
-        assert child.stdout.readline().strip() == 'ready'
-        time.sleep(2.7)
-        kill_ns = time.time_ns()
-        child.send_signal(signal.SIGKILL)
-    finally:
-        child.kill()
-        child.wait()
+    kill_ns = sigkill_after(CHILD, bag, 2.7)
     info = listed(bag)
     names = info['relative_file_paths']
     assert len(names) >= 4 and sorted(p.name for p in bag.glob('*.mcap')) == sorted(names)
