@@ -1,26 +1,15 @@
 """
 Record ROS 2 messages to MCAP files that rosbag2 (Jazzy) reads as its own.
 
-What this writes is what rosbag2's MCAP storage plugin writes (checked in
-ros2/rosbag2: rosbag2_storage_mcap/src/mcap_storage.cpp, rosbag2_cpp's
-local_message_definition_source.cpp and sequential_writer.cpp, and
-rosbag2_storage's yaml.hpp and qos.cpp of metadata version 9, Jazzy):
-
-- profile ``ros2``; one schema per type, named ``pkg/msg/Type``, encoding
-  ``ros2msg``: the .msg file as installed (comments kept, as rosbag2 keeps
-  them), then every type it uses, depth first in sorted order, each after a
-  line of 80 ``=`` and ``MSG: pkg/Type`` (see :func:`message_definition`);
-- one channel per topic, message encoding ``cdr``, with the metadata
-  ``offered_qos_profiles`` (YAML list of the publishers' QoS) and
-  ``topic_type_hash`` (``RIHS01_...``);
-- a Metadata record ``rosbag2`` whose ``serialized_metadata`` is the YAML of
-  the bag's BagMetadata, written when a file is opened and again when it is
-  closed (readers keep the last one);
-- as a bag directory (``directory=True``, what ``ros2 bag record -s mcap``
-  makes): the files ``<dir name>_0.mcap``, ``_1``, ... inside it and
-  ``metadata.yaml``, ``rosbag2_bagfile_information`` holding the same
-  BagMetadata: what ``ros2 bag info`` and rosbag2_py open a bag by (the
-  tests read it with rosbags, an independent rosbag2 reader).
+What this writes is what rosbag2's MCAP storage plugin writes (the details
+and where they were checked: :mod:`.rosbag2`): profile ``ros2``; one schema
+per type and one channel per topic, message encoding ``cdr``; a Metadata
+record ``rosbag2`` with the bag's BagMetadata, written when a file is opened
+and again when it is closed (readers keep the last one); as a bag directory
+(``directory=True``, what ``ros2 bag record -s mcap`` makes) the files
+``<dir name>_0.mcap``, ``_1``, ... inside it (:mod:`.split`) and
+``metadata.yaml`` with the same BagMetadata (the tests read it with rosbags,
+an independent rosbag2 reader).
 
 Crash safety: messages are collected in an MCAP chunk, which is useless until
 it is complete. This writer closes the chunk (mcap's public
@@ -71,41 +60,30 @@ import contextlib
 from dataclasses import dataclass
 import errno
 from importlib.metadata import version
-import json
 import os
 from pathlib import Path
-import re
-import shutil
-import sys
-import textwrap
 import threading
 import time
 from typing import Callable, Dict, List, Optional, Tuple
 
 from mcap.writer import CompressionType, LIBRARY_IDENTIFIER, Writer
-import yaml
 
-from .reader import ROSBAG2_METADATA, ROSBAG2_METADATA_ROOT
+# rosbag2's and the sink's names are imported from here by the recorder, the tools and the tests
+from .rosbag2 import (bag_metadata, message_definition, offered_qos,  # noqa: F401
+                      qos_profiles, ROSBAG2_METADATA, ROSBAG2_METADATA_KEY,
+                      ROSBAG2_METADATA_NAME, ROSBAG2_METADATA_ROOT, ROSBAG2_METADATA_VERSION,
+                      to_yaml, Topic, type_hash, write_metadata_yaml)
+from .sink import (FileSink, free_bytes, Reserve, RESERVE_NAME,  # noqa: F401
+                   reserve_size, resume_free_bytes)
+from .split import FileStats, Span, SplitPolicy
 
 LIBRARY = f'wet_eha_thermal/{version("wet_eha_thermal")} ({LIBRARY_IDENTIFIER})'
-ROSBAG2_METADATA_NAME = 'rosbag2'
-ROSBAG2_METADATA_KEY = 'serialized_metadata'
-ROSBAG2_METADATA_VERSION = 9      # rosbag2 Jazzy
 DEFAULT_CHUNK_BYTES = 768 * 1024  # rosbag2's MCAP default (mcap C++ McapWriterOptions)
 COMPRESSIONS = {'zstd': CompressionType.ZSTD, 'lz4': CompressionType.LZ4,
                 'none': CompressionType.NONE}
 
-# What rosbag2 takes for the field types of a .msg file, and the primitives it skips
-# (rosbag2_cpp local_message_definition_source.cpp).
-_MSG_FIELD_TYPE = re.compile(r'(?:^|\n)\s*([a-zA-Z0-9_/]+)(?:\[[^\]]*\])?\s+', re.ASCII)
-_PRIMITIVE_TYPES = frozenset({
-    'bool', 'byte', 'char', 'float32', 'float64', 'int8', 'uint8', 'int16', 'uint16',
-    'int32', 'uint32', 'int64', 'uint64', 'string'})
-_DEFINITION_DELIMITER = '=' * 80 + '\n'
 # A record costs its data plus 9 bytes of opcode and length and 22 of message header.
 _MESSAGE_RECORD_OVERHEAD_BYTES = 31
-# libyaml's emitter when PyYAML has it: the bag metadata is dumped at every file change
-_YAML_DUMPER = getattr(yaml, 'CSafeDumper', yaml.SafeDumper)
 # The background check for messages waiting too long runs this often (fraction of the interval).
 _IDLE_CHECK_FRACTION = 0.1
 
@@ -116,7 +94,6 @@ RECORDING, SUSPENDED, CLOSED = 'recording', 'suspended', 'closed'
 #: before writing again (suspend mode).
 DEFAULT_RESERVE_BYTES = 4 * 2 ** 20
 DEFAULT_RESUME_MARGIN_BYTES = 16 * 2 ** 20
-RESERVE_NAME = '.wet_eha_reserve'
 #: While suspended, the free space is measured this often (s).
 RESUME_CHECK_S = 1.0
 # What closing a file may write besides its last chunk, to size the reserve: a Chunk Index
@@ -126,253 +103,33 @@ _CHUNK_INDEX_BYTES, _CHUNK_INDEX_CHANNEL_BYTES = 100, 10
 _CLOSE_SLACK_BYTES = 64 * 1024
 
 
-def _share_dir(package: str) -> Path:
-    """Return the share folder of a ROS package (ament index, else the running prefix)."""
-    try:
-        from ament_index_python.packages import get_package_share_directory
-        return Path(get_package_share_directory(package))
-    except Exception:  # noqa: B902 - no ament environment (pip venv) or package not indexed
-        return Path(sys.prefix) / 'share' / package
+def _check_options(chunk_bytes: int, flush_interval_s: float, split_bytes: Optional[int],
+                   split_duration_s: Optional[float], compression: str, on_error: str,
+                   reserve_bytes: int, resume_margin_bytes: int) -> None:
+    """Raise ValueError for the first option of :class:`BagWriter` out of its range."""
+    if compression not in COMPRESSIONS:
+        raise ValueError(f'compression {compression!r}: expected one of '
+                         + ', '.join(COMPRESSIONS))
+    if not flush_interval_s > 0 or chunk_bytes <= 0:
+        raise ValueError('flush_interval_s and chunk_bytes must be positive')
+    if (split_bytes is not None and split_bytes <= 0) or (
+            split_duration_s is not None and not split_duration_s > 0):
+        raise ValueError('split_bytes and split_duration_s must be positive')
+    if on_error not in ON_ERROR:
+        raise ValueError(f'on_error {on_error!r}: expected one of ' + ', '.join(ON_ERROR))
+    if reserve_bytes < 0 or resume_margin_bytes < 0:
+        raise ValueError('reserve_bytes and resume_margin_bytes must not be negative')
 
 
-def _split_type_name(type_name: str):
-    """Return (package, Type) of 'pkg/msg/Type' or 'pkg/Type'."""
-    parts = type_name.split('/')
-    if len(parts) == 3 and parts[1] == 'msg':
-        return parts[0], parts[2]
-    if len(parts) == 2:
-        return parts[0], parts[1]
-    raise ValueError(f'message type {type_name!r}: expected pkg/msg/Type')
-
-
-def _interface_file(type_name: str, suffix: str) -> Path:
-    package, name = _split_type_name(type_name)
-    path = _share_dir(package) / 'msg' / f'{name}{suffix}'
-    if not path.is_file():
-        raise ValueError(f'message type {type_name!r}: no {path}')
-    return path
-
-
-def message_definition(type_name: str) -> str:
-    """
-    Return the complete ``ros2msg`` definition of a message type, as rosbag2 stores it.
-
-    That is rosbag2's own algorithm: the .msg text unchanged, then for each
-    field type not seen before (sorted by name, depth first) a newline, the
-    80 ``=`` delimiter line, ``MSG: <type as written in the .msg>`` and its
-    text, recursively.
-    """
-    seen = set()
-
-    def with_dependencies(name: str) -> str:
-        text = _interface_file(name, '.msg').read_text()
-        package = _split_type_name(name)[0]
-        dependencies = sorted({
-            t if '/' in t else f'{package}/{t}'
-            for t in _MSG_FIELD_TYPE.findall(text) if t not in _PRIMITIVE_TYPES})
-        for dependency in dependencies:
-            if dependency not in seen:
-                seen.add(dependency)
-                text += ('\n' + _DEFINITION_DELIMITER + f'MSG: {dependency}\n'
-                         + with_dependencies(dependency))
-        return text
-
-    return with_dependencies(type_name)
-
-
-def type_hash(type_name: str) -> str:
-    """Return the RIHS01 type hash of a message type, from its generated .json description."""
-    description = json.loads(_interface_file(type_name, '.json').read_text())
-    package, name = _split_type_name(type_name)
-    full_name = f'{package}/msg/{name}'
-    for entry in description['type_hashes']:
-        if entry['type_name'] == full_name:
-            return entry['hash_string']
-    raise ValueError(f'message type {type_name!r}: no type hash in its .json description')
-
-
-def _rosbag2_profile(history: str, depth: int, reliability: str, durability: str,
-                     deadline_ns: int, lifespan_ns: int, liveliness: str, lease_ns: int,
-                     avoid_ros_namespace_conventions: bool) -> dict:
-    """Return one offered QoS profile as rosbag2 (metadata version 9) stores it."""
-    def rmw_time(ns: int) -> Dict[str, int]:  # a new dict each: a shared one dumps as an alias
-        sec, nsec = divmod(ns, 1_000_000_000)
-        return {'sec': sec, 'nsec': nsec}
-
-    return {'history': history, 'depth': depth, 'reliability': reliability,
-            'durability': durability, 'deadline': rmw_time(deadline_ns),
-            'lifespan': rmw_time(lifespan_ns), 'liveliness': liveliness,
-            'liveliness_lease_duration': rmw_time(lease_ns),
-            'avoid_ros_namespace_conventions': avoid_ros_namespace_conventions}
-
-
-def qos_profiles(qos) -> List[dict]:
-    """
-    Return an rclpy QoSProfile as rosbag2 (metadata version 9) lists a topic's offered QoS.
-
-    Read by attribute, so this module imports nothing of ROS: the recorder
-    passes what its publishers offer.
-    """
-    return [_rosbag2_profile(
-        qos.history.short_key, qos.depth, qos.reliability.short_key,
-        qos.durability.short_key, qos.deadline.nanoseconds, qos.lifespan.nanoseconds,
-        qos.liveliness.short_key, qos.liveliness_lease_duration.nanoseconds,
-        qos.avoid_ros_namespace_conventions)]
-
-
-def offered_qos(reliability: str = 'reliable', durability: str = 'volatile',
-                depth: int = 10) -> List[dict]:
-    """
-    Return the offered QoS of a keep-last publisher, as :func:`qos_profiles` lists it.
-
-    For bags written without ROS (replay's estimates, the simulated rig's
-    logs): rclpy's defaults for the rest (no deadline, lifespan or lease,
-    system-default liveliness).
-    """
-    return [_rosbag2_profile('keep_last', depth, reliability, durability, 0, 0,
-                             'system_default', 0, False)]
-
-
-def _yaml(data) -> str:
-    return yaml.dump(data, Dumper=_YAML_DUMPER, sort_keys=False,
-                     default_flow_style=False).rstrip('\n')
-
-
-class _Topic:
-    """What the bag keeps of a topic: type, definition, hash, QoS and message counts."""
-
-    def __init__(self, name: str, type_name: str, qos: Optional[List[dict]]):
-        package, short = _split_type_name(type_name)
-        self.name = name
-        self.type_name = f'{package}/msg/{short}'
-        self.definition = message_definition(self.type_name)
-        self.type_hash = type_hash(self.type_name)
-        self.qos = list(qos or [])  # [] is what rosbag2 stores when it does not know them
-        # the channel metadata of every file: dumped once, not at each split (~0.1 ms a topic)
-        self.qos_yaml = _yaml(self.qos)
-        self.message_count = 0      # in complete chunks of the bag's files
-        self.pending = 0            # in the chunk being built
-        self.dropped = 0            # in no file (suspended, or a chunk that could not be written)
-
-    def record_bytes(self) -> int:
-        """Return about what its schema and channel records take in a file."""
-        return (2 * len(self.type_name) + len(self.definition) + len(self.name)
-                + len(self.qos_yaml) + len(self.type_hash) + 200)
-
-
-class _Span:
-    """Message count and log time span of some messages."""
-
-    def __init__(self):
-        self.message_count = 0
-        self.start_ns = 0
-        self.end_ns = 0
-
-    def add(self, log_time_ns: int) -> None:
-        if self.message_count == 0 or log_time_ns < self.start_ns:
-            self.start_ns = log_time_ns
-        self.end_ns = max(self.end_ns, log_time_ns)
-        self.message_count += 1
-
-    def merge(self, other: '_Span') -> None:
-        if other.message_count == 0:
-            return
-        if self.message_count == 0 or other.start_ns < self.start_ns:
-            self.start_ns = other.start_ns
-        self.end_ns = max(self.end_ns, other.end_ns)
-        self.message_count += other.message_count
-
-
-class _FileStats(_Span):
-    """What one file of the bag holds: messages of complete chunks, and bytes."""
-
-    def __init__(self, path: Path):
-        super().__init__()
-        self.path = path
-        self.bytes = 0
-
-    def as_rosbag2(self) -> dict:
-        return {'path': self.path.name,
-                'starting_time': {'nanoseconds_since_epoch': self.start_ns},
-                'duration': {'nanoseconds': self.end_ns - self.start_ns},
-                'message_count': self.message_count}
-
-
-class FileSink:
-    """
-    A file of the bag as mcap writes it: kept in memory until a flush, then all of it or nothing.
-
-    :meth:`write` keeps the bytes (it never fails); :meth:`flush` writes them
-    at the end of the file, and when that fails cuts the file back to what
-    the previous flush left (:attr:`size`), keeps the bytes for the next
-    flush (or :meth:`discard`) and raises the OSError. :meth:`tell` counts
-    the kept bytes too: it is the offset mcap gives its records. The file is
-    made here, never over an existing one (FileExistsError).
-
-    :meth:`write_at` is the one call that writes to the file: a test makes a
-    full disk by overriding it. Not a ``RawIOBase``, which mcap would buffer.
-    """
-
-    def __init__(self, path: os.PathLike):
-        self.path = Path(path)
-        self._fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o666)
-        #: Bytes in the file: those of the flushes that succeeded.
-        self.size = 0
-        self._kept: List[bytes] = []
-        self._kept_bytes = 0
-
-    @property
-    def closed(self) -> bool:
-        """Return whether the file is closed."""
-        return self._fd < 0
-
-    def write(self, data: bytes) -> int:
-        """Keep ``data`` for the next flush; return its length."""
-        self._kept.append(bytes(data))  # mcap passes bytes: no copy
-        self._kept_bytes += len(data)
-        return len(data)
-
-    def tell(self) -> int:
-        """Return the offset the next byte given will have in the file."""
-        return self.size + self._kept_bytes
-
-    def flush(self) -> None:
-        """Write the kept bytes (OSError: none of them stays in the file, all are kept)."""
-        offset = self.size
-        try:
-            for data in self._kept:
-                view = memoryview(data)
-                while view:
-                    done = self.write_at(view, offset)
-                    if done <= 0:
-                        raise OSError(errno.EIO, f'{self.path}: no byte written')
-                    view = view[done:]
-                    offset += done
-        except OSError:
-            with contextlib.suppress(OSError):  # a reader stops at the cut anyway
-                os.ftruncate(self._fd, self.size)
-            raise
-        self.size = offset
-        self.discard()
-
-    def write_at(self, data: memoryview, offset: int) -> int:
-        """Write some of ``data`` at ``offset`` of the file; return how many bytes."""
-        return os.pwrite(self._fd, data, offset)
-
-    def discard(self) -> None:
-        """Forget the bytes not written."""
-        self._kept = []
-        self._kept_bytes = 0
-
-    def close(self) -> None:
-        """Close the file (what was not flushed is not in it)."""
-        if self._fd >= 0:
-            os.close(self._fd)
-            self._fd = -1
-
-
-def _free_bytes(path: Path) -> int:
-    return shutil.disk_usage(path).free
+def _checked_metadata(metadata: Optional[Dict[str, Dict[str, str]]]) -> Dict[str, Dict[str, str]]:
+    """Return a copy of the metadata records to store; ValueError if one cannot be stored."""
+    records = {name: dict(values) for name, values in (metadata or {}).items()}
+    if ROSBAG2_METADATA_NAME in records:
+        raise ValueError(f'metadata name {ROSBAG2_METADATA_NAME!r} is reserved for rosbag2')
+    for name, values in records.items():
+        if not all(isinstance(x, str) for kv in values.items() for x in kv):
+            raise ValueError(f'metadata {name!r}: keys and values must be strings')
+    return records
 
 
 @dataclass(frozen=True)
@@ -437,74 +194,59 @@ class BagWriter:
                  resume_margin_bytes: int = DEFAULT_RESUME_MARGIN_BYTES,
                  on_state_change: Optional[Callable[[BagHealth], None]] = None,
                  sink: Callable[[Path], FileSink] = FileSink,
-                 free_space: Callable[[Path], int] = _free_bytes):
-        if compression not in COMPRESSIONS:
-            raise ValueError(f'compression {compression!r}: expected one of '
-                             + ', '.join(COMPRESSIONS))
-        if not flush_interval_s > 0 or chunk_bytes <= 0:
-            raise ValueError('flush_interval_s and chunk_bytes must be positive')
-        if (split_bytes is not None and split_bytes <= 0) or (
-                split_duration_s is not None and not split_duration_s > 0):
-            raise ValueError('split_bytes and split_duration_s must be positive')
-        if on_error not in ON_ERROR:
-            raise ValueError(f'on_error {on_error!r}: expected one of ' + ', '.join(ON_ERROR))
-        if reserve_bytes < 0 or resume_margin_bytes < 0:
-            raise ValueError('reserve_bytes and resume_margin_bytes must not be negative')
-        self._metadata = {name: dict(values) for name, values in (metadata or {}).items()}
-        if ROSBAG2_METADATA_NAME in self._metadata:
-            raise ValueError(f'metadata name {ROSBAG2_METADATA_NAME!r} is reserved for rosbag2')
-        for name, values in self._metadata.items():
-            if not all(isinstance(x, str) for kv in values.items() for x in kv):
-                raise ValueError(f'metadata {name!r}: keys and values must be strings')
+                 free_space: Callable[[Path], int] = free_bytes):
+        _check_options(chunk_bytes, flush_interval_s, split_bytes, split_duration_s,
+                       compression, on_error, reserve_bytes, resume_margin_bytes)
+        self._metadata = _checked_metadata(metadata)
         self._path = Path(path)
         self._directory = directory
         self._destination = self._path if directory else self._path.parent
-        self._splitting = split_bytes is not None or split_duration_s is not None
-        self._split_bytes = split_bytes
-        self._split_duration_ns = (None if split_duration_s is None
-                                   else round(split_duration_s * 1e9))
+        self._policy = SplitPolicy(self._path, directory, split_bytes, split_duration_s)
         self._chunk_bytes = chunk_bytes
         self._flush_interval_s = flush_interval_s
         self._flush_interval_ns = round(flush_interval_s * 1e9)
         self._compression = COMPRESSIONS[compression]
         self._suspending = on_error == 'suspend'
-        self._reserve_path = None
+        reserve_path = None
         if self._suspending and reserve_bytes:
-            self._reserve_path = (self._path / RESERVE_NAME if directory else
-                                  self._path.with_name(f'.{self._path.name}{RESERVE_NAME}'))
+            reserve_path = (self._path / RESERVE_NAME if directory else
+                            self._path.with_name(f'.{self._path.name}{RESERVE_NAME}'))
+        self._reserve = Reserve(reserve_path)
         self._reserve_bytes = reserve_bytes
-        # on a small file system (a few MiB) the reserve and the room to resume in scale with
-        # it: at most half of it each, or nothing would ever be recorded there
-        try:
-            half = shutil.disk_usage(self._path.parent).total // 2   # the bag is not made yet
-        except OSError:
-            half = reserve_bytes + resume_margin_bytes
-        self._resume_free_bytes = min(reserve_bytes + resume_margin_bytes, half)
+        self._resume_free_bytes = resume_free_bytes(   # the bag is not made yet: its parent
+            self._path.parent, reserve_bytes, resume_margin_bytes)
         self._on_state_change = on_state_change
         self._make_sink = sink
         self._free_space = free_space
-        self._topics: Dict[str, _Topic] = {}
-        self._files: List[_FileStats] = []
+        self._init_state()
+        self._begin()
+
+    def _init_state(self) -> None:
+        """Set up the state of a writer that has written nothing yet."""
+        self._topics: Dict[str, Topic] = {}
+        self._files: List[FileStats] = []
         self._lock = threading.Lock()
         self._closed = False
         self._error: Optional[BaseException] = None     # raise mode: what every call raises
         self._state = RECORDING
         self._sink: Optional[FileSink] = None
         self._mcap: Optional[Writer] = None
-        self._chunk = _Span()           # the messages of the chunk being built
+        self._chunk = Span()            # the messages of the chunk being built
         self._pending_bytes = 0
         self._tail_built = False        # the current file's summary is in its sink
         self._chunks_in_file = 0
         self._definition_bytes = 0      # schema and channel records of a file, about
         self._bag_yaml_bytes = 0
-        self._reserve_held = 0
         self._written = self._dropped = self._bytes_written = 0
         self._errors = self._changes = 0
         self._last_error = ''
         self._last_error_time_s: Optional[float] = None
         self._notice = False            # on_state_change is due
         self._next_check_s = 0.0
-        if directory:
+
+    def _begin(self) -> None:
+        """Make the bag directory, open the first file (or suspend), start the idle flusher."""
+        if self._directory:
             # one call that fails on anything already there, as ros2 bag record refuses an
             # existing output folder, even an empty one
             self._path.mkdir()
@@ -547,7 +289,7 @@ class BagWriter:
                 current_file=None if self._sink is None else self._sink.path,
                 files=tuple(f.path for f in self._files), errors=self._errors,
                 last_error=self._last_error, last_error_time_s=self._last_error_time_s,
-                free_bytes=free, reserve_bytes=self._reserve_held, changes=self._changes,
+                free_bytes=free, reserve_bytes=self._reserve.held, changes=self._changes,
                 time_s=time.monotonic())
 
     def __enter__(self):
@@ -564,7 +306,7 @@ class BagWriter:
         ``qos``: its publishers' offered QoS, as :func:`qos_profiles` or
         :func:`offered_qos` return them.
         """
-        entry = _Topic(topic, msg_type_name, qos)  # reads the definition outside the lock
+        entry = Topic(topic, msg_type_name, qos)  # reads the definition outside the lock
         with self._lock:
             self._check_usable()
             if topic in self._topics:
@@ -590,7 +332,8 @@ class BagWriter:
                 raise ValueError(f'topic {topic!r} was not added')
             if self._state == SUSPENDED:
                 self._maybe_resume()
-            elif self._splitting and self._split_due(log_time_ns):
+            elif self._policy.splitting and self._policy.due(self._files[-1], self._chunk,
+                                                             log_time_ns):
                 self._split()
             if self._sink is None:
                 entry.dropped += 1
@@ -639,7 +382,7 @@ class BagWriter:
         if self._error is not None:
             raise OSError(f'writing {self._files[-1].path} failed') from self._error
 
-    def _add(self, entry: _Topic, data: bytes, log_time_ns: int,
+    def _add(self, entry: Topic, data: bytes, log_time_ns: int,
              publish_time_ns: Optional[int]) -> None:
         self._mcap.add_message(
             self._channel_ids[entry.name], log_time_ns, data,
@@ -675,23 +418,14 @@ class BagWriter:
             return
         current.merge(self._chunk)
         self._written += self._chunk.message_count
-        self._chunk = _Span()
+        self._chunk = Span()
         for entry in self._topics.values():
             entry.message_count += entry.pending
             entry.pending = 0
         self._chunks_in_file += 1
-        if self._reserve_held and self._close_cost() > self._reserve_held:
+        if self._reserve.held and self._close_cost() > self._reserve.held:
             with contextlib.suppress(OSError):  # the disk is nearly full: the next write says so
                 self._ensure_reserve()
-
-    def _split_due(self, log_time_ns: int) -> bool:
-        current = self._files[-1]
-        if current.message_count == 0 and self._chunk.message_count == 0:
-            return False  # never leave a file without messages behind
-        start_ns = current.start_ns if current.message_count else self._chunk.start_ns
-        return ((self._split_bytes is not None and current.bytes >= self._split_bytes)
-                or (self._split_duration_ns is not None
-                    and log_time_ns - start_ns >= self._split_duration_ns))
 
     def _split(self) -> None:
         try:
@@ -706,22 +440,13 @@ class BagWriter:
         except OSError as exc:
             self._fault(exc, 'opening the next file')
 
-    def _next_path(self) -> Path:
-        k = len(self._files)
-        if self._directory:
-            return self._path / f'{self._path.name}_{k}.mcap'
-        if self._splitting or k:
-            stem = self._path.name[:-5] if self._path.name.endswith('.mcap') else self._path.name
-            return self._path.with_name(f'{stem}_{k}.mcap')
-        return self._path
-
     def _open_file(self) -> None:
         """Begin the next file of the bag, listed in metadata.yaml; on OSError none is left."""
-        path = self._next_path()
+        path = self._policy.path_of(len(self._files))
         self._chunks_in_file = 0
         self._ensure_reserve()
         sink = self._make_sink(path)
-        self._files.append(_FileStats(path))
+        self._files.append(FileStats(path))
         self._sink = sink
         try:
             # Chunks are closed by this class (size, log time, wall time): the mcap writer's own
@@ -738,7 +463,7 @@ class BagWriter:
             bag_yaml = self._write_rosbag2_metadata()
             self._close_chunk()  # header and metadata reach the disk now, before any message
             if self._directory:  # the new file is listed before it holds a message
-                self._write_metadata_yaml(bag_yaml)
+                write_metadata_yaml(self._path, bag_yaml)
         except BaseException:
             sink.close()
             self._files.pop()
@@ -747,7 +472,7 @@ class BagWriter:
                 path.unlink()
             raise
 
-    def _register(self, entry: _Topic) -> None:
+    def _register(self, entry: Topic) -> None:
         schema_id = self._schema_ids.get(entry.type_name)
         if schema_id is None:
             schema_id = self._mcap.register_schema(
@@ -800,7 +525,7 @@ class BagWriter:
             entry.dropped += entry.pending
             entry.pending = 0
         self._dropped += self._chunk.message_count
-        self._chunk = _Span()
+        self._chunk = Span()
         self._pending_bytes = 0
 
     # ------------------------------------------------------------ faults
@@ -864,50 +589,22 @@ class BagWriter:
                 + 3 * self._bag_yaml_bytes + _CLOSE_SLACK_BYTES)
 
     def _ensure_reserve(self) -> None:
-        """
-        Hold the reserve: ``reserve_bytes``, or twice the close of a file that needs more.
-
-        Never more than half of what is free (the reserve held counted as free), but never
-        less than the close: a small file system still records, and closes cleanly.
-        """
-        if self._reserve_path is None:
+        """Hold the reserve that finishes the current file (:func:`.sink.reserve_size`)."""
+        if self._reserve.path is None:
             return
-        need = self._close_cost()
-        free = self._measure_free()
-        target = self._reserve_bytes if free is None else \
-            min(self._reserve_bytes, (free + self._reserve_held) // 2)
-        if self._reserve_held >= max(target, need):
-            return
-        if need <= target:
-            size = target
-        else:   # twice the close when there is room for it: a long file grows it seldom
-            room = 2 * need if free is None else min(2 * need, free + self._reserve_held)
-            size = max(need, room)
-        fd = os.open(self._reserve_path, os.O_WRONLY | os.O_CREAT | os.O_CLOEXEC, 0o600)
-        try:
-            os.posix_fallocate(fd, 0, size)
-        except OSError:
-            with contextlib.suppress(OSError):  # no half reserve: what was held, or nothing
-                if self._reserve_held:
-                    os.ftruncate(fd, self._reserve_held)
-                else:
-                    self._reserve_path.unlink()
-            raise
-        finally:
-            os.close(fd)
-        self._reserve_held = size
+        size = reserve_size(self._reserve_bytes, self._close_cost(), self._measure_free(),
+                            self._reserve.held)
+        if size is not None:
+            self._reserve.hold(size)
 
     def _release_reserve(self) -> bool:
         """Delete the reserve; return whether there was one to free."""
-        if not self._reserve_held:
+        if not self._reserve.held:
             return False
-        self._reserve_held = 0
         try:
-            self._reserve_path.unlink()
-        except FileNotFoundError:
-            pass                        # someone deleted it: its space is free all the same
+            self._reserve.free()
         except OSError as exc:
-            self._note_error(exc, f'deleting {self._reserve_path}')
+            self._note_error(exc, f'deleting {self._reserve.path}')
             return False
         return True
 
@@ -927,37 +624,9 @@ class BagWriter:
                 self._last_error = f'on_state_change: {type(exc).__name__}: {exc}'
 
     # ------------------------------------------------------------ rosbag2 metadata
-    def _bag_metadata(self) -> dict:
-        """Return the bag's rosbag2 BagMetadata so far (rosbag2_storage yaml.hpp, version 9)."""
-        files = [f for f in self._files if f.message_count]
-        start_ns = min((f.start_ns for f in files), default=0)
-        end_ns = max((f.end_ns for f in files), default=0)
-        return {
-            'version': ROSBAG2_METADATA_VERSION,
-            'storage_identifier': 'mcap',
-            'duration': {'nanoseconds': end_ns - start_ns},
-            'starting_time': {'nanoseconds_since_epoch': start_ns},
-            'message_count': sum(f.message_count for f in self._files),
-            'topics_with_message_count': [
-                {'topic_metadata': {'name': t.name, 'type': t.type_name,
-                                    'serialization_format': 'cdr',
-                                    'offered_qos_profiles': t.qos,
-                                    'type_description_hash': t.type_hash},
-                 'message_count': t.message_count}
-                for t in self._topics.values()],
-            # chunk compression is the storage's business, not rosbag2's compression
-            'compression_format': '',
-            'compression_mode': '',
-            'relative_file_paths': [f.path.name for f in self._files],
-            'files': [f.as_rosbag2() for f in self._files],
-            'custom_data': {},
-            # the ROS wheels of requirements.txt are Jazzy's; a sourced ROS sets this
-            'ros_distro': os.environ.get('ROS_DISTRO', 'jazzy'),
-        }
-
     def _write_rosbag2_metadata(self) -> str:
         """Add the bag's metadata to the current file (rosbag2's record); return its YAML."""
-        bag_yaml = _yaml(self._bag_metadata())
+        bag_yaml = to_yaml(bag_metadata(self._topics.values(), self._files))
         self._bag_yaml_bytes = len(bag_yaml)
         self._mcap.add_metadata(ROSBAG2_METADATA_NAME, {ROSBAG2_METADATA_KEY: bag_yaml})
         return bag_yaml
@@ -967,26 +636,12 @@ class BagWriter:
         if not self._directory or not self._files:
             return
         try:
-            self._write_metadata_yaml(_yaml(self._bag_metadata()))
+            write_metadata_yaml(self._path,
+                                to_yaml(bag_metadata(self._topics.values(), self._files)))
         except OSError as exc:
             if not self._suspending:
                 raise
             self._note_error(exc, f'writing {ROSBAG2_METADATA}')
-
-    def _write_metadata_yaml(self, bag_yaml: str) -> None:
-        """Replace the directory's metadata.yaml whole (a reader never sees half of one)."""
-        # the record's YAML, indented under the root key (a block mapping nests so): PyYAML's
-        # representer is the dear part of a split, about 10 ms for the recorder's 32 topics
-        text = f'{ROSBAG2_METADATA_ROOT}:\n' + textwrap.indent(bag_yaml, '  ') + '\n'
-        target = self._path / ROSBAG2_METADATA
-        temporary = target.with_name(f'.{ROSBAG2_METADATA}.partial')
-        try:
-            temporary.write_text(text)
-            os.replace(temporary, target)
-        except OSError:
-            with contextlib.suppress(OSError):
-                temporary.unlink()
-            raise
 
     def _flush_idle(self) -> None:
         """
