@@ -66,7 +66,7 @@ def field_figure(pc, path: Path) -> None:
     net_T = motor.T - 273.15
     xs, ys, cs = [], [], []
     for name in motor.net.node_names:
-        part, sl, side = fem._split_name(name)
+        part, sl, side = fem.split_name(name)
         blocks = fe.blocks_of(part, sl) if sl is not None and side is None else []
         if not blocks or name.endswith(('.ja', '.jr')):
             continue

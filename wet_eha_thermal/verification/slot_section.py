@@ -1,0 +1,176 @@
+"""
+The 2-D cross-section of one slot pitch, against a one-slice network of the same problem.
+
+Frame, contact gap, yoke, tooth with its tip, slot liner and winding,
+axially adiabatic, per metre of stack (:func:`slot_pitch`); the same problem
+built by the production builder (:func:`slice_motor`, :func:`slot_network`);
+and the winding-to-teeth coupling the r-z model takes from it
+(:func:`slot_coupling`).
+"""
+
+from dataclasses import dataclass, replace
+from typing import Dict, Tuple
+
+import numpy as np
+from skfem import asm, Basis, LinearForm
+
+from .fe_grid import Block, GridFE
+from .network_nodes import source_names
+from ..model.motor import MotorInputs, WetMotor
+
+
+@dataclass(frozen=True)
+class SlotProblem:
+    """
+    The 2-D problem of one operating point: losses of the whole machine per metre of stack.
+
+    Copper, yoke and teeth losses (W/m); h (W/(m^2 K)) of the frame barrel to
+    ambient and of the bore to the airgap oil; the ambient and oil temperatures (K).
+    """
+
+    copper_W_m: float
+    yoke_W_m: float
+    teeth_W_m: float
+    h_ambient_W_m2K: float
+    h_bore_W_m2K: float
+    ambient_K: float
+    oil_K: float
+
+
+def slot_problem(motor: WetMotor, u: MotorInputs) -> SlotProblem:
+    """Read the 2-D problem from a network solved at ``u``: its losses and coefficients."""
+    c = motor.cfg
+    names, P = source_names(motor), motor.power_W
+    per_m = {p: sum(w for nm, w in zip(names, P) if nm.startswith(p + '.')) / c.stack_length_m
+             for p in ('winding', 'yoke', 'teeth')}
+    G = motor.net.coefficients_in_use()[0]
+    ends = motor.net.link_ends(motor.ambient_links)
+    frame = [k for k, (a, _) in enumerate(ends)
+             if a < motor.net.n and motor.net.node_names[a].startswith('frame.')]
+    h_amb = (G[np.array(motor.ambient_links)[frame]].sum()
+             / np.asarray(motor.ambient_areas)[frame].sum())
+    h_bore = (G[motor.gap_links_stator].sum()
+              / (2 * np.pi * c.stator.bore_radius_m * c.stack_length_m))
+    return SlotProblem(per_m['winding'], per_m['yoke'], per_m['teeth'], float(h_amb),
+                       float(h_bore), u.ambient_K, float(motor.T[motor.idx_gap].mean()))
+
+
+def slot_pitch(c, prob: SlotProblem, h_m: float) -> Tuple[GridFE, Dict[str, float]]:
+    """
+    Solve one slot pitch of motor config ``c`` (2-D, per metre); return the model and results.
+
+    Radial-sided tooth of angular share ``tooth_fraction`` (the network's
+    annulus share), centred on the pitch's sides; the tooth tips close the slot
+    over the whole pitch from the bore to ``tooth_tip_depth_m`` (the network
+    joins the slot's inner liner to the bore); the liner a thin layer on the
+    slot's four sides; the frame fit a thin layer. Results: winding mean and
+    peak, teeth (tips included), yoke and frame means (K); the heat (W/m, whole
+    machine) through the bore, the frame barrel and the slot sides.
+    """
+    fr, st, wd = c.frame, c.stator, c.winding
+    pitch = 2 * np.pi / c.slots
+    half = 0.5 * st.tooth_fraction * pitch
+    r_tip = st.bore_radius_m + st.tooth_tip_depth_m
+    k_fe, k_w = st.material.k_radial_W_mK, wd.k_radial_W_mK
+    blocks = [Block('frame', 'frame', (fr.inner_radius_m, fr.outer_radius_m), (0, pitch),
+                    (fr.material.k_radial_W_mK,) * 2),
+              Block('yoke', 'stator', (st.yoke_inner_radius_m, st.outer_radius_m), (0, pitch),
+                    (k_fe, k_fe)),
+              Block('teeth', 'stator', (st.bore_radius_m, r_tip), (0, pitch), (k_fe, k_fe)),
+              Block('teeth', 'stator', (r_tip, st.yoke_inner_radius_m), (0, half), (k_fe, k_fe)),
+              Block('teeth', 'stator', (r_tip, st.yoke_inner_radius_m), (pitch - half, pitch),
+                    (k_fe, k_fe)),
+              Block('winding', 'winding', (r_tip, st.yoke_inner_radius_m), (half, pitch - half),
+                    (k_w, k_w))]
+    fe = GridFE(blocks, h_m, axisymmetric=False)
+    liner = wd.liner_conductivity_W_mK / wd.liner_thickness_m
+    fe.add_contact('frame fit', fe.face([0], 'inner'), 'stator',
+                   st.contact_gap_conductivity_W_mK / st.frame_contact_gap_m)
+    fe.add_contact('slot bottom', fe.face([5], 'outer'), 'stator', liner)
+    fe.add_contact('slot top', fe.face([5], 'inner'), 'stator', liner)
+    fe.add_contact('slot sides', fe.face([5], 'front') + fe.face([5], 'rear'), 'stator', liner)
+    fe.add_source([5], prob.copper_W_m / c.slots)
+    fe.add_source([1], prob.yoke_W_m / c.slots)
+    fe.add_source([2, 3, 4], prob.teeth_W_m / c.slots)
+    outer, bore = fe.face([0], 'outer'), fe.face([2], 'inner')
+    fe.add_link('frame', outer, prob.h_ambient_W_m2K * fe.area(outer), prob.ambient_K)
+    fe.add_link('bore', bore, prob.h_bore_W_m2K * fe.area(bore), prob.oil_K)
+    T = fe.solve()
+    return fe, {'winding_mean': fe.mean([5], T), 'winding_peak': fe.peak([5], T),
+                'teeth': fe.mean([2, 3, 4], T), 'yoke': fe.mean([1], T),
+                'frame': fe.mean([0], T),
+                'bore_W_m': c.slots * fe.link_flow(fe.links[1], T),
+                'frame_W_m': c.slots * fe.link_flow(fe.links[0], T),
+                'slot_sides_W_m': c.slots * fe.contact_flow('slot sides', T)}
+
+
+def slice_motor(c, oil, prob: SlotProblem) -> Tuple[WetMotor, MotorInputs]:
+    """
+    Return the 2-D problem built by the production builder: a one-slice ``WetMotor`` of ``c``.
+
+    Everything at the ends and the rotor are cut off (end-space, end-cap,
+    frame-end and rotor-to-oil links to zero, no end-winding or friction loss):
+    they are then dead ends that carry no heat, and the slice is the axially
+    adiabatic cross-section. The frame barrel and the bore get the problem's h,
+    and an oil flow so large that the airgap oil sits at the problem's oil
+    temperature. The motor is solved: its ``T`` and ``power_W`` are set.
+    """
+    m = WetMotor(replace(c, slices=1), oil)
+    u = MotorInputs(0.0, 0.0, prob.oil_K, 1e-3, prob.ambient_K, 0.0)
+    m.refresh(np.full(m.net.n, prob.oil_K), u)
+    net, L = m.net, c.stack_length_m
+    ends = net.link_ends(m.ambient_links)
+    is_frame = np.array([a < net.n and net.node_names[a].startswith('frame.') for a, _ in ends])
+    net.set_conductances(m.ambient_links, np.where(is_frame, prob.h_ambient_W_m2K
+                                                   * np.asarray(m.ambient_areas), 0.0))
+    net.set_conductances(m.cap_links, 0.0)
+    net.set_conductances(m.end_links, 0.0)
+    # the rotor too: the frame ends, caps and bearings would join it to the stator
+    net.set_conductances(m.gap_links_rotor, 0.0)
+    net.set_conductances(m.gap_links_stator, prob.h_bore_W_m2K * 2 * np.pi
+                         * c.stator.bore_radius_m * L)
+    net.set_advection_rates(m.adv, 1e9)
+    P = np.zeros(net.ns)
+    for k, nm in enumerate(source_names(m)):
+        P[k] = {'winding.s1': prob.copper_W_m, 'yoke.s1': prob.yoke_W_m,
+                'teeth.s1': prob.teeth_W_m}.get(nm, 0.0) * L
+    m.power_W = P
+    m.T = net.steady_state(m.boundaries(u), P)
+    return m, u
+
+
+def slot_network(c, oil, prob: SlotProblem) -> Dict[str, float]:
+    """Solve :func:`slice_motor`; return the figures :func:`slot_pitch` returns (K, W/m)."""
+    m, u = slice_motor(c, oil, prob)
+    net, T, L = m.net, m.T, c.stack_length_m
+    flows = net.link_heat_flows(T, m.boundaries(u))
+    frame_links = [k for k, (a, _) in zip(m.ambient_links, net.link_ends(m.ambient_links))
+                   if a < net.n and net.node_names[a].startswith('frame.')]
+    t = {p: float(T[net.index(p + '.s1')]) for p in ('winding', 'teeth', 'yoke', 'frame')}
+    t.update({'bore_W_m': float(flows[m.gap_links_stator].sum()) / L,
+              'frame_W_m': float(flows[frame_links].sum()) / L})
+    t['winding_mean'] = t.pop('winding')
+    return t
+
+
+def slot_coupling(fe: GridFE, c) -> float:
+    """
+    Return the slot-to-teeth conductance per volume of the tooth annulus (W/(m^3 K)).
+
+    From a solved :func:`slot_pitch`: the heat through the slot sides over
+    the integral of (winding mean - tooth mean) at each radius, the means taken
+    over each grid row of the slot and of the teeth. This is the coupling of the
+    two continua (winding and teeth) of the r-z model: q = g (T_w - T_t).
+    """
+    T = fe.T
+    q = fe.contact_flow('slot sides', T)
+    integral = 0.0
+    for i in np.unique(fe.row[np.isin(fe.owner, [3, 4, 5])]):
+        means, area = [], 0.0
+        for blocks in ([5], [3, 4]):
+            els = np.flatnonzero(np.isin(fe.owner, blocks) & (fe.row == i))
+            wts = asm(LinearForm(lambda v, w: v), Basis(fe.mesh, fe.elem, elements=els))
+            means.append(float(wts @ T[:fe.n]) / wts.sum())
+            area += wts.sum()
+        integral += (means[0] - means[1]) * area
+    return q / integral
