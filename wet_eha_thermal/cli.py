@@ -168,7 +168,7 @@ def _check_simulate_args(args: argparse.Namespace) -> None:
 def _simulate(args: argparse.Namespace) -> int:
     from . import report
     from .model.kinetics import L_MIN, load_duty_csv, MPA, stage_duty
-    from .model.motor import C_TO_K
+    from .units import C_TO_K
     from .model.oil import OIL_GRADES
     from . import simulation
     from .simulation import simulate

@@ -18,10 +18,11 @@ from typing import Callable, Dict, List, Optional
 import numpy as np
 
 from .config import Config
-from .model.motor import C_TO_K, LOSS_NAMES, MotorInputs, WetMotor
+from .model.motor import LOSS_NAMES, MotorInputs, WetMotor
 from .model.oil import get_oil
 from .model.validity import ValidityLog
 from .outputs import atomic, save_figure
+from .units import C_TO_K, RPM
 
 TEMPERATURES = ('winding_mean', 'winding_hotspot', 'frame', 'magnet', 'airgap_oil_outlet',
                 'motor_oil_outlet')
@@ -33,7 +34,6 @@ LOSS_LABELS = {'copper_slot': 'copper, slots', 'copper_end': 'copper, end windin
                'gap_friction': 'airgap friction', 'magnet': 'magnets', 'sleeve': 'sleeve',
                'rotor_core': 'rotor core', 'end_face_friction': 'end-face friction',
                'bearings': 'bearings'}
-RPM = np.pi / 30.0  # rad/s per r/min
 
 
 @dataclass

@@ -20,9 +20,10 @@ import numpy as np
 
 from .config import Config
 from .maps import LOSS_LABELS
-from .model.motor import C_TO_K, LOSS_NAMES
+from .model.motor import LOSS_NAMES
 from .model.quantities import OIL_OUTPUTS
 from .outputs import atomic, save_figure
+from .units import C_TO_K
 
 #: Temperatures of the table, in print order.
 TABLE = ('winding_mean', 'winding_hotspot', 'frame', 'magnet', 'airgap_oil_outlet',

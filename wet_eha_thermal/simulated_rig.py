@@ -33,8 +33,8 @@ from .interface import (AMBIENT_TOPIC, INPUT_TOPICS, INPUT_TYPES, MEASURED_PREFI
                         PRESSURE_INPUTS, THERMOCOUPLES)
 from .model.eha import EHAModel
 from .model.kinetics import Duty, KineticModel, ThermalFeedback
-from .model.motor import C_TO_K
 from .simulation import feedback
+from .units import C_TO_K
 
 #: Length of one kinetics block and one truth-model step (s).
 BLOCK_S = 0.02
