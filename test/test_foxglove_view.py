@@ -24,7 +24,7 @@ from wet_eha_thermal.config import load_config
 from wet_eha_thermal.estimator.core import Estimator
 from wet_eha_thermal.live_view import (address_text, app_url, BAND_SIGMAS, CHANNELS, LiveView,
                                        parse_address, PENDING_ESTIMATES, view_topics)
-from wet_eha_thermal.ros.estimator_node import LIMITED
+from wet_eha_thermal.model.quantity_table import LIMITED
 from wet_eha_thermal.ros.recorder_node import recorded_topics
 from wet_eha_thermal.ros.topics import message_class
 

@@ -37,6 +37,7 @@ from .bag.reader import BagError, BagInfo, Columns, iter_column_blocks, open_bag
 from .config import (Config, config_from_yaml, ConfigError, default_config_path, load_config,
                      with_values)
 from .estimator.core import Estimator, INPUTS, sensor_inputs
+from .model import quantity_table
 from .outputs import atomic, markdown_table, save_figure, write_text
 
 #: Estimates written to the outputs (degC), in column order.
@@ -470,13 +471,13 @@ def write_report(result: ReplayResult, out_dir: Path) -> Path:
 
     fig, ax = plt.subplots(figsize=(10, 5))
     for name in ('winding_hotspot', 'winding_mean', 'magnet', 'frame', 'pump_case', 'oil'):
-        ax.plot(t_min, result.temperatures_C[name], lw=1.0, label=f'{name} (estimate)')
+        ax.plot(t_min, result.temperatures_C[name], lw=1.0,
+                label=f'{quantity_table.label(name)} (estimate)')
     for tc, (t, v) in result.measured.items():
         if t.size:
             ax.plot((t - t0) / 60.0, v, '.', ms=1.5, label=f'{tc} (thermocouple)')
-    limits = {'winding hot-spot limit': result.plan.cfg.motor.winding.insulation_limit_C,
-              'magnet limit': result.plan.cfg.motor.rotor.magnet_limit_C,
-              'oil limit': result.plan.cfg.fluid.oil_limit_C}
+    limits = {quantity_table.LIMIT_LABELS[name]: value
+              for name, value in quantity_table.limits_C(result.plan.cfg).items()}
     for label, value in limits.items():
         if value < 1.3 * max(float(np.max(v)) for v in result.temperatures_C.values()):
             ax.axhline(value, ls='--', lw=0.8, color='grey')

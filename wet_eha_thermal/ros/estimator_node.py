@@ -71,8 +71,8 @@ from wet_eha_thermal.bag import cdr
 from wet_eha_thermal.config import ConfigError, load_config
 from wet_eha_thermal.estimator.core import Estimate, Estimator
 from wet_eha_thermal.live_view import app_url, LiveView, parse_address
+from wet_eha_thermal.model.quantity_table import LIMITED
 from wet_eha_thermal.ros import diagnostics, topics
-from wet_eha_thermal.ros.diagnostics import LIMITED
 from wet_eha_thermal.ros.runtime import (accept_whole_numbers, descriptor, EXECUTORS, FastClock,
                                          prepare_model_step, Readiness, run_node)
 
