@@ -46,7 +46,7 @@ def truth_values(cfg) -> dict:
 def write_log(job: tuple) -> str:
     """Write one stage's log (in a worker process); return its path."""
     import yaml
-    from wet_eha_thermal import replay as rp
+    from wet_eha_thermal import interface
     from wet_eha_thermal.config import default_config_path, load_config, with_values
     from wet_eha_thermal.model.kinetics import stage_duty
     from wet_eha_thermal.simulated_rig import SimulatedRig, write_rig_bag
@@ -54,7 +54,7 @@ def write_log(job: tuple) -> str:
     path, stage, minutes = job
     data = yaml.safe_load(default_config_path().read_text())
     data['estimator']['pressure_inputs'] = 'differential'
-    meta = {rp.CONFIG_METADATA: {rp.CONFIG_METADATA_KEY: yaml.safe_dump(data)}}
+    meta = {interface.CONFIG_METADATA: {interface.CONFIG_METADATA_KEY: yaml.safe_dump(data)}}
     cfg = load_config(overrides={'estimator.pressure_inputs': 'differential'})
     truth = with_values(cfg, truth_values(cfg))
     t = time.perf_counter()
@@ -106,11 +106,11 @@ def main() -> None:
     argv += ['--out', str(out), '--jobs', str(args.jobs)]
     if args.step is not None:
         import yaml
-        from wet_eha_thermal import replay as rp
+        from wet_eha_thermal import interface
         from wet_eha_thermal.bag.reader import open_bag
 
-        stored = open_bag(paths[args.stages[0]]).metadata[rp.CONFIG_METADATA]
-        data = yaml.safe_load(stored[rp.CONFIG_METADATA_KEY])
+        stored = open_bag(paths[args.stages[0]]).metadata[interface.CONFIG_METADATA]
+        data = yaml.safe_load(stored[interface.CONFIG_METADATA_KEY])
         data['calibration']['step_s'] = args.step
         config = args.dir / f'config_step{args.step:g}.yaml'
         config.write_text(yaml.safe_dump(data))

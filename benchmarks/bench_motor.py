@@ -12,8 +12,9 @@ import time
 import numpy as np
 
 from wet_eha_thermal.config import load_config
-from wet_eha_thermal.model.motor import C_TO_K, MotorInputs, WetMotor
+from wet_eha_thermal.model.motor import MotorInputs, WetMotor
 from wet_eha_thermal.model.oil import get_oil
+from wet_eha_thermal.units import C_TO_K
 
 
 def main() -> None:

@@ -20,8 +20,8 @@ import numpy as np
 
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.model.kinetics import stage_duty
-from wet_eha_thermal.model.motor import C_TO_K
 from wet_eha_thermal.simulation import simulate
+from wet_eha_thermal.units import C_TO_K
 
 
 def cycle_means(res, window_s: float):

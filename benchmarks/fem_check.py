@@ -17,6 +17,7 @@ import numpy as np
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.model.oil import get_oil
 from wet_eha_thermal.outputs import markdown_table, save_figure
+from wet_eha_thermal.units import C_TO_K
 from wet_eha_thermal.verification import fem
 
 POINTS = ((10000, 15.0), (10000, 30.0), (20000, 15.0))
@@ -37,7 +38,7 @@ def point_tables(pc) -> list:
     lines += markdown_table(('figure', 'unit', 'network', 'FE', 'network - FE'), rows)
     oil = fem.slot_problem(pc.motor, pc.inputs).oil_K
     lines += ['', f'Slot pitch (2-D, mesh {H_SLOT_M * 1e3:g} mm) against the one-slice network, '
-              f'rises over the airgap oil ({oil - 273.15:.2f} degC), heat per metre of stack:', '']
+              f'rises over the airgap oil ({oil - C_TO_K:.2f} degC), heat per metre of stack:', '']
     rows = []
     for k in ('winding_mean', 'teeth', 'yoke', 'frame', 'bore_W_m', 'frame_W_m'):
         net = pc.slot_net[k] - (0 if k.endswith('W_m') else oil)
@@ -55,7 +56,7 @@ def field_figure(pc, path: Path) -> None:
     from matplotlib.colors import Normalize
 
     fe, motor = pc.rz, pc.motor
-    T = fe.T[:fe.n] - 273.15
+    T = fe.T[:fe.n] - C_TO_K
     norm = Normalize(T.min(), T.max())
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(14, 5.6), width_ratios=(2.2, 1))
     p, t = fe.mesh.p * 1e3, fe.mesh.t
@@ -63,7 +64,7 @@ def field_figure(pc, path: Path) -> None:
     order = np.argsort([fe.blocks[k].group == 'winding' for k in fe.owner], kind='stable')
     tpc = ax.tripcolor(p[1], p[0], t[:, order].T, T, norm=norm, cmap='inferno',
                        shading='gouraud')
-    net_T = motor.T - 273.15
+    net_T = motor.T - C_TO_K
     xs, ys, cs = [], [], []
     for name in motor.net.node_names:
         part, sl, side = fem.split_name(name)
@@ -84,14 +85,14 @@ def field_figure(pc, path: Path) -> None:
     ax.set_aspect('equal')
     fig.colorbar(tpc, ax=ax, label='degC', shrink=0.8)
     s = pc.slot_fe
-    Ts = s.T[:s.n] - 273.15
+    Ts = s.T[:s.n] - C_TO_K
     tp2 = ax2.tripcolor(s.mesh.p[0] * 1e3, s.mesh.p[1] * 1e3, s.mesh.t.T, Ts, cmap='inferno',
                         shading='gouraud')
     centre = {'winding_mean': 5, 'teeth': 3, 'yoke': 1, 'frame': 0}
     for key, k in centre.items():
         b = s.blocks[k]
         r, th = 0.5 * sum(b.a), 0.5 * sum(b.b)
-        ax2.scatter(r * np.cos(th) * 1e3, r * np.sin(th) * 1e3, c=[pc.slot_net[key] - 273.15],
+        ax2.scatter(r * np.cos(th) * 1e3, r * np.sin(th) * 1e3, c=[pc.slot_net[key] - C_TO_K],
                     norm=tp2.norm, cmap='inferno', s=60, edgecolors='cyan', linewidths=1)
     ax2.set_aspect('equal')
     ax2.set_title('slot pitch, axially adiabatic;\ncircles: one-slice network')

@@ -33,7 +33,8 @@ import numpy as np
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.model.fluid_power import gap_leakage
 from wet_eha_thermal.model.kinetics import STAGES
-from wet_eha_thermal.model.oil import get_oil, T0_K
+from wet_eha_thermal.model.oil import get_oil
+from wet_eha_thermal.units import C_TO_K
 
 P_WORK = 21.0e6          # Pa gauge, the rig's highest working pressure
 MASSES_KG = (100.0, 1000.0)
@@ -85,7 +86,7 @@ def main() -> None:
     args = p.parse_args()
     cfg = load_config()
     T_C = np.linspace(-40.0, 135.0, 36)
-    s = time_scales(cfg, T_C + T0_K)
+    s = time_scales(cfg, T_C + C_TO_K)
     print(f'one side of the actuator at mid-stroke: V = {s["V_side_m3"] * 1e6:.1f} mL; '
           f'K_S at {P_WORK / 1e6:g} MPa')
     print(' T degC   K_S GPa  tau_leak s  f_h(100 kg) Hz  f_h(1000 kg) Hz  f_line Hz  '

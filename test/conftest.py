@@ -8,7 +8,7 @@ import subprocess
 import pytest
 import rclpy
 from rclpy.context import Context
-from wet_eha_thermal import replay as rp
+from wet_eha_thermal import interface
 from wet_eha_thermal.config import default_config_path, load_config
 from wet_eha_thermal.model.kinetics import stage_duty
 from wet_eha_thermal.simulated_rig import SimulatedRig, write_rig_bag
@@ -85,7 +85,7 @@ def record_rig_log():
     """
     data = yaml.safe_load(default_config_path().read_text())
     data['estimator']['pressure_inputs'] = 'differential'
-    meta = {rp.CONFIG_METADATA: {rp.CONFIG_METADATA_KEY: yaml.safe_dump(data)}}
+    meta = {interface.CONFIG_METADATA: {interface.CONFIG_METADATA_KEY: yaml.safe_dump(data)}}
     nominal = load_config(overrides={'estimator.pressure_inputs': 'differential'})
 
     def record(path, seconds, stage=6, seed=1, rig_cfg=None, **rig):

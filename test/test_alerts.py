@@ -3,6 +3,7 @@
 import math
 
 import pytest
+from wet_eha_thermal.config import load_config
 from wet_eha_thermal.estimator.alerts import (
     AlertEvent, AlertManager, AlertRule, Level, rules_from_config)
 
@@ -10,10 +11,11 @@ Q = 'winding_hotspot'
 
 
 def rule(**kw):
+    """Return one rule, checked as the configuration checks ``estimator.alerts``."""
     args = {'quantity': Q, 'warn_C': 170.0, 'critical_C': 180.0, 'hysteresis_K': 3.0,
             'min_duration_s': 0.0, 'latch': False}
     args.update(kw)
-    return AlertRule(**args)
+    return rules_from_config({args.pop('quantity'): args})[0]
 
 
 def run(manager, samples, quantity=Q):
@@ -353,27 +355,37 @@ def test_worst_active_and_summary():
 
 # --- config --------------------------------------------------------------------
 
-def test_rules_from_config_builds_rules_with_defaults():
+def test_rules_from_config_builds_rules_with_the_configurations_defaults():
     rules = rules_from_config({
         'winding_hotspot': {'warn_C': 160, 'critical_C': 175, 'hysteresis_K': 3,
-                            'min_duration_s': 2, 'latch': True},
-        'magnet': {'warn_C': 100, 'critical_C': 120},
+                            'min_duration_s': 2, 'latch': False},
+        'magnet': {'warn_C': 100, 'critical_C': 120, 'hysteresis_K': 0, 'min_duration_s': 0},
     })
-    assert rules[0] == AlertRule('winding_hotspot', 160.0, 175.0, 3.0, 2.0, True)
-    assert rules[1] == AlertRule('magnet', 100.0, 120.0, 0.0, 0.0, False)
+    assert rules[0] == AlertRule(quantity='winding_hotspot', warn_C=160.0, critical_C=175.0,
+                                 hysteresis_K=3.0, min_duration_s=2.0, latch=False)
+    assert rules[1] == AlertRule(quantity='magnet', warn_C=100.0, critical_C=120.0,
+                                 hysteresis_K=0.0, min_duration_s=0.0, latch=True)
     assert rules_from_config(None) == [] and rules_from_config({}) == []
+
+
+def test_rules_from_config_takes_the_loaded_configuration():
+    alerts = load_config().estimator.alerts
+    rules = rules_from_config(alerts)
+    assert [r.quantity for r in rules] == ['winding_hotspot', 'magnet', 'oil']
+    assert rules[0].critical_C == alerts.winding_hotspot.critical_C and rules[0].latch
+
+
+BASE = {'warn_C': 100, 'critical_C': 120, 'hysteresis_K': 0, 'min_duration_s': 0}
 
 
 @pytest.mark.parametrize('mapping, words', [
     ({'magnet': {'critical_C': 120}}, ['alerts.magnet.warn_C', 'missing']),
-    ({'magnet': {'warn_C': 100, 'critical_C': 120, 'hysterisis_K': 2}},
+    ({'magnet': {**BASE, 'hysterisis_K': 2}},
      ['alerts.magnet.hysterisis_K', 'unknown', 'hysteresis_K']),
-    ({'magnet': {'warn_C': 100, 'critical_C': 90}}, ['alerts.magnet.critical_C', '90', '100']),
-    ({'magnet': {'warn_C': 'hot', 'critical_C': 120}}, ['alerts.magnet.warn_C', 'hot']),
-    ({'magnet': {'warn_C': 100, 'critical_C': 120, 'latch': 'yes'}},
-     ['alerts.magnet.latch', 'yes']),
-    ({'magnet': {'warn_C': 100, 'critical_C': 120, 'min_duration_s': -1}},
-     ['alerts.magnet.min_duration_s', '-1']),
+    ({'magnet': {**BASE, 'critical_C': 90}}, ['alerts.magnet', '90', '100']),
+    ({'magnet': {**BASE, 'warn_C': 'hot'}}, ['alerts.magnet.warn_C', 'hot']),
+    ({'magnet': {**BASE, 'latch': 'yes'}}, ['alerts.magnet.latch', 'yes']),
+    ({'magnet': {**BASE, 'min_duration_s': -1}}, ['alerts.magnet.min_duration_s', '-1']),
     ({'magnet': 100}, ['alerts.magnet', '100']),
     ([1, 2], ['alerts', '[1, 2]']),
 ])

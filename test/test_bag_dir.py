@@ -12,6 +12,7 @@ import shutil
 
 import numpy as np
 import pytest
+from wet_eha_thermal import interface
 from wet_eha_thermal import replay as rp
 from wet_eha_thermal.bag.reader import (bag_files, BagError, iter_column_blocks, iter_raw,
                                         open_bag, read_columns, ROSBAG2_METADATA)
@@ -87,7 +88,7 @@ def test_the_files_are_taken_in_number_order_and_read_as_the_single_file(single,
     assert {k: t.message_count for k, t in many.topics.items()} == \
         {k: t.message_count for k, t in one.topics.items()}
     assert (many.start_time_ns, many.end_time_ns) == (one.start_time_ns, one.end_time_ns)
-    assert many.metadata[rp.CONFIG_METADATA] == one.metadata[rp.CONFIG_METADATA]
+    assert many.metadata[interface.CONFIG_METADATA] == one.metadata[interface.CONFIG_METADATA]
     assert not many.truncated and len(many.files) == 14
     a, b = read_columns(single, SPECS), read_columns(run_dir, SPECS)
     for topic in SPECS:

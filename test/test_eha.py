@@ -5,9 +5,9 @@ import pytest
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.model.hydraulics import HydraulicCircuit, LINKS, OIL_NODES, StepFlows
 from wet_eha_thermal.model.kinetics import SinusoidalDuty, Stage, stage_duty, TableDuty
-from wet_eha_thermal.model.motor import C_TO_K
 from wet_eha_thermal.model.oil import get_oil, isenthalpic_throttle_temperature_rise
 from wet_eha_thermal.simulation import RUNAWAY_C, simulate, ThermalRunaway
+from wet_eha_thermal.units import C_TO_K
 
 
 @pytest.fixture(scope='module')

@@ -24,8 +24,9 @@ from wet_eha_thermal.config import load_config
 from wet_eha_thermal.estimator.core import Estimator
 from wet_eha_thermal.live_view import (address_text, app_url, BAND_SIGMAS, CHANNELS, LiveView,
                                        parse_address, PENDING_ESTIMATES, view_topics)
-from wet_eha_thermal.ros.estimator_node import LIMITED
-from wet_eha_thermal.ros.recorder_node import message_class, recorded_topics
+from wet_eha_thermal.model.quantity_table import LIMITED
+from wet_eha_thermal.ros.recorder_node import recorded_topics
+from wet_eha_thermal.ros.topics import message_class
 
 ROOT = Path(__file__).resolve().parents[1]
 SUBPROTOCOL = 'foxglove.sdk.v1'    # foxglove-sdk's server refuses foxglove.websocket.v1

@@ -12,8 +12,7 @@ from wet_eha_thermal.model.kinetics import (DutyError, KineticModel, L_MIN, load
                                             T40_K, TableDuty, ThermalFeedback)
 from wet_eha_thermal.model.losses import copper_resistance
 from wet_eha_thermal.model.oil import get_oil
-
-RPM = np.pi / 30.0
+from wet_eha_thermal.units import RPM
 
 
 @pytest.fixture(scope='module')

@@ -10,8 +10,8 @@ from wet_eha_thermal.model.fluid_power import check_gap_reynolds, GAP_LAMINAR_RE
 from wet_eha_thermal.model.kinetics import KineticModel, stage_duty, ThermalFeedback
 from wet_eha_thermal.model.oil import get_oil
 from wet_eha_thermal.model.validity import ValidityLog
+from wet_eha_thermal.units import C_TO_K
 
-T0 = 273.15
 C, H, L, CD = 9e-15, 1e-5, 2e-3, 0.61      # the reference pump's external path
 RHO = 860.0
 
@@ -100,7 +100,7 @@ def test_reference_rig_stays_laminar_over_its_temperature_range(cfg):
     oil = get_oil(cfg.fluid.grade)
     pump = cfg.hydraulics.pump
     h, length, cd = pump.leak_gap_height_m, pump.leak_gap_length_m, pump.leak_discharge_coeff
-    T = np.linspace(T0 - 40.0, T0 + 135.0, 36)
+    T = np.linspace(C_TO_K - 40.0, C_TO_K + 135.0, 36)
     p_mean = 0.5 * (21.6e6 + 0.6e6)
     rho = oil.density(T, p_mean)
     mu = oil.kinematic_viscosity(T, p_mean) * rho
@@ -122,7 +122,7 @@ def test_kinetics_flags_a_turbulent_gap_and_loses_the_flow_the_orifice_law_allow
     pump = dataclasses.replace(cfg.hydraulics.pump, leak_gap_height_m=4e-5)
     wide = dataclasses.replace(cfg, hydraulics=dataclasses.replace(cfg.hydraulics, pump=pump))
     oil = get_oil(cfg.fluid.grade)
-    fb = ThermalFeedback.uniform(T0 + 120.0)
+    fb = ThermalFeedback.uniform(C_TO_K + 120.0)
     t = np.linspace(0.0, 5.0, 501)
     log = ValidityLog()
     s = KineticModel(wide, oil, log).sample(stage_duty(wide, 1), t, fb)

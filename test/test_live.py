@@ -17,7 +17,6 @@ from wet_eha_thermal.bag.reader import open_bag
 from wet_eha_thermal.config import default_config_path, load_config
 from wet_eha_thermal.estimator.warmup import compile_estimator
 from wet_eha_thermal.ros.live import address_taken
-from wet_eha_thermal.ros.recorder_node import CONFIG_METADATA
 
 BIN = Path(sys.executable).parent / 'wet-eha-thermal'
 ROOT = Path(__file__).resolve().parents[1]
@@ -89,7 +88,7 @@ def test_live_runs_and_cleans_up(tmp_path):
     assert all(bag.topics[f'{interface.ESTIMATE_PREFIX}/{name}'].message_count > 100
                for name in interface.ESTIMATES), bag.topics
     assert bag.topics[interface.INPUT_TOPICS['current_A']].message_count > 0
-    assert bag.metadata[CONFIG_METADATA]['yaml'] == default_config_path().read_text()
+    assert bag.metadata[interface.CONFIG_METADATA]['yaml'] == default_config_path().read_text()
     # the replay layout opens this recording: every topic it names is in it
     replay = json.loads((ROOT / 'layouts' / 'replay.json').read_text())['configById']
     assert {split_path(p)[0] for p in message_paths(replay)} <= set(bag.topics)

@@ -9,17 +9,15 @@ temperature, and beyond the map the use must be flagged.
 
 import csv
 
-import numpy as np
 import pytest
 
 from wet_eha_thermal.config import ConfigError, default_config_path, load_config
 from wet_eha_thermal.model.kinetics import stage_duty
-from wet_eha_thermal.model.motor import C_TO_K, MotorInputs, WetMotor
+from wet_eha_thermal.model.motor import MotorInputs, WetMotor
 from wet_eha_thermal.model.oil import get_oil
 from wet_eha_thermal.model.validity import ValidityLog
 from wet_eha_thermal.simulation import simulate
-
-RPM = np.pi / 30.0
+from wet_eha_thermal.units import C_TO_K, RPM
 SPEEDS = (0.0, 5000.0, 12000.0, 20000.0)
 CURRENTS = (0.0, 10.0, 25.0, 45.0)
 

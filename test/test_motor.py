@@ -5,10 +5,9 @@ import pytest
 
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.maps import compute_maps
-from wet_eha_thermal.model.motor import C_TO_K, MotorInputs, WetMotor
+from wet_eha_thermal.model.motor import MotorInputs, WetMotor
 from wet_eha_thermal.model.oil import get_oil
-
-RPM = np.pi / 30
+from wet_eha_thermal.units import C_TO_K, RPM
 
 
 @pytest.fixture(scope='module')

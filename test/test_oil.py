@@ -11,8 +11,8 @@ from wet_eha_thermal.model.oil import (
     get_oil, isenthalpic_throttle_temperature_rise, OIL_GRADES, temperature_of_energy,
     volumetric_energy, walther_fit)
 from wet_eha_thermal.model.validity import ValidityLog
+from wet_eha_thermal.units import C_TO_K
 
-T0 = 273.15
 GRADES = sorted(OIL_GRADES)
 
 
@@ -25,8 +25,8 @@ def test_walther_fit_reproduces_anchor_points(name):
     """The piecewise Walther fit returns the three viscosity data (round-off only)."""
     oil = get_oil(name)
     g = oil.grade
-    for t_k, nu_cst in ((g.T_cold_K, g.nu_cold_cSt), (T0 + 40.0, g.nu_40_cSt),
-                        (T0 + 100.0, g.nu_100_cSt)):
+    for t_k, nu_cst in ((g.T_cold_K, g.nu_cold_cSt), (C_TO_K + 40.0, g.nu_40_cSt),
+                        (C_TO_K + 100.0, g.nu_100_cSt)):
         assert oil.kinematic_viscosity(t_k) == pytest.approx(nu_cst * 1e-6, rel=1e-9)
 
 
@@ -35,8 +35,8 @@ def test_viscosity_monotonic_and_between_anchors(name):
     """Viscosity falls monotonically with T and stays between the anchor values."""
     oil = get_oil(name)
     g = oil.grade
-    t_cold = np.linspace(g.T_cold_K, T0 + 40.0, 200)
-    t_hot = np.linspace(T0 + 40.0, T0 + 100.0, 200)
+    t_cold = np.linspace(g.T_cold_K, C_TO_K + 40.0, 200)
+    t_hot = np.linspace(C_TO_K + 40.0, C_TO_K + 100.0, 200)
     nu_cold = oil.kinematic_viscosity(t_cold) * 1e6
     nu_hot = oil.kinematic_viscosity(t_hot) * 1e6
     assert np.all(np.diff(nu_cold) < 0.0) and np.all(np.diff(nu_hot) < 0.0)
@@ -51,8 +51,8 @@ def test_viscosity_monotonic_and_between_anchors(name):
 def test_viscosity_continuous_at_40C(name):
     """The cold and hot Walther lines meet at 40 degC (both pass through the datum)."""
     oil = get_oil(name)
-    below = oil.kinematic_viscosity(T0 + 40.0 - 1e-9)
-    at = oil.kinematic_viscosity(T0 + 40.0)
+    below = oil.kinematic_viscosity(C_TO_K + 40.0 - 1e-9)
+    at = oil.kinematic_viscosity(C_TO_K + 40.0)
     assert below == pytest.approx(at, rel=1e-8)
 
 
@@ -64,10 +64,10 @@ def test_walther_fit_two_points_and_cold_start_need():
     -40 degC against 495 cSt measured (VI improver): the reason for the
     piecewise fit (docs/model.md, Oil properties).
     """
-    a, b = walther_fit(T0 + 40.0, 13.5, T0 + 100.0, 5.1)
-    for t_k, nu in ((T0 + 40.0, 13.5), (T0 + 100.0, 5.1)):
+    a, b = walther_fit(C_TO_K + 40.0, 13.5, C_TO_K + 100.0, 5.1)
+    for t_k, nu in ((C_TO_K + 40.0, 13.5), (C_TO_K + 100.0, 5.1)):
         assert 10 ** 10 ** (a - b * math.log10(t_k)) - 0.7 == pytest.approx(nu, rel=1e-12)
-    single_line_m40 = 10 ** 10 ** (a - b * math.log10(T0 - 40.0)) - 0.7
+    single_line_m40 = 10 ** 10 ** (a - b * math.log10(C_TO_K - 40.0)) - 0.7
     assert single_line_m40 < 0.5 * 495.0
 
 
@@ -75,13 +75,13 @@ def test_walther_fit_two_points_and_cold_start_need():
 def test_density_reproduces_its_datum(name):
     """rho(15 degC, 0 Pa) is the grade's rho_15 (round-off only)."""
     oil = get_oil(name)
-    assert oil.density(T0 + 15.0, 0.0) == pytest.approx(oil.grade.rho15_kg_m3, rel=1e-14)
+    assert oil.density(C_TO_K + 15.0, 0.0) == pytest.approx(oil.grade.rho15_kg_m3, rel=1e-14)
 
 
 def test_5606_cp_and_k_in_physics_md_range():
     """Cragoe c_p and k of 5606 at 40 degC: 1.9-2.1 kJ/(kg K), 0.12-0.14 W/(m K)."""
     oil = get_oil('MIL-PRF-5606')
-    t_k = T0 + 40.0
+    t_k = C_TO_K + 40.0
     assert 1900.0 <= oil.specific_heat(t_k) <= 2100.0
     assert 0.12 <= oil.conductivity(t_k) <= 0.14
 
@@ -105,23 +105,23 @@ def test_validity_flags_temperature_and_pressure():
     """Out-of-range T and p are flagged (not raised), in-range inputs are not."""
     oil = get_oil('MIL-PRF-5606')
     log = ValidityLog()
-    oil.density(T0 + 40.0, 21e6, log=log)
-    oil.kinematic_viscosity(T0 + 40.0, 21e6, log=log)
-    oil.specific_heat(T0 + 40.0, log=log)
+    oil.density(C_TO_K + 40.0, 21e6, log=log)
+    oil.kinematic_viscosity(C_TO_K + 40.0, 21e6, log=log)
+    oil.specific_heat(C_TO_K + 40.0, log=log)
     assert len(log) == 0
-    nu = oil.kinematic_viscosity(T0 - 60.0, 50e6, log=log)
+    nu = oil.kinematic_viscosity(C_TO_K - 60.0, 50e6, log=log)
     assert np.isfinite(nu) and nu > 0.0
     quantities = {flag.quantity for flag in log}
     assert quantities == {'T_K', 'p_Pa'}
     t_flag = next(flag for flag in log if flag.quantity == 'T_K')
-    assert t_flag.min_seen == pytest.approx(T0 - 60.0)
+    assert t_flag.min_seen == pytest.approx(C_TO_K - 60.0)
 
 
 @pytest.mark.parametrize('name', GRADES)
 def test_arrays_and_scalars_agree(name):
     """Vectorised evaluation equals element-by-element scalar evaluation."""
     oil = get_oil(name)
-    t = np.array([T0 - 40.0, T0 + 0.0, T0 + 39.999, T0 + 40.0, T0 + 90.0, T0 + 130.0])
+    t = C_TO_K + np.array([-40.0, 0.0, 39.999, 40.0, 90.0, 130.0])
     p = np.array([0.0, 1e6, 5e6, 10e6, 21e6, 35e6])
     for method in (oil.density, oil.kinematic_viscosity, oil.dynamic_viscosity, oil.prandtl):
         vec = method(t, p)
@@ -205,7 +205,7 @@ def test_density_with_the_modulus_law_against_the_former_constant(name):
     """
     oil = get_oil(name)
     constant = {'MIL-PRF-5606': 1.4e9, 'MIL-PRF-83282': 1.45e9}[name]
-    T, p = T0 + 40.0, 35.0e6
+    T, p = C_TO_K + 40.0, 35.0e6
     rho0 = oil.density(T, 0.0)
     rho = oil.density(T, p)
     assert rho == pytest.approx(rho0 / (1.0 - p / constant), rel=6e-5)
@@ -227,7 +227,7 @@ def test_modulus_rise_with_pressure_against_the_lee_chart():
     """
     oil = get_oil('MIL-PRF-5606')
     psi = 6894.757
-    T = T0 + 40.0
+    T = C_TO_K + 40.0
     for modulus in (oil.tangent_bulk_modulus, oil.isentropic_bulk_modulus):
         rise = modulus(T, 2000.0 * psi) / modulus(T, 500.0 * psi)
         assert rise == pytest.approx(0.98 / 0.91, rel=0.025)
@@ -246,7 +246,7 @@ def test_isentropic_modulus_is_gamma_times_isothermal(name):
     """
     oil = get_oil(name)
     a = oil.alpha_p
-    for T in (T0 - 20.0, T0 + 40.0, T0 + 130.0):
+    for T in (C_TO_K - 20.0, C_TO_K + 40.0, C_TO_K + 130.0):
         for p in (0.6e6, 21e6):
             k_t = oil.tangent_bulk_modulus(T, p)
             rho, cp = oil.density(T, p), oil.specific_heat(T)
@@ -262,8 +262,8 @@ def test_bulk_modulus_validity_is_flagged():
     """Out-of-range T and p of the bulk modulus law are flagged, in-range ones not."""
     oil = get_oil('MIL-PRF-5606')
     log = ValidityLog()
-    oil.isentropic_bulk_modulus(T0 + 40.0, 21e6, log=log)
+    oil.isentropic_bulk_modulus(C_TO_K + 40.0, 21e6, log=log)
     assert len(log) == 0
-    oil.secant_bulk_modulus(T0 + 150.0, 40e6, log=log)
+    oil.secant_bulk_modulus(C_TO_K + 150.0, 40e6, log=log)
     assert {(f.correlation, f.quantity) for f in log} == {
         ('MIL-PRF-5606 bulk modulus', 'T_K'), ('MIL-PRF-5606 bulk modulus', 'p_Pa')}

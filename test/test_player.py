@@ -30,8 +30,8 @@ from wet_eha_thermal.bag.reader import FLOAT64, FLUID_PRESSURE, iter_raw, open_b
 from wet_eha_thermal.bag.writer import BagWriter, qos_profiles
 from wet_eha_thermal.ros import topics
 from wet_eha_thermal.ros.estimator_node import EstimatorNode
-from wet_eha_thermal.ros.player import (LOOP_GAP_NS, main, message_class, PlayerNode,
-                                        recorded_qos, shift_header_stamp)
+from wet_eha_thermal.ros.player import (LOOP_GAP_NS, main, PlayerNode, recorded_qos,
+                                        shift_header_stamp)
 
 # this module's own domain, this machine only; conftest puts it in ROS_DOMAIN_ID while it runs
 DOMAIN_ID = claim_domain()
@@ -107,7 +107,8 @@ class Probe:
             qos = (topics.latched_qos() if topic == interface.ALERT_TOPIC   # needs transient local
                    else QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
             # the estimator publishes alerts too: the bag's are remapped (see play)
-            self.node.create_subscription(message_class(entry.type_name), REMAP.get(topic, topic),
+            self.node.create_subscription(topics.message_class(entry.type_name),
+                                          REMAP.get(topic, topic),
                                           self.raw.setdefault(topic, []).append, qos, raw=True)
         self.clock_ns = []
         self.node.create_subscription(

@@ -226,11 +226,11 @@ def test_records_every_field_qos_and_config(context, tmp_path):
     assert offered(EXTRA)['reliability'] == 'best_effort'
     assert channels[ESTIMATE].metadata['topic_type_hash'].startswith('RIHS01_')
 
-    config = metadata[recorder_node.CONFIG_METADATA]
+    config = metadata[interface.CONFIG_METADATA]
     assert config['yaml'] == default_config_path().read_text()
     assert config['path'] == str(default_config_path().resolve())
-    assert metadata[recorder_node.PARAMS_METADATA]['yaml'] == PARAMS_FILE.read_text()
-    recorder = metadata[recorder_node.RECORDER_METADATA]
+    assert metadata[interface.PARAMS_METADATA]['yaml'] == PARAMS_FILE.read_text()
+    recorder = metadata[interface.RECORDER_METADATA]
     assert recorder['node'] == '/eha_recorder' and recorder['version']
     parameters = yaml.safe_load(recorder['parameters'])
     assert parameters['output'] == str(output) and parameters['extra_topics'] == [EXTRA]

@@ -11,6 +11,7 @@ import pytest
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64
+from wet_eha_thermal import interface
 from wet_eha_thermal import replay as rp
 from wet_eha_thermal.bag.reader import iter_raw, open_bag
 from wet_eha_thermal.bag.writer import BagWriter
@@ -65,7 +66,7 @@ def test_estimates_mcap_reads_back_with_an_independent_decoder(result, tmp_path)
         temperature, variance = got[round(float(stamp), 6)]
         assert temperature == result.temperatures_C['winding_hotspot'][k]
         assert variance == pytest.approx(result.sigma_K[k] ** 2, rel=1e-15)
-    assert open_bag(path).metadata[rp.CONFIG_METADATA][rp.CONFIG_METADATA_KEY]
+    assert open_bag(path).metadata[interface.CONFIG_METADATA][interface.CONFIG_METADATA_KEY]
 
 
 def test_replay_equals_the_live_estimator_fed_sample_by_sample(bag, result):
@@ -203,8 +204,8 @@ def test_a_given_config_with_the_other_pressure_mode_is_stored_in_the_output(bag
     assert plan.config_yaml == default_config_path().read_text()
     result = rp.replay(plan)
     out = rp.write_mcap(result, tmp_path / 'estimates.mcap')
-    stored = open_bag(out).metadata[rp.CONFIG_METADATA]
-    assert stored[rp.CONFIG_METADATA_KEY] == plan.config_yaml
+    stored = open_bag(out).metadata[interface.CONFIG_METADATA]
+    assert stored[interface.CONFIG_METADATA_KEY] == plan.config_yaml
     assert 'differential' in stored['source']
 
 
@@ -232,8 +233,8 @@ def test_a_stored_configuration_of_an_older_model_says_to_give_one(tmp_path):
     """A bag recorded before the end spaces took published laws: its key is unknown now."""
     old = default_config_path().read_text().replace(
         '    htc_multiplier: 1.0', '    htc_still_W_m2K: 100.0')
-    info = SimpleNamespace(path=tmp_path / 'old.mcap',
-                           metadata={rp.CONFIG_METADATA: {rp.CONFIG_METADATA_KEY: old}})
+    stored = {interface.CONFIG_METADATA: {interface.CONFIG_METADATA_KEY: old}}
+    info = SimpleNamespace(path=tmp_path / 'old.mcap', metadata=stored)
     with pytest.raises(ConfigError, match=r'htc_still_W_m2K.*replay it with --config'):
         rp.choose_config(info, None)
     cfg, source, _ = rp.choose_config(info, default_config_path())

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.model.kinetics import stage_duty
-from wet_eha_thermal.model.motor import C_TO_K
 from wet_eha_thermal.simulated_rig import SimulatedRig
+from wet_eha_thermal.units import C_TO_K
 
 
 @pytest.mark.parametrize('points', [False, True])

@@ -167,11 +167,12 @@ def _check_simulate_args(args: argparse.Namespace) -> None:
 
 def _simulate(args: argparse.Namespace) -> int:
     from . import report
+    from .model import quantity_table
     from .model.kinetics import L_MIN, load_duty_csv, MPA, stage_duty
-    from .model.motor import C_TO_K
     from .model.oil import OIL_GRADES
     from . import simulation
     from .simulation import simulate
+    from .units import C_TO_K
 
     _check_simulate_args(args)
     out = Path(args.out)
@@ -211,7 +212,7 @@ def _simulate(args: argparse.Namespace) -> int:
     if stopped is not None:
         print(f'Run stopped early: {stopped}\nResults up to t = {res.time_s[-1]:g} s:\n')
     print(report.format_table(res))
-    oil_lim, oil_src = report.oil_limit_C(cfg)
+    oil_lim, oil_src = quantity_table.limits_C(cfg)['oil'], quantity_table.LIMIT_KEYS['oil']
     _, hottest = report.hottest_oil_C(res)
     print('\nLimits: first crossing in the run, else extrapolated by a first-order fit to the '
           'last third of the run')

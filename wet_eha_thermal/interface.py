@@ -35,6 +35,20 @@ here; :mod:`.ros.topics` adds what needs rclpy (QoS profiles, publishing).
 """
 
 PREFIX = '/eha'
+#: Message types of the twin's topics, as bags store them (pkg/msg/Type)
+FLOAT64 = 'std_msgs/msg/Float64'
+FLUID_PRESSURE = 'sensor_msgs/msg/FluidPressure'
+TEMPERATURE = 'sensor_msgs/msg/Temperature'
+FLOAT64_ARRAY = 'std_msgs/msg/Float64MultiArray'
+STRING = 'std_msgs/msg/String'
+DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
+#: Metadata records of a bag the twin writes (the recorder's, a replay's, the simulated
+#: rig's): the estimator's configuration, as {CONFIG_METADATA_KEY: its YAML text, ...},
+#: the estimator node's parameters file and the recorder's settings
+CONFIG_METADATA = 'wet_eha_thermal.config'
+CONFIG_METADATA_KEY = 'yaml'
+PARAMS_METADATA = 'wet_eha_thermal.params'
+RECORDER_METADATA = 'wet_eha_thermal.recorder'
 #: The nodes' names (one place: ``live`` and the rig's ``wait_for`` name them too)
 ESTIMATOR_NODE, RIG_NODE, RECORDER_NODE = 'eha_thermal_estimator', 'eha_sim_rig', 'eha_recorder'
 INPUT_TOPICS = {
@@ -49,8 +63,8 @@ INPUT_TOPICS = {
 # sensor_msgs/FluidPressure; the others are std_msgs/Float64
 PRESSURE_INPUTS = ('p_a_Pa', 'p_b_Pa', 'p_acc_Pa', 'dp_Pa')
 #: message type name of every input, as bags store it
-INPUT_TYPES = {name: ('sensor_msgs/msg/FluidPressure' if name in PRESSURE_INPUTS
-                      else 'std_msgs/msg/Float64') for name in INPUT_TOPICS}
+INPUT_TYPES = {name: FLUID_PRESSURE if name in PRESSURE_INPUTS else FLOAT64
+               for name in INPUT_TOPICS}
 AMBIENT_TOPIC = f'{PREFIX}/ambient'
 MEASURED_PREFIX = f'{PREFIX}/measured'
 ESTIMATE_PREFIX = f'{PREFIX}/estimate'

@@ -18,22 +18,17 @@ from typing import Callable, Dict, List, Optional
 import numpy as np
 
 from .config import Config
-from .model.motor import C_TO_K, LOSS_NAMES, MotorInputs, WetMotor
+from .model import quantity_table
+from .model.motor import LOSS_NAMES, MotorInputs, WetMotor
 from .model.oil import get_oil
 from .model.validity import ValidityLog
 from .outputs import atomic, save_figure
+from .units import C_TO_K, RPM
 
 TEMPERATURES = ('winding_mean', 'winding_hotspot', 'frame', 'magnet', 'airgap_oil_outlet',
                 'motor_oil_outlet')
 #: the heat paths of :meth:`~.model.motor.WetMotor.heat_balance` a map reports
 PATHS = ('bore', 'end_spaces', 'to_ambient', 'to_oil')
-#: display names of the losses, shortest first in the tables
-LOSS_LABELS = {'copper_slot': 'copper, slots', 'copper_end': 'copper, end windings',
-               'core_yoke': 'iron, yoke', 'core_teeth': 'iron, teeth',
-               'gap_friction': 'airgap friction', 'magnet': 'magnets', 'sleeve': 'sleeve',
-               'rotor_core': 'rotor core', 'end_face_friction': 'end-face friction',
-               'bearings': 'bearings'}
-RPM = np.pi / 30.0  # rad/s per r/min
 
 
 @dataclass
@@ -130,9 +125,6 @@ def plot_maps(points: List[MapPoint], path: Path, title: str) -> None:
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(3, 2, figsize=(13, 11), sharex='col')
-    labels = {'winding_mean': 'winding mean', 'winding_hotspot': 'winding hot-spot',
-              'frame': 'frame', 'magnet': 'magnet (hottest)',
-              'motor_oil_outlet': 'motor oil outlet'}
     # the heat paths, stacked to the total loss: what the solids give the oil through
     # the bore and the end spaces, the friction made in the oil itself, and ambient
     paths = (('through the bore', lambda p: p.heat_W['bore']),
@@ -146,8 +138,9 @@ def plot_maps(points: List[MapPoint], path: Path, title: str) -> None:
         x = [getattr(p, xkey) for p in pts]
         width = (x[1] - x[0]) * 0.7 if len(x) > 1 else 1.0
         ax = axes[0, col]
-        for key, label in labels.items():
-            ax.plot(x, [p.temperatures_C[key] for p in pts], marker='o', ms=3, label=label)
+        for key in ('winding_mean', 'winding_hotspot', 'frame', 'magnet', 'motor_oil_outlet'):
+            ax.plot(x, [p.temperatures_C[key] for p in pts], marker='o', ms=3,
+                    label=quantity_table.label(key))
         ax.set_ylabel('temperature (degC)')
         ax.grid(True, alpha=0.3)
         held = (f'{pts[0].current_A:g} A' if sweep == 'speed'
@@ -159,7 +152,7 @@ def plot_maps(points: List[MapPoint], path: Path, title: str) -> None:
         for key in LOSS_NAMES:
             v = np.array([p.losses_W[key] for p in pts])
             if v.any():
-                ax.bar(x, v, width=width, bottom=bottom, label=LOSS_LABELS[key])
+                ax.bar(x, v, width=width, bottom=bottom, label=quantity_table.LOSS_LABELS[key])
                 bottom += v
         ax.set_ylabel('where the heat is made (W)')
         ax.grid(True, alpha=0.3)

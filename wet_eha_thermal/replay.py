@@ -33,16 +33,13 @@ from typing import Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 import numpy as np
 
 from . import interface
-from .bag.reader import (BagError, BagInfo, Columns, iter_column_blocks, open_bag,
-                         TEMPERATURE)
+from .bag.reader import BagError, BagInfo, Columns, iter_column_blocks, open_bag
 from .config import (Config, config_from_yaml, ConfigError, default_config_path, load_config,
                      with_values)
 from .estimator.core import Estimator, INPUTS, sensor_inputs
+from .model import quantity_table
 from .outputs import atomic, markdown_table, save_figure, write_text
 
-#: Metadata record in which the recorder stores the estimator's configuration YAML.
-CONFIG_METADATA = 'wet_eha_thermal.config'
-CONFIG_METADATA_KEY = 'yaml'
 #: Estimates written to the outputs (degC), in column order.
 OUTPUT_ESTIMATES = interface.ESTIMATES
 
@@ -80,9 +77,9 @@ class ReplayPlan:
     def specs(self) -> Dict[str, str]:
         """Return topic -> message type of every topic to decode."""
         specs = {topic: interface.INPUT_TYPES[name] for name, topic in self.inputs.items()}
-        specs.update({topic: TEMPERATURE for topic in self.thermocouples.values()})
+        specs.update({topic: interface.TEMPERATURE for topic in self.thermocouples.values()})
         if self.ambient is not None:
-            specs[self.ambient] = TEMPERATURE
+            specs[self.ambient] = interface.TEMPERATURE
         return specs
 
     def route(self, block: Dict[str, Columns], origin_ns: int = 0) -> Samples:
@@ -116,7 +113,7 @@ def choose_config(info: BagInfo, config_path: Optional[os.PathLike]) -> tuple:
     if config_path is not None:
         cfg = load_config(config_path)        # a ConfigError names an unreadable file
         return cfg, str(config_path), Path(config_path).read_text()
-    stored = info.metadata.get(CONFIG_METADATA, {}).get(CONFIG_METADATA_KEY)
+    stored = info.metadata.get(interface.CONFIG_METADATA, {}).get(interface.CONFIG_METADATA_KEY)
     if stored:
         try:
             cfg = config_from_yaml(stored, f'{info.path} (stored configuration)')
@@ -193,10 +190,11 @@ def plan_replay(path: os.PathLike, config_path: Optional[os.PathLike] = None,
     for tc in interface.THERMOCOUPLES:
         topic = mapping.get(f'measured/{tc}', f'{interface.MEASURED_PREFIX}/{tc}')
         found = info.topics.get(topic)
-        if found is not None and found.type_name == TEMPERATURE:
+        if found is not None and found.type_name == interface.TEMPERATURE:
             thermocouples[tc] = topic
     amb = mapping.get('ambient', interface.AMBIENT_TOPIC)
-    ambient = amb if amb in info.topics and info.topics[amb].type_name == TEMPERATURE else None
+    ambient = amb if (amb in info.topics
+                      and info.topics[amb].type_name == interface.TEMPERATURE) else None
     return ReplayPlan(cfg=cfg, config_source=source, config_yaml=text, inputs=inputs,
                       missing=missing, thermocouples=thermocouples, ambient=ambient, info=info)
 
@@ -392,18 +390,18 @@ def write_mcap(result: ReplayResult, path: Path) -> Path:
     from .bag.writer import BagWriter, offered_qos
 
     cfg_yaml = result.plan.config_yaml
-    metadata = {CONFIG_METADATA: {CONFIG_METADATA_KEY: cfg_yaml,
-                                  'source': result.plan.config_source}}
+    metadata = {interface.CONFIG_METADATA: {interface.CONFIG_METADATA_KEY: cfg_yaml,
+                                            'source': result.plan.config_source}}
     stamps_ns = np.round(result.stamp_s * 1e9).astype(np.int64)
     variance = result.sigma_K * result.sigma_K
     with atomic(path) as tmp, BagWriter(tmp, metadata=metadata, flush_interval_s=3600.0) as w:
         messages = []
         for name in OUTPUT_ESTIMATES:
             topic = f'{interface.ESTIMATE_PREFIX}/{name}'
-            w.add_topic(topic, TEMPERATURE, offered_qos(depth=10))
+            w.add_topic(topic, interface.TEMPERATURE, offered_qos(depth=10))
             messages.append((topic, cdr.encode_stamped(
                 stamps_ns, 'eha', np.column_stack([result.temperatures_C[name], variance]))))
-        w.add_topic(interface.ALERT_TOPIC, 'std_msgs/msg/String',
+        w.add_topic(interface.ALERT_TOPIC, interface.STRING,
                     offered_qos(durability='transient_local', depth=1))
         for k, ns in enumerate(stamps_ns.tolist()):
             for topic, data in messages:
@@ -473,13 +471,13 @@ def write_report(result: ReplayResult, out_dir: Path) -> Path:
 
     fig, ax = plt.subplots(figsize=(10, 5))
     for name in ('winding_hotspot', 'winding_mean', 'magnet', 'frame', 'pump_case', 'oil'):
-        ax.plot(t_min, result.temperatures_C[name], lw=1.0, label=f'{name} (estimate)')
+        ax.plot(t_min, result.temperatures_C[name], lw=1.0,
+                label=f'{quantity_table.label(name)} (estimate)')
     for tc, (t, v) in result.measured.items():
         if t.size:
             ax.plot((t - t0) / 60.0, v, '.', ms=1.5, label=f'{tc} (thermocouple)')
-    limits = {'winding hot-spot limit': result.plan.cfg.motor.winding.insulation_limit_C,
-              'magnet limit': result.plan.cfg.motor.rotor.magnet_limit_C,
-              'oil limit': result.plan.cfg.fluid.oil_limit_C}
+    limits = {quantity_table.LIMIT_LABELS[name]: value
+              for name, value in quantity_table.limits_C(result.plan.cfg).items()}
     for label, value in limits.items():
         if value < 1.3 * max(float(np.max(v)) for v in result.temperatures_C.values()):
             ax.axhline(value, ls='--', lw=0.8, color='grey')

@@ -19,18 +19,16 @@ import warnings
 import numpy as np
 
 from .config import Config
-from .maps import LOSS_LABELS
-from .model.motor import C_TO_K, LOSS_NAMES
+from .model import quantity_table
+from .model.motor import LOSS_NAMES
 from .model.quantities import OIL_OUTPUTS
 from .outputs import atomic, save_figure
+from .units import C_TO_K
 
 #: Temperatures of the table, in print order.
 TABLE = ('winding_mean', 'winding_hotspot', 'frame', 'magnet', 'airgap_oil_outlet',
          'motor_oil_outlet', 'pump_case', 'pump_outlet', 'chamber_a', 'chamber_b',
          'accumulator')
-#: Printed names of the temperatures, where not the key with spaces.
-LABELS = {'winding_hotspot': 'winding hot-spot', 'magnet': 'magnet (hottest)',
-          'chamber_a': 'chamber A', 'chamber_b': 'chamber B'}
 #: Fraction of the recorded history, at its end, that the extrapolation fits.
 FIT_FRACTION = 1.0 / 3.0
 #: Peak-to-peak change (K) below which the fitted part of a history counts as flat.
@@ -217,11 +215,6 @@ def check_limit(label: str, t_s: Sequence[float], T_C: Sequence[float], limit_C:
                       settles_C=T_inf, tau_s=tau, note=note)
 
 
-def oil_limit_C(cfg: Config) -> Tuple[float, str]:
-    """Return the oil temperature limit (degC) and where it comes from."""
-    return cfg.fluid.oil_limit_C, 'fluid.oil_limit_C'
-
-
 def temperatures_C(result) -> Dict[str, np.ndarray]:
     """Return every recorded temperature history in degC."""
     return {k: np.asarray(v, dtype=float) - C_TO_K for k, v in result.temperatures_K.items()}
@@ -236,19 +229,11 @@ def hottest_oil_C(result) -> Tuple[np.ndarray, str]:
 
 
 def check_limits(result, cfg: Config) -> List[LimitCheck]:
-    """Check winding hot-spot, magnet and hottest oil of a run against their limits."""
+    """Check the temperatures with a limit (:data:`~.quantity_table.LIMITED`) of a run."""
     temps = temperatures_C(result)
-    t = result.time_s
-    oil_C, _ = hottest_oil_C(result)
-    oil_lim, _ = oil_limit_C(cfg)
-    return [check_limit('winding hot-spot', t, temps['winding_hotspot'],
-                        cfg.motor.winding.insulation_limit_C),
-            check_limit('magnet (hottest)', t, temps['magnet'], cfg.motor.rotor.magnet_limit_C),
-            check_limit('oil (hottest node)', t, oil_C, oil_lim)]
-
-
-def _label(name: str) -> str:
-    return LABELS.get(name, name.replace('_', ' '))
+    temps['oil'], _ = hottest_oil_C(result)
+    return [check_limit(quantity_table.label(name), result.time_s, temps[name], limit)
+            for name, limit in quantity_table.limits_C(cfg).items()]
 
 
 def format_table(result) -> str:
@@ -262,7 +247,7 @@ def format_table(result) -> str:
             continue
         v = temps[name]
         i = int(np.argmax(v))
-        lines.append(f'{_label(name):<20} {v[-1]:6.1f} {v[i]:6.1f} {t[i]:8.0f}')
+        lines.append(f'{quantity_table.label(name):<20} {v[-1]:6.1f} {v[i]:6.1f} {t[i]:8.0f}')
     return '\n'.join(lines)
 
 
@@ -328,8 +313,8 @@ def format_heat(result, period_s: Optional[float] = None) -> str:
     losses, paths = motor_heat_W(result, period_s)
     total = sum(losses.values())
     lines = [f'{"motor loss":<28} {"W":>7} {"share":>6}']
-    lines += [f'{LOSS_LABELS[k]:<28} {v:7.1f} {v / total:6.1%}' for k, v in losses.items()
-              if v != 0.0]
+    lines += [f'{quantity_table.LOSS_LABELS[k]:<28} {v:7.1f} {v / total:6.1%}'
+              for k, v in losses.items() if v != 0.0]
     lines += [f'{"total":<28} {total:7.1f}', '', f'{"where it goes":<40} {"W":>7}']
     lines += [f'{label:<40} {paths[k]:7.1f}' for k, label in HEAT_PATHS]
     return '\n'.join(lines)
@@ -397,7 +382,7 @@ def _plot_heat(ax_made, ax_goes, result, x, n) -> None:
     def series(key):
         return _moving_mean(np.asarray(heat[key], dtype=float), n)
 
-    parts = [(LOSS_LABELS[k], series(f'loss_{k}')) for k in LOSS_NAMES]
+    parts = [(quantity_table.LOSS_LABELS[k], series(f'loss_{k}')) for k in LOSS_NAMES]
     parts = [(label, v) for label, v in parts if np.any(v)]
     m = len(parts[0][1])
     ax_made.stackplot(x[:m], [v for _, v in parts], labels=[label for label, _ in parts],
@@ -434,36 +419,34 @@ def plot(result, cfg: Config, path: Path, title: str,
     t = np.asarray(result.time_s, dtype=float)
     scale, unit = (1.0, 's') if t[-1] <= 1200.0 else (60.0, 'min')
     x = t / scale
-    oil_lim, _ = oil_limit_C(cfg)
+    limits = quantity_table.limits_C(cfg)
+    # per panel: the temperatures (colour, line style) and the limits (colour) drawn
     panels = (
         ('motor temperature (degC)',
-         (('winding_hotspot', 'winding hot-spot', 'C3', '-'),
-          ('winding_mean', 'winding mean', 'C1', '-'),
-          ('magnet', 'magnet (hottest)', 'C4', '-'),
-          ('frame', 'frame', 'C7', '-')),
-         ((cfg.motor.winding.insulation_limit_C, 'insulation limit', 'C3'),
-          (cfg.motor.rotor.magnet_limit_C, 'magnet limit', 'C4'))),
+         (('winding_hotspot', 'C3', '-'), ('winding_mean', 'C1', '-'), ('magnet', 'C4', '-'),
+          ('frame', 'C7', '-')),
+         (('winding_hotspot', 'C3'), ('magnet', 'C4'))),
         ('oil temperature (degC)',
-         (('airgap_oil_outlet', 'airgap oil outlet', 'C5', ':'),
-          ('motor_oil_outlet', 'motor oil outlet', 'C0', '-'),
-          ('pump_case', 'pump case', 'C2', '-'),
-          ('chamber_a', 'chamber A', 'C1', '-'),
-          ('chamber_b', 'chamber B', 'C6', '--'),
-          ('accumulator', 'accumulator', 'C9', '-')),
-         ((oil_lim, f'oil limit ({cfg.fluid.grade})', 'C2'),)),
+         (('airgap_oil_outlet', 'C5', ':'), ('motor_oil_outlet', 'C0', '-'),
+          ('pump_case', 'C2', '-'), ('chamber_a', 'C1', '-'), ('chamber_b', 'C6', '--'),
+          ('accumulator', 'C9', '-')),
+         (('oil', 'C2'),)),
     )
     fig, axes = plt.subplots(5, 1, figsize=(12, 16), sharex=True,
                              gridspec_kw={'height_ratios': (3, 3, 2, 2, 2)})
-    for ax, (ylabel, series, limits) in zip(axes, panels):
+    for ax, (ylabel, series, limited) in zip(axes, panels):
         top = -math.inf
-        for key, label, color, style in series:
+        for key, color, style in series:
             if key in temps:
-                ax.plot(x, temps[key], style, color=color, lw=1.5, label=label)
+                ax.plot(x, temps[key], style, color=color, lw=1.5,
+                        label=quantity_table.label(key))
                 top = max(top, float(np.max(temps[key])))
-        for value, label, color in limits:
+        for name, color in limited:
+            value = limits[name]
+            grade = f' ({cfg.fluid.grade})' if name == 'oil' else ''
             if value - top <= 30.0:
                 ax.axhline(value, color=color, ls='--', lw=1.2, alpha=0.8,
-                           label=f'{label} {value:g} degC')
+                           label=f'{quantity_table.LIMIT_LABELS[name]}{grade} {value:g} degC')
         ax.set_ylabel(ylabel)
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8, loc='upper left', bbox_to_anchor=(1.01, 1.0))

@@ -30,11 +30,11 @@ import numpy as np
 from .config import Calibration, Config
 from .estimator.core import sensor_inputs, sensor_signal
 from .interface import (AMBIENT_TOPIC, INPUT_TOPICS, INPUT_TYPES, MEASURED_PREFIX,
-                        PRESSURE_INPUTS, THERMOCOUPLES)
+                        PRESSURE_INPUTS, TEMPERATURE, THERMOCOUPLES)
 from .model.eha import EHAModel
 from .model.kinetics import Duty, KineticModel, ThermalFeedback
-from .model.motor import C_TO_K
 from .simulation import feedback
+from .units import C_TO_K
 
 #: Length of one kinetics block and one truth-model step (s).
 BLOCK_S = 0.02
@@ -170,9 +170,9 @@ def write_rig_bag(path: os.PathLike, rig: SimulatedRig, seconds: float, *,
             bag.add_topic(INPUT_TOPICS[name], INPUT_TYPES[name],
                           offered_qos('best_effort', depth=100))
         for tc in THERMOCOUPLES:
-            bag.add_topic(f'{MEASURED_PREFIX}/{tc}', 'sensor_msgs/msg/Temperature',
+            bag.add_topic(f'{MEASURED_PREFIX}/{tc}', TEMPERATURE,
                           offered_qos(depth=10))
-        bag.add_topic(AMBIENT_TOPIC, 'sensor_msgs/msg/Temperature',
+        bag.add_topic(AMBIENT_TOPIC, TEMPERATURE,
                       offered_qos(depth=10))
         for k, n_blocks, block, tcs, amb in rig.run(seconds, thermocouple_rate_Hz):
             stamps_ns = (start_ns + np.round(block['t_s'] * 1e9)).astype(np.int64)

@@ -51,19 +51,18 @@ acknowledgement; a latched alert whose condition clears emits nothing (its
 active level shows in :meth:`AlertManager.state` and the summary).
 """
 
+import dataclasses
 from dataclasses import dataclass
 import enum
 import math
 import numbers
-from types import SimpleNamespace
-from typing import Any, Dict, List, Mapping, NamedTuple, Optional, Tuple
+from typing import Any, Dict, List, Mapping, NamedTuple, Optional
+
+from ..config import AlertLevels, Alerts, ConfigError, from_dict
 
 # Slack on ``elapsed >= min_duration_s`` so that stamps built by summing
 # steps (0.1 + 0.1 + ...) reach the duration they are meant to reach.
 _TIME_EPS_S = 1e-9
-
-RULE_KEYS = ('warn_C', 'critical_C', 'hysteresis_K', 'min_duration_s', 'latch')
-REQUIRED_RULE_KEYS = ('warn_C', 'critical_C')
 
 
 class Level(enum.IntEnum):
@@ -83,50 +82,16 @@ def _is_number(value: Any) -> bool:
     return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
-def _rule_problem(rule: Any) -> Optional[Tuple[str, str]]:
-    """Return ``(field, what is wrong)`` for the first bad field of ``rule``, or None."""
-    for name in ('warn_C', 'critical_C', 'hysteresis_K', 'min_duration_s'):
-        value = getattr(rule, name)
-        if not _is_number(value) or not math.isfinite(value):
-            return name, f'must be a finite number, got {value!r}'
-    if not isinstance(rule.latch, bool):
-        return 'latch', f'must be true or false, got {rule.latch!r}'
-    if rule.critical_C <= rule.warn_C:
-        return 'critical_C', f'must be above warn_C = {rule.warn_C:g}, got {rule.critical_C:g}'
-    if rule.hysteresis_K < 0.0:
-        return 'hysteresis_K', f'must be >= 0, got {rule.hysteresis_K:g}'
-    if rule.min_duration_s < 0.0:
-        return 'min_duration_s', f'must be >= 0, got {rule.min_duration_s:g}'
-    return None
-
-
-@dataclass(frozen=True)
-class AlertRule:
+@dataclass(frozen=True, kw_only=True)
+class AlertRule(AlertLevels):
     """
-    Thresholds, hysteresis, minimum duration and latching of one quantity.
+    The configuration's :class:`~wet_eha_thermal.config.AlertLevels` of one quantity.
 
-    ``warn_C < critical_C``; a level clears below its threshold minus
-    ``hysteresis_K`` (>= 0) and is raised only after the value has been at or
-    above it for ``min_duration_s`` (>= 0); ``latch`` keeps a raised level
-    reported until it is acknowledged.
+    The fields, their defaults and their checks are the configuration's (one
+    definition); build rules with :func:`rules_from_config`, which checks them.
     """
 
     quantity: str
-    warn_C: float
-    critical_C: float
-    hysteresis_K: float = 0.0
-    min_duration_s: float = 0.0
-    latch: bool = False
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.quantity, str) or not self.quantity:
-            raise ValueError(f'quantity must be a non-empty string, got {self.quantity!r}')
-        problem = _rule_problem(self)
-        if problem is not None:
-            name, text = problem
-            raise ValueError(f'alert rule {self.quantity!r}: {name} {text}')
-        for name in ('warn_C', 'critical_C', 'hysteresis_K', 'min_duration_s'):
-            object.__setattr__(self, name, float(getattr(self, name)))
 
     def threshold(self, level: Level) -> float:
         """Return the threshold of ``level`` (WARN or CRITICAL) in degC."""
@@ -474,44 +439,29 @@ class AlertManager:
         }
 
 
-def rules_from_config(mapping: Optional[Mapping[str, Any]],
-                      prefix: str = 'alerts') -> List[AlertRule]:
+def rules_from_config(alerts: Any, prefix: str = 'alerts') -> List[AlertRule]:
     """
-    Build alert rules from a plain mapping of quantity to settings.
+    Return one alert rule per quantity of the configuration's alert settings.
 
-    Example: ``{'winding_hotspot': {'warn_C': 160, 'critical_C': 175,
-    'hysteresis_K': 3, 'min_duration_s': 2, 'latch': True}}``. ``warn_C``
-    and ``critical_C`` are required; ``hysteresis_K`` and ``min_duration_s``
-    default to 0 and ``latch`` to false. None or an empty mapping gives no
-    rules. Every error is a ValueError naming the key (``prefix.quantity.key``)
-    and the value.
+    ``alerts`` is the loaded configuration's
+    :class:`~wet_eha_thermal.config.Alerts` (checked when it was loaded), or a
+    plain mapping of quantity to settings, e.g. ``{'winding_hotspot':
+    {'warn_C': 160, 'critical_C': 175, 'hysteresis_K': 3, 'min_duration_s':
+    2}}``, checked here as the configuration checks ``estimator.alerts``: the
+    same keys, ranges and defaults. None or an empty mapping gives no rules.
+    Every error is a :class:`~wet_eha_thermal.config.ConfigError` (a
+    ValueError) naming the key (``prefix.quantity.key``) and the value.
     """
-    if mapping is None:
-        return []
-    if not isinstance(mapping, Mapping):
-        raise ValueError(f'{prefix}: expected a mapping of quantity to thresholds, '
-                         f'got {mapping!r}')
-    rules = []
-    for quantity, settings in mapping.items():
-        where = f'{prefix}.{quantity}'
-        if not isinstance(quantity, str) or not quantity:
-            raise ValueError(f'{prefix}: quantity names must be non-empty strings, '
-                             f'got {quantity!r}')
-        if not isinstance(settings, Mapping):
-            raise ValueError(f'{where}: expected a mapping with {", ".join(RULE_KEYS)}, '
-                             f'got {settings!r}')
-        for key in settings:
-            if key not in RULE_KEYS:
-                raise ValueError(f'{where}.{key}: unknown key (allowed: '
-                                 f'{", ".join(RULE_KEYS)})')
-        for key in REQUIRED_RULE_KEYS:
-            if key not in settings:
-                raise ValueError(f'{where}.{key}: missing')
-        candidate = SimpleNamespace(hysteresis_K=0.0, min_duration_s=0.0, latch=False)
-        candidate.__dict__.update(settings)
-        problem = _rule_problem(candidate)
-        if problem is not None:
-            name, text = problem
-            raise ValueError(f'{where}.{name}: {text}')
-        rules.append(AlertRule(quantity=quantity, **settings))
-    return rules
+    if isinstance(alerts, Alerts):
+        levels = {f.name: getattr(alerts, f.name) for f in dataclasses.fields(alerts)}
+    elif alerts is None or isinstance(alerts, Mapping):
+        levels = {}
+        for quantity, settings in (alerts or {}).items():
+            if not isinstance(quantity, str) or not quantity:
+                raise ConfigError(f'{prefix}: quantity names must be non-empty strings, '
+                                  f'got {quantity!r}')
+            levels[quantity] = from_dict(AlertLevels, settings, f'{prefix}.{quantity}')
+    else:
+        raise ConfigError(f'{prefix}: expected a mapping of quantity to thresholds, '
+                          f'got {alerts!r}')
+    return [AlertRule(quantity=q, **dataclasses.asdict(v)) for q, v in levels.items()]

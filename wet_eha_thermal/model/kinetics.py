@@ -29,16 +29,17 @@ from .eha import SampleBlock
 from .fluid_power import (check_gap_reynolds, displacement_per_rad, gap_leakage,
                           line_pressure_drop, pump_friction_torque)
 from .losses import copper_resistance
-from .oil import Oil, T0_K
+from .oil import Oil
 from .validity import ValidityLog
 from ..config import Config
+from ..units import C_TO_K
 
 #: m^3/s per L/min.
 L_MIN = 1.0e-3 / 60.0
 #: Pa per MPa.
 MPA = 1.0e6
 #: 40 degC in kelvin, the default oil and winding temperature.
-T40_K = T0_K + 40.0
+T40_K = C_TO_K + 40.0
 #: Speed magnitude (rad/s) below which a friction power is not turned into a torque.
 SPEED_EPS_RAD_S = 1.0e-6
 

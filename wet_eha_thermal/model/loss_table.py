@@ -28,6 +28,7 @@ from .rotor_losses import rotor_eddy_loss_table
 from .validity import ValidityLog
 from ..config import Motor
 from ..loss_map import read_loss_map
+from ..units import C_TO_K, RPM
 
 MAGNET, SLEEVE, ROTOR_CORE, COPPER_EXCESS, IRON = range(5)
 COLUMNS = ('magnet_W', 'sleeve_W', 'rotor_core_W', 'copper_excess_A2', 'stator_iron_W')
@@ -36,7 +37,6 @@ COLUMNS = ('magnet_W', 'sleeve_W', 'rotor_core_W', 'copper_excess_A2', 'stator_i
 ANALYTICAL_GRID = (61, 41)
 #: grid lines a map is resampled onto (linear in speed and in I^2: scipy), per axis
 MAP_GRID = (201, 81)
-RPM = np.pi / 30.0
 
 
 @dataclass(frozen=True)
@@ -151,7 +151,7 @@ def _map_table(cfg: Motor) -> LossTable:
     values[..., IRON] = resample('stator_iron_W')
     # the map's copper at its temperature, as phases R(T_map) (I^2 + excess)
     r_map = copper_resistance(wd.phase_resistance_20C_ohm, wd.copper_tempco_1_K,
-                              lm.copper_temperature_C + 273.15)
+                              lm.copper_temperature_C + C_TO_K)
     values[..., COPPER_EXCESS] = resample('copper_W') / (wd.phases * r_map) - points[..., 1]
     return LossTable((float(w[0]), float(w[1] - w[0]), float(isq[0]), float(isq[1] - isq[0])),
                      values, True, f'map {lm.file}')

@@ -14,8 +14,9 @@ import numpy as np
 
 from .compiled import jit
 from .validity import check, ValidityLog
+from ..units import C_TO_K
 
-T_REF_COPPER_K = 293.15  # 20 degC, reference of the phase resistance
+T_REF_COPPER_K = C_TO_K + 20.0  # reference of the phase resistance
 
 
 @jit

@@ -35,8 +35,8 @@ from .quantities import motor_outputs, QuantityMap
 from .rotor_losses import rotor_eddy_loss_breakdown
 from .validity import ValidityLog
 from ..config import Motor
+from ..units import C_TO_K
 
-C_TO_K = 273.15
 #: the kinds of surface the end-space oil washes (:meth:`WetMotor._end_space_htc`): the
 #: rotor's end face, the end cap (its part facing the rotor, and the rest), a stator
 #: surface in the oil's swirl (end winding, stack faces, frame), the turning shaft end

@@ -43,11 +43,10 @@ import numpy as np
 
 from .compiled import interpreted, jit
 from .validity import check, ValidityLog
+from ..units import C_TO_K as T0_K
 
-#: 0 degC in kelvin.
-T0_K = 273.15
 #: Reference temperature of the density data (15 degC) in kelvin.
-T15_K = 288.15
+T15_K = T0_K + 15.0
 #: Reference temperature of the bulk modulus law (40 degC) in kelvin.
 T40_K = 313.15
 #: Density of water at 15 degC (kg/m^3), the reference of the specific gravity.

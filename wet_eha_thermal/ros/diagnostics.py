@@ -14,10 +14,10 @@ from typing import List, Mapping, Optional, Sequence, Tuple
 import numpy as np
 from wet_eha_thermal import interface
 from wet_eha_thermal.estimator.core import Estimator
+from wet_eha_thermal.model.quantity_table import LIMITED
 
 # the levels of diagnostic_msgs/DiagnosticStatus
 OK, WARN, ERROR, STALE = 0, 1, 2, 3
-LIMITED = ('winding_hotspot', 'magnet', 'oil')   # quantities with limits and a forecast
 
 
 @dataclass(frozen=True)

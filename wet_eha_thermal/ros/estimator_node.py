@@ -58,8 +58,7 @@ from typing import Deque, Dict, List, Optional
 
 from builtin_interfaces.msg import Time as TimeMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
-                                ParameterType, SetParametersResult)
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import NameValidationException, ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -72,60 +71,42 @@ from wet_eha_thermal.bag import cdr
 from wet_eha_thermal.config import ConfigError, load_config
 from wet_eha_thermal.estimator.core import Estimate, Estimator
 from wet_eha_thermal.live_view import app_url, LiveView, parse_address
+from wet_eha_thermal.model.quantity_table import LIMITED
 from wet_eha_thermal.ros import diagnostics, topics
-from wet_eha_thermal.ros.diagnostics import LIMITED
-from wet_eha_thermal.ros.runtime import (accept_whole_numbers, EXECUTORS, FastClock,
+from wet_eha_thermal.ros.runtime import (accept_whole_numbers, descriptor, EXECUTORS, FastClock,
                                          prepare_model_step, Readiness, run_node)
 
 NODE_NAME = interface.ESTIMATOR_NODE
 
 
-def _float_param(description: str, low: float, high: float,
-                 read_only: bool = False) -> ParameterDescriptor:
-    return ParameterDescriptor(
-        type=ParameterType.PARAMETER_DOUBLE, description=description, read_only=read_only,
-        floating_point_range=[FloatingPointRange(from_value=low, to_value=high, step=0.0)])
-
-
-def _int_param(description: str, low: int, high: int,
-               read_only: bool = False) -> ParameterDescriptor:
-    return ParameterDescriptor(
-        type=ParameterType.PARAMETER_INTEGER, description=description, read_only=read_only,
-        integer_range=[IntegerRange(from_value=low, to_value=high, step=1)])
-
-
-def _str_param(description: str, read_only: bool = True) -> ParameterDescriptor:
-    return ParameterDescriptor(type=ParameterType.PARAMETER_STRING, description=description,
-                               read_only=read_only)
-
-
 # name -> (default, descriptor); ranges are enforced by rclpy, also for --params-file values
 PARAMETERS = {
-    'config_file': ('', _str_param(
+    'config_file': ('', descriptor(
         'estimator configuration YAML (the estimator: section and the rig); '
         "'' = the shipped config/reference_eha.yaml")),
-    'qos': ('sensor_data', _str_param(
+    'qos': ('sensor_data', descriptor(
         "QoS of the sensor subscriptions: 'sensor_data' (best effort) or 'reliable'")),
-    'qos_depth': (1000, _int_param('history depth of the sensor subscriptions', 1, 10000,
-                                   read_only=True)),
-    'publish_rate_Hz': (50.0, _float_param(
-        'rate of the estimate, state and alert publication (and of advance(now))', 1.0, 500.0)),
-    'background_budget_ms': (2.0, _float_param(
-        'wall time per publish tick given to the forecast and the margin', 0.0, 50.0)),
-    'diagnostics_rate_Hz': (1.0, _float_param('rate of /diagnostics', 0.1, 10.0)),
-    'hardware_id': ('wet-eha-rig', _str_param('hardware_id of the diagnostic statuses')),
-    'frame_id': ('eha', _str_param('frame_id of the published temperatures')),
-    'topic_prefix': (interface.PREFIX, _str_param(
+    'qos_depth': (1000, descriptor('history depth of the sensor subscriptions', 1, 10000)),
+    'publish_rate_Hz': (50.0, descriptor(
+        'rate of the estimate, state and alert publication (and of advance(now))', 1.0, 500.0,
+        read_only=False)),
+    'background_budget_ms': (2.0, descriptor(
+        'wall time per publish tick given to the forecast and the margin', 0.0, 50.0,
+        read_only=False)),
+    'diagnostics_rate_Hz': (1.0, descriptor('rate of /diagnostics', 0.1, 10.0, read_only=False)),
+    'hardware_id': ('wet-eha-rig', descriptor('hardware_id of the diagnostic statuses')),
+    'frame_id': ('eha', descriptor('frame_id of the published temperatures')),
+    'topic_prefix': (interface.PREFIX, descriptor(
         "replaces '/eha' in every topic name (not /diagnostics)")),
-    'executor': ('events', _str_param(
+    'executor': ('events', descriptor(
         "executor used by main(): 'events' (rclpy.experimental.EventsExecutor) or 'single' "
         '(SingleThreadedExecutor); the --executor option overrides it')),
-    'foxglove_address': ('', _str_param(
+    'foxglove_address': ('', descriptor(
         'Foxglove WebSocket server of the live view (wet_eha_thermal/live_view.py), HOST:PORT, '
         "e.g. 127.0.0.1:8765 (port 0: any free one); '' = no server")),
-    'foxglove_inputs_rate_Hz': (20.0, _float_param(
+    'foxglove_inputs_rate_Hz': (20.0, descriptor(
         'rate of the inputs, input health and thermocouples in the Foxglove view (averaged '
-        'over windows of sample time)', 1.0, 50.0)),
+        'over windows of sample time)', 1.0, 50.0, read_only=False)),
 }
 #: Parameters Foxglove may set: rates of publication only, which change what is shown,
 #: never what is estimated or when an alert is raised (those stay read-only there).
@@ -161,8 +142,8 @@ class EstimatorNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__(NODE_NAME, **kwargs)
         accept_whole_numbers(self, {name: d for name, (d, _) in PARAMETERS.items()})
-        for name, (default, descriptor) in PARAMETERS.items():
-            self.declare_parameter(name, default, descriptor)
+        for name, (default, desc) in PARAMETERS.items():
+            self.declare_parameter(name, default, desc)
         p = {name: self.get_parameter(name).value for name in PARAMETERS}
         if p['executor'] not in EXECUTORS:
             raise ValueError(f"parameter executor = {p['executor']!r}: expected one of "

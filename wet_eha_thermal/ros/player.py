@@ -40,7 +40,6 @@ Run it with ``wet-eha-thermal-play BAG [--rate 2] [--loop] ...`` or
 """
 
 import argparse
-import importlib
 import math
 import signal
 import struct
@@ -56,6 +55,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from wet_eha_thermal.bag.reader import BagError, BagInfo, iter_raw, open_bag, RawMessage
+from wet_eha_thermal.ros.topics import message_class
 import yaml
 
 NODE_NAME = 'eha_player'
@@ -73,17 +73,6 @@ _HEADER_TYPE = 'std_msgs/Header'
 # CDR encapsulation (byte 1: 0 big, 1 little endian) then Header.stamp: int32 sec, uint32 nanosec
 _STAMP = {0: struct.Struct('>iI'), 1: struct.Struct('<iI')}
 _STAMP_AT = 4
-
-
-def message_class(type_name: str):
-    """Return the rclpy message class of 'pkg/msg/Type' (or 'pkg/Type')."""
-    parts = type_name.split('/')
-    if len(parts) == 2:
-        parts.insert(1, 'msg')
-    if len(parts) != 3 or not all(parts):
-        raise ValueError(f'message type {type_name!r}: expected pkg/msg/Type')
-    module = importlib.import_module(f'{parts[0]}.{parts[1]}')
-    return getattr(module, parts[2])
 
 
 def _policy(enum, value):

@@ -70,7 +70,6 @@ Run: ``wet-eha-thermal-record --ros-args -p output:=runs/test`` or
 
 from datetime import datetime, timezone
 import functools
-from importlib import import_module
 from importlib.metadata import version
 import json
 from pathlib import Path
@@ -80,7 +79,6 @@ import time
 from typing import Dict, List, Optional, Tuple
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rcl_interfaces.msg import ParameterDescriptor, ParameterType
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import NameValidationException, ParameterException
 from rclpy.node import Node
@@ -98,10 +96,6 @@ from wet_eha_thermal.ros.runtime import (accept_whole_numbers, descriptor, EXECU
 import yaml
 
 NODE_NAME = interface.RECORDER_NODE
-#: Metadata record names in every file of the bag (see the module docstring).
-CONFIG_METADATA = 'wet_eha_thermal.config'
-PARAMS_METADATA = 'wet_eha_thermal.params'
-RECORDER_METADATA = 'wet_eha_thermal.recorder'
 STATUS_NAME = 'wet_eha_thermal: recorder'
 DIAGNOSTICS_PERIOD_S = 1.0
 #: The writer's state is looked at this often (steady clock, s): a change (a fault, a file
@@ -115,7 +109,6 @@ DISCOVERY_PERIOD_S = 0.5
 #: DRAIN_MAX_S.
 DRAIN_IDLE_S, DRAIN_MAX_S = 0.2, 3.0
 _OK, _WARN, _ERROR = 0, 1, 2
-TEMPERATURE = 'sensor_msgs/msg/Temperature'
 
 
 # Not the rig's helpers: importing the rig loads the model and SciPy (0.2 s), and in
@@ -150,9 +143,8 @@ PARAMETERS = {
     'topic_prefix': (interface.PREFIX, descriptor(
         "replaces '/eha' in every topic name (not /diagnostics)")),
     # declared by type: rclpy takes an empty list for a byte array; unset, it reads None
-    'extra_topics': (Parameter.Type.STRING_ARRAY, ParameterDescriptor(
-        type=ParameterType.PARAMETER_STRING_ARRAY, read_only=True,
-        description='further topics to record (names; type and QoS from their publishers)')),
+    'extra_topics': (Parameter.Type.STRING_ARRAY, descriptor(
+        'further topics to record (names; type and QoS from their publishers)')),
     'config_file': ('', descriptor(
         "estimator configuration stored in the bag; '' = the shipped "
         'config/reference_eha.yaml')),
@@ -173,18 +165,18 @@ def recorded_topics(prefix: str = interface.PREFIX) -> Dict[str, Tuple[str, str]
     """
     found = {interface.INPUT_TOPICS[name]: (interface.INPUT_TYPES[name], 'sensor')
              for name in interface.INPUT_TOPICS}
-    found[interface.AMBIENT_TOPIC] = (TEMPERATURE, 'sensor')
+    found[interface.AMBIENT_TOPIC] = (interface.TEMPERATURE, 'sensor')
     for tc in interface.THERMOCOUPLES:
-        found[f'{interface.MEASURED_PREFIX}/{tc}'] = (TEMPERATURE, 'sensor')
+        found[f'{interface.MEASURED_PREFIX}/{tc}'] = (interface.TEMPERATURE, 'sensor')
     for name in interface.ESTIMATES:
-        found[f'{interface.ESTIMATE_PREFIX}/{name}'] = (TEMPERATURE, 'output')
-    found[interface.STATE_TOPIC] = ('std_msgs/msg/Float64MultiArray', 'output')
-    found[interface.STATE_NAMES_TOPIC] = ('std_msgs/msg/String', 'latched')
-    found[interface.ALERT_TOPIC] = ('std_msgs/msg/String', 'latched')
-    found[interface.READY_TOPIC] = ('std_msgs/msg/String', 'latched')
-    found[interface.RECORDER_HEALTH_TOPIC] = ('std_msgs/msg/String', 'latched')
-    found[interface.ACK_TOPIC] = ('std_msgs/msg/String', 'output')
-    found[interface.DIAGNOSTICS_TOPIC] = ('diagnostic_msgs/msg/DiagnosticArray', 'output')
+        found[f'{interface.ESTIMATE_PREFIX}/{name}'] = (interface.TEMPERATURE, 'output')
+    found[interface.STATE_TOPIC] = (interface.FLOAT64_ARRAY, 'output')
+    found[interface.STATE_NAMES_TOPIC] = (interface.STRING, 'latched')
+    found[interface.ALERT_TOPIC] = (interface.STRING, 'latched')
+    found[interface.READY_TOPIC] = (interface.STRING, 'latched')
+    found[interface.RECORDER_HEALTH_TOPIC] = (interface.STRING, 'latched')
+    found[interface.ACK_TOPIC] = (interface.STRING, 'output')
+    found[interface.DIAGNOSTICS_TOPIC] = (interface.DIAGNOSTIC_ARRAY, 'output')
     return {interface.prefixed(topic, prefix): spec for topic, spec in found.items()}
 
 
@@ -198,15 +190,9 @@ def is_single_file(output: Path) -> bool:
     return output.suffix == '.mcap'
 
 
-def message_class(type_name: str):
-    """Return the Python class of a message type 'pkg/msg/Type'."""
-    package, kind, name = type_name.split('/')
-    return getattr(import_module(f'{package}.{kind}'), name)
-
-
 def _text_record(path: Path) -> Dict[str, str]:
     try:
-        return {'path': str(path.resolve()), 'yaml': path.read_text()}
+        return {'path': str(path.resolve()), interface.CONFIG_METADATA_KEY: path.read_text()}
     except OSError as exc:
         raise ConfigError(f'cannot read {path}: {exc.strerror}') from exc
 
@@ -242,11 +228,11 @@ class RecorderNode(Node):
         # check the configuration as the estimator will, and keep its text
         config_path = Path(p['config_file']) if p['config_file'] else default_config_path()
         load_config(config_path)
-        metadata = {CONFIG_METADATA: _text_record(config_path)}
+        metadata = {interface.CONFIG_METADATA: _text_record(config_path)}
         if p['params_file']:
-            metadata[PARAMS_METADATA] = _text_record(Path(p['params_file']))
+            metadata[interface.PARAMS_METADATA] = _text_record(Path(p['params_file']))
         self.started_utc = datetime.now(timezone.utc).isoformat(timespec='seconds')
-        metadata[RECORDER_METADATA] = {
+        metadata[interface.RECORDER_METADATA] = {
             'version': version('wet_eha_thermal'), 'node': self.get_fully_qualified_name(),
             'started_utc': self.started_utc,
             'parameters': yaml.safe_dump(p, sort_keys=False)}
@@ -312,7 +298,7 @@ class RecorderNode(Node):
 
     # ------------------------------------------------------------ subscriptions
     def _subscribe(self, topic: str, type_name: str, qos: QoSProfile):
-        sub = self.create_subscription(message_class(type_name), topic,
+        sub = self.create_subscription(topics.message_class(type_name), topic,
                                        functools.partial(self._on_message, topic), qos,
                                        raw=True)
         self.types[topic] = type_name

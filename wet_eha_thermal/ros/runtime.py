@@ -170,7 +170,12 @@ def accept_whole_numbers(node: Node, defaults: Mapping[str, object]) -> None:
 
 
 def descriptor(text: str, low=None, high=None, read_only: bool = True) -> ParameterDescriptor:
-    """Return a parameter descriptor; ``low``/``high`` (ints or floats) give its range."""
+    """
+    Return a parameter's descriptor: the one way the nodes build them.
+
+    ``low``/``high`` (ints or floats) give its range. The type is left unset:
+    rclpy takes it from the declared default (or the declared type).
+    """
     d = ParameterDescriptor(description=text, read_only=read_only)
     if isinstance(low, int):
         d.integer_range = [IntegerRange(from_value=low, to_value=high, step=1)]

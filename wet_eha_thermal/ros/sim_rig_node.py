@@ -57,7 +57,6 @@ from typing import Dict, List, Optional
 from builtin_interfaces.msg import Time as TimeMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 import numpy as np
-from rcl_interfaces.msg import ParameterDescriptor, ParameterType
 import rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -68,12 +67,12 @@ from wet_eha_thermal.interface import (AMBIENT_TOPIC, DIAGNOSTICS_TOPIC, INPUT_T
                                        MEASURED_PREFIX, PREFIX, prefixed, PRESSURE_INPUTS,
                                        READY_TOPIC, RIG_NODE, THERMOCOUPLES)
 from wet_eha_thermal.model.kinetics import DutyError, load_duty_csv, stage_duty, STAGES
-from wet_eha_thermal.model.motor import C_TO_K
 from wet_eha_thermal.ros.runtime import (accept_whole_numbers, descriptor, prepare_model_step,
                                          run_node)
 from wet_eha_thermal.ros.topics import input_qos, latched_qos, publish_inputs
 from wet_eha_thermal.simulated_rig import (AMBIENT_SIGMA_K, NOISE_SIGMA, SimulatedRig,
                                            THERMOCOUPLE_SIGMA_K)
+from wet_eha_thermal.units import C_TO_K
 
 NODE_NAME = RIG_NODE
 #: Most sample time published in one tick when catching up (s); older samples are skipped.
@@ -214,10 +213,9 @@ class SimRigNode(Node):
                 'start the duty once every input topic has this many matched subscribers',
                 0, 100)),
             # declared by type: rclpy takes an empty list for a byte array
-            ('wait_for', Parameter.Type.STRING_ARRAY, ParameterDescriptor(
-                type=ParameterType.PARAMETER_STRING_ARRAY, read_only=True,
-                description='nodes that must say they are ready on /eha/ready before the '
-                            'duty starts (e.g. [eha_thermal_estimator, eha_recorder])')),
+            ('wait_for', Parameter.Type.STRING_ARRAY, descriptor(
+                'nodes that must say they are ready on /eha/ready before the duty starts '
+                '(e.g. [eha_thermal_estimator, eha_recorder])')),
             ('start_timeout_s', 120.0, descriptor(
                 'longest wait for wait_for and wait_for_subscribers before starting anyway, s',
                 0.0, 3600.0)),

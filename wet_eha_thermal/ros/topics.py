@@ -5,8 +5,21 @@ The names (topics, message types, estimates, thermocouples) are in
 :mod:`wet_eha_thermal.interface`, which needs no ROS.
 """
 
+import importlib
+
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, qos_profile_sensor_data, QoSProfile,
                        ReliabilityPolicy)
+
+
+def message_class(type_name: str):
+    """Return the rclpy message class of 'pkg/msg/Type' (or 'pkg/Type')."""
+    parts = type_name.split('/')
+    if len(parts) == 2:
+        parts.insert(1, 'msg')
+    if len(parts) != 3 or not all(parts):
+        raise ValueError(f'message type {type_name!r}: expected pkg/msg/Type')
+    module = importlib.import_module(f'{parts[0]}.{parts[1]}')
+    return getattr(module, parts[2])
 
 
 def publish_inputs(publishers, messages, is_pressure, values, stamp) -> None:
