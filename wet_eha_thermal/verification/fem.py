@@ -44,18 +44,18 @@ from .rz_model import (bearing_conductance, end_space_box, fit_coupling,  # noqa
 from .slot_section import (slice_motor, slot_coupling, slot_network, slot_pitch,  # noqa: F401
                            slot_problem, SlotProblem)
 from ..model.motor import MotorInputs, WetMotor
+from ..units import C_TO_K, RPM
 
 
 # ------------------------------------------------------------------ operating points
-RPM = np.pi / 30.0
 
 
 def map_inputs(maps, rpm: float, amps: float) -> MotorInputs:
     """Return the inputs of a map point of ``config.MapsJob`` ``maps`` (speed r/min, A)."""
     return MotorInputs(current_sq_mean_A2=amps ** 2, speed_rad_s=rpm * RPM,
-                       oil_inlet_K=maps.oil_inlet_C + 273.15,
+                       oil_inlet_K=maps.oil_inlet_C + C_TO_K,
                        oil_flow_m3_s=maps.oil_flow_L_min / 60000.0,
-                       ambient_K=maps.ambient_C + 273.15, case_pressure_Pa=maps.case_pressure_Pa)
+                       ambient_K=maps.ambient_C + C_TO_K, case_pressure_Pa=maps.case_pressure_Pa)
 
 
 ROTOR_PARTS = ('sleeve', 'magnet', 'rotor_core', 'shaft', 'bearing')
@@ -86,11 +86,11 @@ def network_figures(motor: WetMotor, u: MotorInputs) -> Dict[str, float]:
     means of their stack slices. Heat paths: the sum over the links of each path.
     """
     T, net = motor.T, motor.net
-    out = {k: v - 273.15 for k, v in motor.outputs(T).items()}
+    out = {k: v - C_TO_K for k, v in motor.outputs(T).items()}
     for part in ('yoke', 'teeth', 'rotor_core', 'shaft'):
         cyl = motor.parts[part]
         out[part] = float(np.dot([T[net.index(m)] for m in cyl.mean], cyl.volume_m3)
-                          / np.sum(cyl.volume_m3)) - 273.15
+                          / np.sum(cyl.volume_m3)) - C_TO_K
     names = net.node_names + net.boundary_names
     flows = net.link_heat_flows(T, motor.boundaries(u))
     oil, bounds = oil_nodes(net), set(net.boundary_names)
@@ -129,7 +129,7 @@ def fe_figures(fe: GridFE, motor: WetMotor) -> Dict[str, float]:
         out[part] = fe.mean(fe.blocks_of(part))
     out['airgap_oil_outlet'] = fe.T[fe.node(motor.gap[-1])]
     out['motor_oil_outlet'] = fe.T[fe.node(motor.oil_nodes[-1])]
-    out = {k: float(v) - 273.15 for k, v in out.items()}
+    out = {k: float(v) - C_TO_K for k, v in out.items()}
     paths = dict.fromkeys(HEAT_PATHS, 0.0)
     for lk in fe.links:
         solid, other = lk.name.split('|')
