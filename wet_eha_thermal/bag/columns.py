@@ -20,10 +20,10 @@ from typing import Callable, Dict, Iterator, List, Mapping, Optional, Tuple
 import numpy as np
 
 from . import cdr
-from ..interface import FLOAT64, FLUID_PRESSURE, TEMPERATURE
 from .files import join_problems, scans, total_bytes
 from .records import (BagError, DATA_AT, LENGTH_AT, LOG_TIME_AT, MESSAGE_HEADER_BYTES, Scanner,
                       take, Unit)
+from ..interface import FLOAT64, FLUID_PRESSURE, TEMPERATURE
 
 # Fields decoded by the speed path, per type. The two header types share one layout:
 # Header (stamp, frame_id), then two float64.
