@@ -70,7 +70,7 @@ def run(cfg, before, held, gap_s: float, hold: bool):
     # silence alone; the second of data after it is stepped as usual, timed apart
     first = 601.0 + gap_s + 0.001
     for ch, v in held.items():
-        est.add(ch, first, v)
+        est.add_many(ch, [first], [v])
     steps0, cpu0 = est.steps, time.process_time()
     catch_up(est)
     cpu1 = time.process_time()

@@ -37,7 +37,8 @@ from .bag.reader import (BagError, BagInfo, Columns, iter_column_blocks, open_ba
                          TEMPERATURE)
 from .config import (Config, config_from_yaml, ConfigError, default_config_path, load_config,
                      with_values)
-from .estimator.core import Estimator, INPUTS, sensor_inputs
+from .estimator.core import Estimator
+from .estimator.intake import INPUTS, sensor_inputs
 from .outputs import atomic, markdown_table, save_figure, write_text
 
 #: Metadata record in which the recorder stores the estimator's configuration YAML.
