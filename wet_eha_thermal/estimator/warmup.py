@@ -19,7 +19,7 @@ from .intake import sensor_signal
 from ..config import Config
 from ..model.kinetics import KineticModel, stage_duty, ThermalFeedback
 from ..model.oil import get_oil
-from ..simulation import compile_model
+from ..model.warmup import compile_model
 
 #: Length of the synthetic stage-6 record fed to the estimator (s) and its rate (Hz).
 WARM_SECONDS, WARM_RATE_HZ = 0.3, 1000.0
@@ -31,7 +31,7 @@ def compile_estimator(cfg: Config) -> float:
     """
     Compile (or load from numba's cache) the model's and the estimator core's kernels; return s.
 
-    Runs :func:`~wet_eha_thermal.simulation.compile_model`, then a throw-away
+    Runs :func:`~wet_eha_thermal.model.warmup.compile_model`, then a throw-away
     :class:`Estimator` through the live node's calls (:meth:`~Estimator.take`,
     ``add_measured``) on ``WARM_SECONDS`` of stage-6 signals, then ``WARM_SILENCE_S`` of
     silence (stale inputs, held blocks), and the live correction's filter once.
