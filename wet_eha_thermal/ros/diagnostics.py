@@ -200,12 +200,12 @@ def input_status(est: Estimator, name: str, now_s: float, topic: str, new_reject
     if h.stale:
         level = STALE
         if h.last_value is None:
-            message = f'stale: no sample yet, using the resting value {est.rest[name]:g}'
+            message = f'stale: no sample yet, using the resting value {est.intake.rest[name]:g}'
         else:
             since = h.stale_since_s if h.stale_since_s is not None else now_s
             message = (f'stale: holding last value {h.last_value:g} since {since:.3f} s '
                        f'({max(now_s - since, 0.0):.1f} s)')
-    cfg = est.channel_cfg[name]
+    cfg = est.intake.channel_cfg[name]
     values = [('topic', topic), ('received', h.received),
               ('accepted', h.accepted), ('non_finite', h.non_finite),
               ('out_of_range', h.out_of_range), ('backwards', h.backwards),
