@@ -175,7 +175,7 @@ def test_margin_current_brings_the_hotspot_to_its_limit(cfg):
     amps = est.margin_current()
     assert 10.0 < amps < 200.0
     # independent check: the motor alone in steady state at that current
-    mot = est._margin_motor
+    mot = est.outlook._margin_motor
     assert mot.outputs()['winding_hotspot'] - C_TO_K == pytest.approx(
         cfg.motor.winding.insulation_limit_C, abs=0.1)
 
