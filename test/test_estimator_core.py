@@ -166,7 +166,7 @@ def test_forecast_matches_a_simulated_run_to_the_limit(cfg):
         # thins, the leakage grows and the speed (and its friction) with it: the forecast
         # crosses late, by 3-4 % whatever its step (2 s: 4.0 %, 10 s: 3.1 %)
         assert truth[q] < predicted < 1.045 * truth[q], q
-    assert est.forecast_failures == 0
+    assert est.outlook.failures == 0
 
 
 def test_margin_current_brings_the_hotspot_to_its_limit(cfg):

@@ -90,6 +90,10 @@ class Estimate:
     inputs: Dict[str, np.ndarray] = field(default_factory=dict)
 
 
+class StepFailed(RuntimeError):
+    """The model's step failed in :meth:`Estimator.take` (the cause is chained)."""
+
+
 class Estimator:
     """Turn timestamped samples into temperature estimates, alerts and forecasts."""
 
@@ -146,16 +150,6 @@ class Estimator:
         """Return how many jumps of the receiving clock re-started the model time."""
         return self.intake.clock_jumps
 
-    @property
-    def last_clock_jump(self) -> Optional[Tuple[float, float]]:
-        """Return the last jump of the receiving clock, (from, to) s; None before any."""
-        return self.intake.last_clock_jump
-
-    @property
-    def forecast_failures(self) -> int:
-        """Return how many forecasts failed numerically (and were given up)."""
-        return self.outlook.failures
-
     # ------------------------------------------------------------ one tick
     def take(self, channel: str, stamp_s: float, value: float,
              now_s: Optional[float] = None,
@@ -172,11 +166,15 @@ class Estimator:
         once, then, if there were any, do the slow work after they have left:
         the model's deferred re-discretisation (``prepare``) and, with a
         positive ``budget_s``, forecast and margin slices within about that
-        much wall time (``background``).
+        much wall time (``background``). A failure of the step raises
+        :class:`StepFailed`, so a caller tells it from the slow work's.
         """
         if not (self.intake.push(channel, stamp_s, value) and self._due(channel, stamp_s)):
             return []
-        estimates = self.advance(now_s)
+        try:
+            estimates = self.advance(now_s)
+        except Exception as exc:  # noqa: B902 - any failure of the step is the model's
+            raise StepFailed(f'{type(exc).__name__}: {exc}') from exc
         if publish is not None:
             publish(estimates)
         if not estimates:

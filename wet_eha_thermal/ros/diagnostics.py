@@ -118,7 +118,7 @@ def estimate_status(est: Estimator, node: NodeCounters) -> Status:
     gap_text = f'{gaps.count}, longest {gaps.longest_s:.1f} s, total {gaps.total_s:.1f} s'
     if gaps.open_since_s is not None:
         gap_text = f'every input silent since {gaps.open_since_s:.3f} s; ' + gap_text
-    jump = est.last_clock_jump
+    jump = est.intake.last_clock_jump
     values += [('alerts', alerts),
                ('data gaps (every input silent)', gap_text),
                ('held blocks (silences crossed)', est.held_blocks),
@@ -127,7 +127,7 @@ def estimate_status(est: Estimator, node: NodeCounters) -> Status:
                ('inputs on fallback', ', '.join(stale) or 'none'),
                ('estimates published', node.published),
                ('model errors', node.model_errors),
-               ('forecast failures', est.forecast_failures),
+               ('forecast failures', est.outlook.failures),
                ('background errors', node.background_errors),
                ('callback errors', sum(node.callback_errors.values())),
                ('samples before the clock', node.waiting_for_clock),

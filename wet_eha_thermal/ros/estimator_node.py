@@ -70,7 +70,7 @@ from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension, String
 from wet_eha_thermal import interface
 from wet_eha_thermal.bag import cdr
 from wet_eha_thermal.config import ConfigError, load_config
-from wet_eha_thermal.estimator.core import Estimate, Estimator
+from wet_eha_thermal.estimator.core import Estimate, Estimator, StepFailed
 from wet_eha_thermal.live_view import app_url, LiveView, parse_address
 from wet_eha_thermal.ros import diagnostics, topics
 from wet_eha_thermal.ros.diagnostics import LIMITED
@@ -451,8 +451,9 @@ class EstimatorNode(Node):
         Hand one sample to :meth:`Estimator.take`; publish the estimates it completes at once.
 
         ``now`` the ROS clock (s), ``t_rx`` the callback's start (perf_counter s).
-        A failure before the estimates were handed over is the model's (the
-        node publishes on, see :meth:`_published`); one after, the slow work's.
+        A failure of the step is the model's (the node publishes on, see
+        :meth:`_published`); one after the estimates were handed over, the slow
+        work's; one before the step, the callback's (it propagates).
         """
         jumps = self.est.clock_jumps
         handed = []
@@ -464,12 +465,13 @@ class EstimatorNode(Node):
 
         try:
             self.est.take(channel, stamp_s, value, now, publish=publish, budget_s=self.budget_s)
-        except Exception as exc:  # noqa: B902 - the model should not raise; never stop
-            if handed:
-                self._background_failed(exc)
-            else:
-                self._model_failed(exc)
-                self._published([], now, t_rx, jumps)
+        except StepFailed as exc:
+            self._model_failed(exc.__cause__)
+            self._published([], now, t_rx, jumps)
+        except Exception as exc:  # noqa: B902 - the slow work never stops the node
+            if not handed:
+                raise
+            self._background_failed(exc)
 
     def _model_failed(self, exc: BaseException) -> None:
         self.model_errors += 1
