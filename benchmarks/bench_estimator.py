@@ -76,7 +76,7 @@ from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64, String
 from wet_eha_thermal import interface
 from wet_eha_thermal.config import default_config_path, load_config
-from wet_eha_thermal.estimator.core import sensor_inputs, sensor_signal
+from wet_eha_thermal.estimator.intake import sensor_inputs, sensor_signal
 from wet_eha_thermal.live_view import CHANNELS
 from wet_eha_thermal.model.kinetics import KineticModel, stage_duty, ThermalFeedback
 from wet_eha_thermal.model.oil import get_oil

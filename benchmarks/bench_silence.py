@@ -30,7 +30,7 @@ import numpy as np
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.estimator import core
 from wet_eha_thermal.estimator.core import Estimator
-from wet_eha_thermal.simulation import compile_model
+from wet_eha_thermal.model.warmup import compile_model
 
 LOAD = {'current_A': 15.0, 'speed_rad_s': 800.0, 'p_a_Pa': 3e6, 'p_b_Pa': 1e6,
         'p_acc_Pa': 1e6, 'position_m': 0.0}
@@ -70,7 +70,7 @@ def run(cfg, before, held, gap_s: float, hold: bool):
     # silence alone; the second of data after it is stepped as usual, timed apart
     first = 601.0 + gap_s + 0.001
     for ch, v in held.items():
-        est.add(ch, first, v)
+        est.add_many(ch, [first], [v])
     steps0, cpu0 = est.steps, time.process_time()
     catch_up(est)
     cpu1 = time.process_time()

@@ -39,7 +39,8 @@ from typing import Optional
 import numpy as np
 
 from wet_eha_thermal.config import load_config, with_values
-from wet_eha_thermal.estimator.core import Estimator, sensor_inputs, sensor_signal
+from wet_eha_thermal.estimator.core import Estimator
+from wet_eha_thermal.estimator.intake import sensor_inputs, sensor_signal
 from wet_eha_thermal.interface import THERMOCOUPLES
 from wet_eha_thermal.model.kinetics import KineticModel, stage_duty, ThermalFeedback
 from wet_eha_thermal.model.oil import get_oil

@@ -357,3 +357,24 @@ def test_the_filter_transition_is_the_model_step_linearised():
         else:
             assert err[:m].max() <= 1e-8 * scale, names[j]
             assert err[m:].max() <= (5e-3 if m <= j < m + nh else 1e-8) * scale, names[j]
+
+
+def test_the_model_linearises_its_last_step_and_takes_a_correction_by_name(cfg, rig_data):
+    # the filter's whole view of the model: named matrices of the last step, and a state
+    # correction that also moves the inlet extrapolation's memory (no private member)
+    est = Estimator(cfg)
+    for block, _, _ in rig_data[:3]:
+        for name in est.inputs:
+            est.add_many(name, block['t_s'], block[name])
+        est.advance_all()
+    model = est.model
+    lin = model.linearize()
+    m, nh = model.motor.x.size, model.T_hyd.size
+    assert lin.state_names == model.quantities.state_names and len(lin.state_names) == m + nh
+    assert lin.motor.Ad.shape == (m, m) and lin.circuit.Phi.shape == (nh, nh)
+    assert lin.motor.Bd.shape[1] == len(lin.motor_input_names)
+    assert lin.motor_capacity_J_K.shape == (m,) and lin.circuit_capacity_J_K.shape == (nh,)
+    before = model.state
+    delta = np.linspace(-0.5, 0.5, m + nh)
+    model.correct(delta)
+    assert np.allclose(model.state - before, delta, rtol=0.0, atol=1e-9)

@@ -22,7 +22,7 @@ def feed(est, t0, seconds, skip=()):
     for k in range(1, int(seconds * 1000) + 1):
         for ch in INPUTS:
             if ch not in skip:
-                est.add(ch, t0 + k / 1000, VALUES[ch])
+                est.intake.push(ch, t0 + k / 1000, VALUES[ch])
         if k % 20 == 0:
             est.advance()
     return t0 + seconds

@@ -31,7 +31,7 @@ def feed(est, t0, seconds, rate_Hz=1000.0, current=lambda t: 15.0, skip=(), adva
         for ch in INPUTS:
             if ch in skip:
                 continue
-            est.add(ch, t, current(t) if ch == 'current_A' else values[ch])
+            est.intake.push(ch, t, current(t) if ch == 'current_A' else values[ch])
         if advance and k % 20 == 0:
             out += est.advance()
     return t0 + n / rate_Hz, out
@@ -90,16 +90,16 @@ def test_bad_samples_are_rejected_and_counted(cfg):
     est = Estimator(cfg)
     feed(est, 0.0, 0.5)
     h = est.health['current_A']
-    assert not est.add('current_A', 0.6, float('nan'))
-    assert not est.add('current_A', 0.6, float('inf'))
-    assert not est.add('current_A', 0.6, -3.0)                # below the plausible range
-    assert not est.add('current_A', 0.4, 10.0)                # stamp going backwards
-    assert est.add('current_A', 0.6, 10.0)
+    assert not est.add_many('current_A', [0.6], [float('nan')])
+    assert not est.add_many('current_A', [0.6], [float('inf')])
+    assert not est.add_many('current_A', [0.6], [-3.0])        # below the plausible range
+    assert not est.add_many('current_A', [0.4], [10.0])        # stamp going backwards
+    assert est.add_many('current_A', [0.6], [10.0])
     assert (h.non_finite, h.out_of_range, h.backwards) == (2, 1, 1)
-    assert not est.add('speed_rad_s', 0.1, 500.0)             # behind the model: counted
+    assert not est.add_many('speed_rad_s', [0.1], [500.0])      # behind the model: counted
     assert est.health['speed_rad_s'].rejected == 1
     with pytest.raises(KeyError):
-        est.add('torque', 0.7, 1.0)
+        est.add_many('torque', [0.7], [1.0])
 
 
 def test_implausible_combinations_are_counted(cfg):
@@ -113,7 +113,7 @@ def test_implausible_combinations_are_counted(cfg):
         t = 1.0 + k / 1000
         sample = dict(STEADY, current_A=5.0, speed_rad_s=0.0, position_m=0.02 * (t - 1.0))
         for ch in INPUTS:
-            est2.add(ch, t, sample[ch])
+            est2.intake.push(ch, t, sample[ch])
         if k % 20 == 0:
             est2.advance()
     assert est2.implausible_counts['flow_without_speed'] >= 20
@@ -152,21 +152,21 @@ def test_forecast_matches_a_simulated_run_to_the_limit(cfg):
         s = kin.sample(duty, ts, fb)
         for i in range(ts.size):
             for ch in INPUTS:
-                est.add(ch, ts[i], float(getattr(s, ch)[i]))
+                est.intake.push(ch, ts[i], float(getattr(s, ch)[i]))
         est.advance_all()
     for _ in range(2000):
         est.background(0.05)
-        if est._forecast_stamp is not None:
+        if est.outlook.stamp_s is not None:
             break
-    start = est._forecast_stamp
+    start = est.outlook.stamp_s
     assert start == pytest.approx(60.0, abs=0.1)
     for q in ('oil', 'magnet'):
-        predicted = start + est._forecast_result[q]
+        predicted = start + est.outlook.result[q]
         # the forecast repeats the first minute's sensor duty, while in the run the oil
         # thins, the leakage grows and the speed (and its friction) with it: the forecast
         # crosses late, by 3-4 % whatever its step (2 s: 4.0 %, 10 s: 3.1 %)
         assert truth[q] < predicted < 1.045 * truth[q], q
-    assert est.forecast_failures == 0
+    assert est.outlook.failures == 0
 
 
 def test_margin_current_brings_the_hotspot_to_its_limit(cfg):
@@ -175,7 +175,7 @@ def test_margin_current_brings_the_hotspot_to_its_limit(cfg):
     amps = est.margin_current()
     assert 10.0 < amps < 200.0
     # independent check: the motor alone in steady state at that current
-    mot = est._margin_motor
+    mot = est.outlook._margin_motor
     assert mot.outputs()['winding_hotspot'] - C_TO_K == pytest.approx(
         cfg.motor.winding.insulation_limit_C, abs=0.1)
 
@@ -194,9 +194,9 @@ def test_differential_pressure_matches_ports_with_the_low_side_at_the_accumulato
         common = {'current_A': 20.0, 'speed_rad_s': 900.0, 'position_m': x}
         for ch, v in dict(common, p_a_Pa=p_acc + max(dp, 0.0), p_b_Pa=p_acc + max(-dp, 0.0),
                           p_acc_Pa=p_acc).items():
-            ports.add(ch, t, v)
+            ports.intake.push(ch, t, v)
         for ch, v in dict(common, dp_Pa=dp).items():
-            diff.add(ch, t, v)
+            diff.intake.push(ch, t, v)
         ports.advance()
         diff.advance()
     assert ports.steps == diff.steps > 900
@@ -210,7 +210,7 @@ def test_differential_pressure_matches_ports_with_the_low_side_at_the_accumulato
         t = k / 1000.0
         for ch, v in {'current_A': 20.0, 'speed_rad_s': 900.0, 'dp_Pa': 0.0,
                       'position_m': 0.01 * math.sin(2 * math.pi * t / 4.0)}.items():
-            flat.add(ch, t, v)
+            flat.intake.push(ch, t, v)
         flat.advance()
     assert diff.latest.temperatures_C['pump_port_a'] \
         - flat.latest.temperatures_C['pump_port_a'] > 0.3
@@ -228,7 +228,7 @@ def test_deferred_rediscretisation_is_deterministic_and_lags_harmlessly(cfg):
         prepared = 0
         for i in range(t.size):
             for ch, v in cols:
-                est.add(ch, t[i], float(v[i]))
+                est.intake.push(ch, t[i], float(v[i]))
             if i % 20 == 19:
                 est.advance()
                 if prepare:
@@ -263,7 +263,7 @@ def test_stamps_since_the_epoch_give_the_same_estimates_as_small_stamps(cfg):
         assert big.latest.temperatures_C[name] == pytest.approx(value, abs=1e-6), name
 
 
-def test_add_many_counts_and_keeps_exactly_what_add_does(cfg):
+def test_add_many_counts_and_keeps_the_same_in_blocks_as_one_by_one(cfg):
     # a replay feeds arrays: the same samples must be accepted and rejected for the
     # same reasons as one by one (NaN, out of range, backwards, duplicate, late)
     rng = np.random.default_rng(3)
@@ -276,17 +276,17 @@ def test_add_many_counts_and_keeps_exactly_what_add_does(cfg):
     one, many = Estimator(cfg), Estimator(cfg)
     for est in (one, many):
         for ch in INPUTS:
-            est.add(ch, 0.0, STEADY.get(ch, 10.0))
+            est.add_many(ch, [0.0], [STEADY.get(ch, 10.0)])
         est.advance()                   # starts the model at t = 0
     for a, b in ((0, 1000), (1000, 1001), (1001, t.size)):
         for k in range(a, b):
-            one.add('current_A', float(t[k]), float(v[k]))
+            one.add_many('current_A', t[k:k + 1], v[k:k + 1])
         many.add_many('current_A', t[a:b], v[a:b])
     h1, h2 = one.health['current_A'], many.health['current_A']
     assert vars(h1) == vars(h2)
     assert h1.non_finite >= 30 and h1.out_of_range >= 25 and h1.backwards >= 20
     kept = [(b.stamps().tolist(), b.v[b.lo:b.hi].tolist())
-            for b in (one._samples['current_A'], many._samples['current_A'])]
+            for b in (one.intake.buffers['current_A'], many.intake.buffers['current_A'])]
     assert kept[0] == kept[1]
     late = Estimator(cfg)
     late.t_model = 1.0
@@ -307,16 +307,16 @@ def test_a_burst_of_bunched_position_stamps_is_rate_limited(cfg):
             t = k / 1000.0
             x = 0.02 * math.sin(2 * math.pi * t / 2.0)       # 63 mm/s peak
             for ch in INPUTS[:-1]:
-                est.add(ch, t, 15.0 if ch == 'current_A' else STEADY[ch])
+                est.intake.push(ch, t, 15.0 if ch == 'current_A' else STEADY[ch])
             if burst and 4000 < k <= 4400:
                 held.append(x)                                 # stalled receiver
             elif held:
                 for j, xj in enumerate(held):                  # stamped on arrival
-                    est.add('position_m', t - 0.001 + (j + 1) * 1e-6, xj)
+                    est.intake.push('position_m', t - 0.001 + (j + 1) * 1e-6, xj)
                 held = []
-                est.add('position_m', t, x)
+                est.intake.push('position_m', t, x)
             else:
-                est.add('position_m', t, x)
+                est.intake.push('position_m', t, x)
             est.advance()
         return est
 

@@ -358,7 +358,7 @@ def test_model_failure_keeps_publishing_and_reports_error(rig):
         raise RuntimeError('injected')
 
     rig.node.est.advance = broken
-    rig.node.est.push = broken_push
+    rig.node.est.intake.push = broken_push
     n = len(rig.estimates['oil'])
     assert rig.feed(3.0, until=lambda: rig.level('estimate') == ERROR
                     and len(rig.estimates['oil']) > n + 10)

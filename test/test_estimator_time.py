@@ -36,7 +36,7 @@ def feed(est, t0, t1, values, rate_Hz=1000.0, clock=True):
     for k in range(1, n + 1):
         t = t0 + k / rate_Hz
         for ch in INPUTS:
-            est.add(ch, t, values[ch])
+            est.intake.push(ch, t, values[ch])
         if k % 20 == 0:
             out += est.advance(t if clock else None)
     return out
@@ -62,9 +62,9 @@ def test_a_stamp_far_ahead_of_the_clock_is_rejected_and_moves_nothing(cfg):
     feed(est, 0.0, 2.0, LOAD)
     last = {ch: est.health[ch].last_stamp_s for ch in INPUTS}
     for ch in INPUTS:
-        assert not est.add(ch, 2.0 + 86400.0, LOAD[ch])
+        assert not est.add_many(ch, [2.0 + 86400.0], [LOAD[ch]])
     assert not est.add_measured('frame', 2.0 + 86400.0, 25.0)
-    assert est.push('speed_rad_s', 2.0 + 86400.0, 800.0)      # checked at the next advance
+    assert est.intake.push('speed_rad_s', 2.0 + 86400.0, 800.0)   # checked at the next advance
     out = est.advance(2.001)
     assert len(out) <= est.settings.max_steps_per_call
     for ch in INPUTS:
@@ -77,7 +77,7 @@ def test_a_stamp_far_ahead_of_the_clock_is_rejected_and_moves_nothing(cfg):
     assert all(h.backwards == 0 and h.late == 0 for h in est.health.values())
     assert out[-1].stamp_s == pytest.approx(3.0, abs=0.021) and out[-1].stale == []
     # within max_future_s of the clock a stamp is fine (a rig clock a little ahead)
-    assert est.add('current_A', 3.0 + 0.4, 15.0)
+    assert est.add_many('current_A', [3.0 + 0.4], [15.0])
 
 
 def test_a_clock_jump_back_restarts_model_time_and_keeps_the_state(cfg):
@@ -85,10 +85,10 @@ def test_a_clock_jump_back_restarts_model_time_and_keeps_the_state(cfg):
     feed(est, 1000.0, 1030.0, LOAD)
     before = est.latest.temperatures_C
     assert before['winding_hotspot'] > 21.0
-    buffered = sum(b.hi - b.lo for b in est._samples.values())
+    buffered = sum(b.hi - b.lo for b in est.intake.buffers.values())
     # sim time restarts from 10 s: the clock reads 10.0 at the next tick
     out = est.advance(10.0)
-    assert est.clock_jumps == 1 and est.last_clock_jump[1] == 10.0
+    assert est.clock_jumps == 1 and est.intake.last_clock_jump[1] == 10.0
     assert est.t_model == pytest.approx(10.0)           # never stepped across 1020 s
     assert sum(h.discarded for h in est.health.values()) == buffered
     assert len(out) == 1 and 'clock jumped' in out[0].notices[0]
@@ -162,9 +162,9 @@ def test_buffers_are_capped_and_overflow_is_counted():
     cfg = load_config(overrides={'estimator.buffer_samples': 1024})
     est = Estimator(cfg)
     for k in range(5000):                          # a flood with the model never stepping
-        est.push('current_A', 1.0 + k * 1e-4, 10.0)
+        est.intake.push('current_A', 1.0 + k * 1e-4, 10.0)
     h = est.health['current_A']
-    assert h.overflow == 5000 - 1024 and est._samples['current_A'].t.size == 1024
+    assert h.overflow == 5000 - 1024 and est.intake.buffers['current_A'].t.size == 1024
     est.advance()
     assert h.accepted == 1024 and h.received == 5000
 
@@ -198,7 +198,10 @@ def fuzz(est, rng, iterations=None, seconds=None):
                              if rng.random() < 0.05 else 0.0)
             value = float(rng.choice(bad_values)) if rng.random() < 0.05 \
                 else LOAD[ch] * (1.0 + 0.01 * rng.standard_normal())
-            (est.push if rng.random() < 0.5 else est.add)(ch, stamp, value)
+            if rng.random() < 0.5:
+                est.intake.push(ch, stamp, value)
+            else:
+                est.add_many(ch, [stamp], [value])
         if rng.random() < 0.02:
             est.add_measured('frame', clock + (1e6 if rng.random() < 0.1 else 0.0), 30.0)
         if rng.random() < 0.3:
@@ -213,7 +216,7 @@ def good_data(est, clock, seconds):
     for k in range(1, int(round(seconds * 1000.0)) + 1):
         t = clock + k / 1000.0
         for ch in est.inputs:
-            est.add(ch, t, LOAD[ch])
+            est.intake.push(ch, t, LOAD[ch])
         if k % 20 == 0:
             est.advance(t)
     catch_up(est, t)
@@ -227,8 +230,8 @@ def test_seeded_fuzz_raises_nothing_stays_bounded_and_recovers(cfg):
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     clock, slowest = fuzz(est, np.random.default_rng(20261123), iterations=3000)
     # every buffer capped, whatever was fed
-    assert all(b.t.size == cfg.estimator.buffer_samples for b in est._samples.values())
-    assert len(est._window) <= est._window.maxlen
+    assert all(b.t.size == cfg.estimator.buffer_samples for b in est.intake.buffers.values())
+    assert len(est.outlook.window) <= est.outlook.window.maxlen
     assert all(len(g.pending) <= 1000 for g in est.correction._guards.values())
     grown_MB = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - rss0) / 1024
     assert grown_MB < 200, grown_MB

@@ -93,9 +93,8 @@ def test_replay_equals_the_live_estimator_fed_sample_by_sample(bag, result):
             t, v = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec, msg.fluid_pressure
         else:
             t, v = m.log_time_ns * 1e-9, deserialize_message(m.data, Float64).data
-        if est.add(name, t, v) and est.ready(t):
-            for e in est.advance():
-                live[e.stamp_s] = e.temperatures_C
+        for e in est.take(name, t, v, budget_s=0.0):
+            live[e.stamp_s] = e.temperatures_C
     assert len(live) == len(result.stamp_s) > 900
     assert result.correction['active'] and est.correction.updates > 900
     assert est.correction.updates == result.correction['updates']

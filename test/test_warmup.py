@@ -15,7 +15,8 @@ import json, sys
 import numba
 import numpy as np
 from wet_eha_thermal.config import load_config
-from wet_eha_thermal.estimator.core import Estimator, sensor_signal
+from wet_eha_thermal.estimator.core import Estimator
+from wet_eha_thermal.estimator.intake import sensor_signal
 from wet_eha_thermal.estimator.warmup import compile_estimator
 from wet_eha_thermal.model.kinetics import KineticModel, stage_duty, ThermalFeedback
 from wet_eha_thermal.model.oil import get_oil
@@ -48,11 +49,8 @@ for stage, (t0, t1) in ((6, (0.0, 30.0)), (3, (400.0, 430.0))):
             for tc in est.correction.tcs:
                 est.add_measured(tc, tk, 25.0 + rng.standard_normal())
         for n in est.inputs:
-            if est.push(n, tk, sig[n][k]) and est.due(n, tk):
-                est.advance(tk)
-                est.prepare()
-                est.background(0.002)
-    while est._forecast is not None or est._margin_job is not None:
+            est.take(n, tk, sig[n][k], now_s=tk, budget_s=0.002)
+    while est.outlook.busy:
         est.background(0.05)
     est.margin_current()
     est.advance_all(t1 + 360.0 if stage == 6 else t1)

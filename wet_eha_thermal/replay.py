@@ -36,7 +36,8 @@ from . import interface
 from .bag.reader import BagError, BagInfo, Columns, iter_column_blocks, open_bag
 from .config import (Config, config_from_yaml, ConfigError, default_config_path, load_config,
                      with_values)
-from .estimator.core import Estimator, INPUTS, sensor_inputs
+from .estimator.core import Estimator
+from .estimator.intake import INPUTS, sensor_inputs
 from .model import quantity_table
 from .outputs import atomic, markdown_table, save_figure, write_text
 

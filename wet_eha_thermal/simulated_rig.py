@@ -28,7 +28,7 @@ from typing import Callable, Dict, Iterator, Optional, Tuple
 import numpy as np
 
 from .config import Calibration, Config
-from .estimator.core import sensor_inputs, sensor_signal
+from .estimator.intake import sensor_inputs, sensor_signal
 from .interface import (AMBIENT_TOPIC, INPUT_TOPICS, INPUT_TYPES, MEASURED_PREFIX,
                         PRESSURE_INPUTS, TEMPERATURE, THERMOCOUPLES)
 from .model.eha import EHAModel

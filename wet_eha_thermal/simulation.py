@@ -9,14 +9,13 @@ estimator consumes the rig's, so an offline run exercises the same path.
 """
 
 from dataclasses import dataclass, field
-import time
 from typing import Callable, Dict, List, Optional
 
 import numpy as np
 
 from .config import Config
 from .model.eha import EHAModel
-from .model.kinetics import Duty, KineticModel, stage_duty, ThermalFeedback
+from .model.kinetics import Duty, KineticModel, ThermalFeedback
 from .units import C_TO_K
 
 SENSORS = ('current_A', 'speed_rad_s', 'p_a_Pa', 'p_b_Pa', 'p_acc_Pa', 'position_m')
@@ -141,19 +140,3 @@ def simulate(cfg: Config, duty: Duty, duration_s: float, dt_s: float = 1.0,
         if progress is not None and (k % report_every == 0 or k == steps - 1):
             progress(k + 1, steps, f't = {t[-1]:.0f} s')
     return res
-
-
-def compile_model(cfg: Config) -> float:
-    """
-    Compile the model's numba kernels now, or load them from numba's cache; return seconds.
-
-    A process's first model step compiles the kernels it calls: about half a
-    minute after an install or a change of the model's code, a fraction of a
-    second from the cache. A node calls this before it subscribes or
-    publishes, so that no sample waits behind the compiler. A tenth of a
-    second of stage 6 calls every kernel with the argument types that the
-    estimator and the simulated rig use.
-    """
-    start = time.perf_counter()
-    simulate(cfg, stage_duty(cfg, 6), 0.1, dt_s=0.02, sample_rate_Hz=1000.0, record_every_s=0.1)
-    return time.perf_counter() - start

@@ -13,11 +13,13 @@ being fought anew at every step.
 Each model step, once the filter is active:
 
 - predict: the covariance goes through the step's exact transition, built
-  from what the model just used: the motor's zero-order-hold matrices
-  (``Ad``; the ``Bd`` column of the oil inlet, which is the pump case
-  temperature; the copper sources' columns with the linearised R(T) feedback
-  dP/dT), the hydraulic step's matrix exponential, and the motor outlet's
-  step-mean temperature (``Mx``, ``Mw``) that feeds the accumulator. Process
+  from the model's linearisation of the step it just made
+  (:meth:`~..model.eha.EHAModel.linearize`; the kernels are in
+  :mod:`.kalman`): the motor's zero-order-hold matrices (``Ad``; the ``Bd``
+  column of the oil inlet, which is the pump case temperature; the copper
+  sources' columns with the linearised R(T) feedback dP/dT), the hydraulic
+  step's matrix exponential, and the motor outlet's step-mean temperature
+  (``Mx``, ``Mw``) that feeds the accumulator. Process
   noise is a white heat-rate error per node with heat capacity (``heat_noise_W``,
   K^2 = q^2 dt / C^2 per step), entered at the start of the step so that a
   fast oil node passes it on to its neighbours within the step, as heat does;
@@ -28,7 +30,8 @@ Each model step, once the filter is active:
   and frame are weighted sums of nodes, the oil volumes single nodes, and
   the max-type outputs the hottest node. Scalar updates in turn, each in Joseph
   form (written as rank-one terms, O(n^2)), then the covariance symmetrised.
-  The correction is written back into the model: motor states and node
+  The correction is written back into the model
+  (:meth:`~..model.eha.EHAModel.correct`): motor states and node
   temperatures together (algebraic nodes through the network's output map),
   the hydraulic temperatures, and the pump case's previous temperature that
   the motor's inlet extrapolation uses, so the next step does not take the
@@ -81,12 +84,12 @@ from typing import Deque, Dict, List, Optional, Tuple
 
 import numpy as np
 
+from .kalman import FilterLayout, output_variances, predict_covariance, scalar_update, symmetrise
 from ..config import Config
 from ..interface import THERMOCOUPLES
-from ..model.compiled import jit
 from ..model.eha import EHAModel
-from ..model.motor import C_TO_K
 from ..model.quantities import MEAN
+from ..units import C_TO_K
 
 #: Readings outside this range (degC) are rejected as implausible values.
 READING_RANGE_C = (-60.0, 400.0)
@@ -193,11 +196,7 @@ class ThermalCorrection:
         self._s_copper = q.state_indices('winding_mean')
         self._w_copper = q.weights('winding_mean')
         self._s_outlet = int(q.state_indices('motor_oil_outlet')[0])
-        nb = net.nb
-        self._col_inlet = net.boundary_index('oil_inlet')
         self._src_copper = np.array(mo.src_copper)
-        self._col_copper = nb + self._src_copper
-        self._i_case = model.circuit.index('case')
         model.circuit.keep_transition = True        # _predict reads it after every step
         # the outputs that are weighted means of states: their (fixed) rows
         means = [name for name, o in q.outputs.items() if o.kind == MEAN]
@@ -207,6 +206,12 @@ class ThermalCorrection:
             self._H_mean[k, q.state_indices(name)] = q.weights(name)
         self._mean_of_output = np.array([self._mean_row.get(name, -1) for name in q.names])
         self._output_position = {name: k for k, name in enumerate(q.names)}
+        self._layout = FilterLayout(
+            s_copper=self._s_copper, col_copper=net.nb + self._src_copper,
+            col_inlet=net.boundary_index('oil_inlet'), w_copper=self._w_copper,
+            s_outlet=self._s_outlet, i_case=model.circuit.index('case'),
+            i_case_d=-1 if self._i_case_d is None else self._i_case_d,
+            i_wind_d=-1 if self._i_wind_d is None else self._i_wind_d)
         wd = cfg.motor.winding
         self._alpha_cu = wd.copper_tempco_1_K
         self.P: Optional[np.ndarray] = None
@@ -487,39 +492,16 @@ class ThermalCorrection:
 
     def _predict(self, model: EHAModel, dt: float) -> None:
         """Propagate the covariance through the step just made (``dt`` s)."""
-        mo = model.motor
-        disc = mo.net.last_disc
-        p_cu = mo.power_W[self._src_copper]
-        if mo.extra_power_W is not None:          # the learned heat does not follow R(T)
-            p_cu = p_cu - mo.extra_power_W[self._src_copper]
-        # hydraulics: the circuit's transition over the step, and its responses to the
-        # motor outlet's step mean (into the accumulator) and to heat into the case
-        Eh, g_acc, g_case, C = model.circuit.last_transition()
+        lin = model.linearize()
         self.P = predict_covariance(
-            self.P, disc.Ad, disc.Bd, disc.Mx, disc.Mw, mo.T[mo.idx_copper], p_cu,
-            self._alpha_cu, self._s_copper, self._col_copper, self._col_inlet, self._w_copper,
-            self._s_outlet, mo.last_substeps, Eh, g_acc, g_case, self._i_case,
-            -1 if self._i_case_d is None else self._i_case_d,
-            -1 if self._i_wind_d is None else self._i_wind_d,
-            mo.net.coefficients_in_use()[2][self.dynamic], C,
+            self.P, lin.motor, lin.circuit, lin.copper_K, lin.copper_power_W, self._alpha_cu,
+            self._layout, lin.motor_capacity_J_K, lin.circuit_capacity_J_K,
             self.settings.heat_noise_W ** 2 * dt, self._d_rate2 * dt, self._d_prior)
 
     def _write_back(self, model: EHAModel, delta: np.ndarray) -> None:
-        """Put the corrected state into the model, every dependent value consistent."""
+        """Put the corrected state into the model, and the learned heats into its sources."""
         mo, m, nh = model.motor, self.m, self.nh
-        dx = delta[:m]
-        mo.x = mo.x + dx
-        T = mo.T.copy()
-        T[self.dynamic] += dx
-        _, _, _, a, out_x, _ = mo.net._reduce()
-        if a.size:
-            T[a] += out_x @ dx
-        mo.T = T
-        dh = delta[m:m + nh]
-        model.T_hyd = model.T_hyd + dh
-        if model.circuit.T_report is not None:
-            model.circuit.T_report = model.circuit.T_report + dh
-        model._case_prev_K += float(dh[self._i_case])   # the inlet extrapolation's memory
+        model.correct(delta[:m + nh])
         if self.nd:
             self.d = self.d + delta[m + nh:]
             if self._i_case_d is not None:
@@ -547,174 +529,3 @@ class ThermalCorrection:
                 'disturbance_W': dict(zip(self.disturbance_names, self.d.tolist())),
                 'thermocouples': {name: h.status for name, h in self.tcs.items()
                                   if h.received}}
-
-
-@jit
-def coupled_transition(Ad, Bd, Mx, Mw, copper_gain, s_copper, col_copper, col_inlet, w_copper,
-                       s_outlet, substeps, Eh, g_acc, g_case, i_case, i_case_d, i_wind_d, n):
-    """
-    Return the transition (n x n) of the filter's state over one step of the coupled model.
-
-    Motor: the step's zero-order-hold matrices ``Ad``, ``Bd`` (``substeps``
-    equal sub-steps of them) and its mean ``Mx``, ``Mw``, the copper sources'
-    columns ``col_copper`` of ``Bd`` fed back through ``copper_gain`` (dP/dT,
-    W/K) into the copper states ``s_copper``, the oil inlet's column
-    ``col_inlet`` (the pump case temperature, hydraulic node ``i_case``);
-    ``w_copper`` the winding disturbance's split over the copper sources,
-    ``s_outlet`` the motor outlet's state. Hydraulics: the circuit's
-    transition ``Eh`` and its responses ``g_acc`` (to the motor outlet's step
-    mean) and ``g_case`` (to heat into the case, W). ``i_case_d`` and
-    ``i_wind_d``: the state index of the case and the winding disturbance
-    (-1: none); the disturbances walk, their rows are the identity.
-    """
-    m, nh = Ad.shape[0], Eh.shape[0]
-    Phi = np.zeros((n, n))
-    B_cu = np.ascontiguousarray(Bd[:, col_copper])
-    A = Ad.copy()
-    for j in range(s_copper.size):
-        A[:, s_copper[j]] += B_cu[:, j] * copper_gain[j]
-    b_in = Bd[:, col_inlet].copy()
-    b_wind = B_cu @ w_copper
-    if substeps > 1:                      # not with the estimator's steps (<= 1 s)
-        acc = np.zeros_like(A)
-        for j in range(substeps):
-            acc += np.linalg.matrix_power(A, j)
-        A = np.linalg.matrix_power(A, substeps)
-        b_in, b_wind = acc @ b_in, acc @ b_wind
-    Phi[:m, :m] = A
-    Phi[:m, m + i_case] = b_in
-    if i_wind_d >= 0:
-        Phi[:m, i_wind_d] = b_wind
-    out_x = Mx[s_outlet].copy()
-    for j in range(s_copper.size):
-        out_x[s_copper[j]] += Mw[s_outlet, col_copper[j]] * copper_gain[j]
-    Phi[m:m + nh, :m] = np.outer(g_acc, out_x)
-    Phi[m:m + nh, m:m + nh] = Eh
-    Phi[m:m + nh, m + i_case] += g_acc * Mw[s_outlet, col_inlet]
-    if i_case_d >= 0:
-        Phi[m:m + nh, i_case_d] = g_case
-    if i_wind_d >= 0:
-        Phi[m:m + nh, i_wind_d] = g_acc * np.dot(Mw[s_outlet][col_copper], w_copper)
-    for i in range(m + nh, n):
-        Phi[i, i] = 1.0
-    return Phi
-
-
-@jit
-def predict_covariance(P, Ad, Bd, Mx, Mw, T_copper, p_copper, alpha_copper, s_copper,
-                       col_copper, col_inlet, w_copper, s_outlet, substeps, Eh, g_acc, g_case,
-                       i_case, i_case_d, i_wind_d, C_motor, C_hyd, heat_var, walk_var, prior):
-    """
-    Return the covariance after a step of the coupled model, from the step's matrices.
-
-    The copper losses are linear in their temperatures ``T_copper`` (K):
-    ``p_copper`` (W) scales with R(T), 1 + ``alpha_copper`` (T - 20 degC),
-    so dP/dT = p alpha / (1 + alpha (T - 20 degC)). The transition is
-    :func:`coupled_transition`'s. Process noise, added at the start of the
-    step: ``heat_var`` (W^2 s, the heat-rate noise q^2 times the step) over
-    the square of each state's heat capacity (``C_motor``, ``C_hyd``, J/K),
-    and ``walk_var`` for the disturbances (:func:`propagate_covariance`).
-    """
-    gain = p_copper * alpha_copper / (1.0 + alpha_copper * (T_copper - (C_TO_K + 20.0)))
-    Phi = coupled_transition(Ad, Bd, Mx, Mw, gain, s_copper, col_copper, col_inlet, w_copper,
-                             s_outlet, substeps, Eh, g_acc, g_case, i_case, i_case_d,
-                             i_wind_d, P.shape[0])
-    cap = np.concatenate((C_motor, C_hyd))
-    noise = np.concatenate((heat_var / (cap * cap), walk_var))
-    P = propagate_covariance(P, Phi, noise, prior)
-    if not np.isfinite(P).all():
-        raise FloatingPointError('the covariance is no longer finite')
-    return P
-
-
-@jit
-def propagate_covariance(P, Phi, noise, prior):
-    """
-    Return the covariance after a step: Phi (P + diag(noise)) Phi^T, symmetrised, capped.
-
-    ``noise`` the variance added to each state at the start of the step;
-    the last ``prior.size`` states are the disturbances, whose variance never
-    exceeds their ``prior`` (their rows and columns are scaled down to it).
-    """
-    n = P.shape[0]
-    Q = P.copy()
-    for i in range(n):
-        Q[i, i] += noise[i]
-    Q = Phi @ Q @ Phi.T
-    Q = (Q + Q.T) * 0.5           # (not in place: Q.T is a view of Q)
-    for j in range(prior.size):       # a disturbance never exceeds its prior
-        i = n - prior.size + j
-        if Q[i, i] > prior[j]:
-            f = np.sqrt(prior[j] / Q[i, i])
-            Q[i, :] *= f
-            Q[:, i] *= f
-    return Q
-
-
-@jit
-def output_variances(P, taken, H_mean, mean_of_output):
-    """
-    Return the variance of every output from the covariance ``P``, never below zero.
-
-    ``taken[k]``: the state output ``k`` takes (-1: none); else it is the
-    weighted mean of row ``mean_of_output[k]`` of ``H_mean``. An output that
-    is neither now (a port before the first sample) gets 0.
-    """
-    HP = H_mean @ P
-    out = np.empty(taken.size)
-    for k in range(taken.size):
-        if taken[k] >= 0:
-            v = P[taken[k], taken[k]]
-        elif mean_of_output[k] >= 0:
-            v = np.dot(HP[mean_of_output[k]], H_mean[mean_of_output[k]])
-        else:
-            v = np.nan
-        out[k] = v if v > 0.0 else 0.0
-    return out
-
-
-@jit
-def scalar_update(P, row, y, prior, r, gate2, use, delta):
-    """
-    Gate a reading ``y`` of ``row`` . state; if it passes, update ``P`` and ``delta`` in place.
-
-    ``prior``: its estimate before the step's earlier updates, ``delta`` (of
-    the state), which add their part; ``r`` the reading's variance. Returns
-    (innovation, its variance, inside the gate: innovation^2 <= ``gate2``
-    variance); the update is made when inside and ``use``.
-    """
-    innovation = y - (prior + np.dot(row, delta))
-    Ph = P @ row
-    var = np.dot(row, Ph) + r
-    inside = innovation * innovation <= gate2 * var
-    if inside and use and np.isfinite(innovation) and np.isfinite(var) and var > 0.0:
-        k = Ph / var
-        delta += k * innovation
-        joseph_update(P, k, Ph, var)          # Joseph form, in place
-    return innovation, var, inside
-
-
-@jit
-def symmetrise(P):
-    """Replace ``P`` in place by (P + P^T) / 2: the scalar updates leave rounding asymmetries."""
-    n = P.shape[0]
-    for i in range(n):
-        for j in range(i + 1, n):
-            v = (P[i, j] + P[j, i]) * 0.5
-            P[i, j] = v
-            P[j, i] = v
-
-
-@jit
-def joseph_update(P, k, Ph, var):
-    """
-    Update the covariance ``P`` in place for one scalar measurement, in Joseph form.
-
-    (I - k h) P (I - k h)^T + k r k^T written as rank-one terms: ``Ph`` is
-    P h^T, ``var`` = h P h^T + r the innovation's variance and ``k`` = Ph / var
-    the gain.
-    """
-    n = k.size
-    for i in range(n):
-        for j in range(n):
-            P[i, j] = P[i, j] - k[i] * Ph[j] - Ph[i] * k[j] + var * (k[i] * k[j])

@@ -14,11 +14,12 @@ import time
 
 import numpy as np
 
-from .core import Estimator, sensor_signal
+from .core import Estimator
+from .intake import sensor_signal
 from ..config import Config
 from ..model.kinetics import KineticModel, stage_duty, ThermalFeedback
 from ..model.oil import get_oil
-from ..simulation import compile_model
+from ..model.warmup import compile_model
 
 #: Length of the synthetic stage-6 record fed to the estimator (s) and its rate (Hz).
 WARM_SECONDS, WARM_RATE_HZ = 0.3, 1000.0
@@ -30,11 +31,10 @@ def compile_estimator(cfg: Config) -> float:
     """
     Compile (or load from numba's cache) the model's and the estimator core's kernels; return s.
 
-    Runs :func:`~wet_eha_thermal.simulation.compile_model`, then a throw-away
-    :class:`Estimator` through the live node's calls (``push``, ``due``,
-    ``advance``, ``prepare``, ``background``, ``add_measured``) on ``WARM_SECONDS`` of stage-6
-    signals, then ``WARM_SILENCE_S`` of silence (stale inputs, held blocks), and the live
-    correction's filter once.
+    Runs :func:`~wet_eha_thermal.model.warmup.compile_model`, then a throw-away
+    :class:`Estimator` through the live node's calls (:meth:`~Estimator.take`,
+    ``add_measured``) on ``WARM_SECONDS`` of stage-6 signals, then ``WARM_SILENCE_S`` of
+    silence (stale inputs, held blocks), and the live correction's filter once.
     """
     start = time.perf_counter()
     compile_model(cfg)
@@ -49,9 +49,7 @@ def compile_estimator(cfg: Config) -> float:
             for tc in tcs:
                 est.add_measured(tc, float(tk), cfg.estimator.ambient_C)
         for name in est.inputs:
-            if est.push(name, float(tk), float(signals[name][k])) and est.due(name, float(tk)):
-                est.advance(float(tk))
-                est.prepare()
+            est.take(name, float(tk), float(signals[name][k]), now_s=float(tk), budget_s=0.0)
     est.background(0.05)
     # a silence: inputs go stale, the model steps on held values and in held blocks
     est.advance_all(float(t[-1]) + WARM_SILENCE_S)

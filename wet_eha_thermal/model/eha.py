@@ -23,7 +23,7 @@ every step, and no oil takes a path the rig does not have.
 """
 
 from dataclasses import dataclass
-from typing import Dict, Optional, Tuple
+from typing import Dict, NamedTuple, Optional, Tuple
 
 import numpy as np
 
@@ -62,6 +62,58 @@ class SampleBlock:
     p_b_Pa: np.ndarray
     p_acc_Pa: np.ndarray
     position_m: np.ndarray
+
+
+class MotorTransition(NamedTuple):
+    """
+    The motor network's exact step: x_end = Ad x + Bd w, its mean Mx x + Mw w, ``substeps`` times.
+
+    ``w`` is the network's inputs, the boundary temperatures (K) then the
+    source powers (W); numba kernels take the tuple as it is.
+    """
+
+    Ad: np.ndarray
+    Bd: np.ndarray
+    Mx: np.ndarray
+    Mw: np.ndarray
+    substeps: int
+
+
+class CircuitTransition(NamedTuple):
+    """
+    The hydraulic circuit's step: T_end = Phi T + g_acc T_outlet + g_case Q_case + the rest.
+
+    ``g_acc`` the response to the motor outlet's step-mean temperature (K/K),
+    ``g_case`` to extra heat into the case oil (K/W); numba kernels take it as it is.
+    """
+
+    Phi: np.ndarray
+    g_acc: np.ndarray
+    g_case: np.ndarray
+
+
+@dataclass(frozen=True)
+class Linearisation:
+    """
+    The coupled model's last step as linear maps, named, for a state estimator.
+
+    States (``state_names``): the motor network's states, then the hydraulic
+    nodes (K), as :attr:`EHAModel.state`. The motor's inputs
+    (``motor_input_names``) are its network's boundaries (K) and sources (W);
+    the circuit takes the motor outlet (K) and a heat into the case (W). The
+    copper losses depend on their temperatures (R(T)): ``copper_K`` and
+    ``copper_power_W`` give the operating point of that feedback, without a
+    heat the caller added (:attr:`WetMotor.extra_power_W`).
+    """
+
+    state_names: Tuple[str, ...]
+    motor_input_names: Tuple[str, ...]
+    motor: MotorTransition
+    circuit: CircuitTransition
+    motor_capacity_J_K: np.ndarray     # heat capacity of each motor state
+    circuit_capacity_J_K: np.ndarray   # heat capacity of each hydraulic node
+    copper_K: np.ndarray
+    copper_power_W: np.ndarray
 
 
 class EHAModel:
@@ -151,6 +203,58 @@ class EHAModel:
     def state(self) -> np.ndarray:
         """Return the state vector: motor states, then hydraulic node temperatures (K)."""
         return np.concatenate([self.motor.x, self.T_hyd])
+
+    @property
+    def last_position_m(self) -> float:
+        """Return the actuator position (m) of the last sample the model took."""
+        return self._last[1]
+
+    def linearize(self) -> Linearisation:
+        """
+        Return the last step as linear maps (:class:`Linearisation`), as a filter predicts with.
+
+        The circuit must keep its transition (``circuit.keep_transition``).
+        """
+        mo, net = self.motor, self.motor.net
+        disc = net.last_disc
+        p_cu = mo.power_W[mo.src_copper]
+        if mo.extra_power_W is not None:          # a learned heat does not follow R(T)
+            p_cu = p_cu - mo.extra_power_W[mo.src_copper]
+        Phi, g_acc, g_case, C = self.circuit.last_transition()
+        sources = [f'{group}_{k}' for group, idx in mo.sources.items()
+                   for k in range(idx.stop - idx.start)]
+        return Linearisation(
+            state_names=tuple(self.quantities.state_names),
+            motor_input_names=tuple(net.boundary_names) + tuple(sources),
+            motor=MotorTransition(disc.Ad, disc.Bd, disc.Mx, disc.Mw, mo.last_substeps),
+            circuit=CircuitTransition(Phi, g_acc, g_case),
+            motor_capacity_J_K=net.coefficients_in_use()[2][net.dynamic],
+            circuit_capacity_J_K=C, copper_K=mo.T[mo.idx_copper], copper_power_W=p_cu)
+
+    def correct(self, delta_K: np.ndarray) -> None:
+        """
+        Add a correction ``delta_K`` to the state (K, in the order of :attr:`state`).
+
+        The motor's algebraic nodes follow their states, the circuit's reported
+        temperatures move with its nodes, and the case's previous temperature
+        (the motor inlet's extrapolation) moves too, so the next step does not
+        take the correction for a trend.
+        """
+        mo = self.motor
+        m = mo.x.size
+        dx = delta_K[:m]
+        mo.x = mo.x + dx
+        T = mo.T.copy()
+        T[mo.net.dynamic] += dx
+        a, out_x = mo.net.algebraic_map()
+        if a.size:
+            T[a] += out_x @ dx
+        mo.T = T
+        dh = delta_K[m:m + self.circuit.n]
+        self.T_hyd = self.T_hyd + dh
+        if self.circuit.T_report is not None:
+            self.circuit.T_report = self.circuit.T_report + dh
+        self._case_prev_K += float(dh[CASE])
 
     # ------------------------------------------------------------ the samples
     def _node_pressures(self, sensed: np.ndarray, flow_m3_s: np.ndarray) -> np.ndarray:

@@ -570,6 +570,11 @@ class WetMotor:
                               oil_inlet_K=u.oil_inlet_K, oil_flow_m3_s=flow_m3_s,
                               ambient_K=u.ambient_K, case_pressure_Pa=u.case_pressure_Pa)
 
+    @property
+    def coefficient_flow_m3_s(self) -> float:
+        """Return the oil flow (m^3/s) the coefficients were last evaluated at (0 before that)."""
+        return self._refreshed_at[1] if self._refreshed_at else 0.0
+
     def _refresh_due(self, speed_rad_s: float, flow_m3_s: float, drift: float,
                      u: MotorInputs) -> bool:
         """Tell whether a temperature or an input moved too far since the last refresh."""

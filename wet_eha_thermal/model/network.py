@@ -373,6 +373,11 @@ class ThermalNetwork:
         # LAPACK's gbtrf storage of a band with kl = ku = half: A[r, c] at row 2 half + r - c
         return order, half, (i + m, j + m), (2 * half + pi - pj, pj)
 
+    def algebraic_map(self) -> Tuple[np.ndarray, np.ndarray]:
+        """Return the algebraic nodes and their temperatures' sensitivity to the states (K/K)."""
+        _, _, _, a, out_x, _ = self._reduce()
+        return a, out_x
+
     def _reduce(self) -> tuple:
         """Eliminate algebraic nodes: return A, B and the algebraic-node output maps."""
         self.freeze()

@@ -118,7 +118,7 @@ def estimate_status(est: Estimator, node: NodeCounters) -> Status:
     gap_text = f'{gaps.count}, longest {gaps.longest_s:.1f} s, total {gaps.total_s:.1f} s'
     if gaps.open_since_s is not None:
         gap_text = f'every input silent since {gaps.open_since_s:.3f} s; ' + gap_text
-    jump = est.last_clock_jump
+    jump = est.intake.last_clock_jump
     values += [('alerts', alerts),
                ('data gaps (every input silent)', gap_text),
                ('held blocks (silences crossed)', est.held_blocks),
@@ -127,7 +127,7 @@ def estimate_status(est: Estimator, node: NodeCounters) -> Status:
                ('inputs on fallback', ', '.join(stale) or 'none'),
                ('estimates published', node.published),
                ('model errors', node.model_errors),
-               ('forecast failures', est.forecast_failures),
+               ('forecast failures', est.outlook.failures),
                ('background errors', node.background_errors),
                ('callback errors', sum(node.callback_errors.values())),
                ('samples before the clock', node.waiting_for_clock),
@@ -200,12 +200,12 @@ def input_status(est: Estimator, name: str, now_s: float, topic: str, new_reject
     if h.stale:
         level = STALE
         if h.last_value is None:
-            message = f'stale: no sample yet, using the resting value {est.rest[name]:g}'
+            message = f'stale: no sample yet, using the resting value {est.intake.rest[name]:g}'
         else:
             since = h.stale_since_s if h.stale_since_s is not None else now_s
             message = (f'stale: holding last value {h.last_value:g} since {since:.3f} s '
                        f'({max(now_s - since, 0.0):.1f} s)')
-    cfg = est.channel_cfg[name]
+    cfg = est.intake.channel_cfg[name]
     values = [('topic', topic), ('received', h.received),
               ('accepted', h.accepted), ('non_finite', h.non_finite),
               ('out_of_range', h.out_of_range), ('backwards', h.backwards),

@@ -69,7 +69,7 @@ from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension, String
 from wet_eha_thermal import interface
 from wet_eha_thermal.bag import cdr
 from wet_eha_thermal.config import ConfigError, load_config
-from wet_eha_thermal.estimator.core import Estimate, Estimator
+from wet_eha_thermal.estimator.core import Estimate, Estimator, StepFailed
 from wet_eha_thermal.live_view import app_url, LiveView, parse_address
 from wet_eha_thermal.model.quantity_table import LIMITED
 from wet_eha_thermal.ros import diagnostics, topics
@@ -316,8 +316,7 @@ class EstimatorNode(Node):
             now = ns * 1e-9
             value = cdr.float64_data(data) if cdr.is_plain_le(data) \
                 else deserialize_message(data, Float64).data
-            if self.est.push(channel, now, value) and self.est.due(channel, now):
-                self._step(now, t_rx)
+            self._take(channel, now, value, now, t_rx)
         except Exception as exc:  # noqa: B902 - a callback never raises
             self._failed(channel, exc)
 
@@ -335,10 +334,7 @@ class EstimatorNode(Node):
                 if not ns:
                     self.waiting_for_clock += 1
                     return
-            t = ns * 1e-9
-            if self.est.push(channel, t, value) and self.est.due(channel, t):
-                # the clock, read once per step: the pushed Float64 samples carry it
-                self._step(self._now_s(), t_rx)
+            self._take(channel, ns * 1e-9, value, self._now_s(), t_rx)
         except Exception as exc:  # noqa: B902
             self._failed(channel, exc)
 
@@ -430,47 +426,81 @@ class EstimatorNode(Node):
         except Exception as exc:  # noqa: B902
             self._failed('publish', exc)
 
-    def _after_publish(self) -> None:
+    def _take(self, channel: str, stamp_s: float, value: float, now: Optional[float],
+              t_rx: float) -> None:
         """
-        Do the slow work right after an estimate has left: the next one is a step away.
+        Hand one sample to :meth:`Estimator.take`; publish the estimates it completes at once.
 
-        The model's deferred re-discretisation, then forecast and margin
-        slices within the budget. Done here rather than on a timer, so that
-        it never holds up the sample that closes the next step.
+        ``now`` the ROS clock (s), ``t_rx`` the callback's start (perf_counter s).
+        A failure of the step is the model's (the node publishes on, see
+        :meth:`_published`); one after the estimates were handed over, the slow
+        work's; one before the step, the callback's (it propagates).
         """
+        jumps = self.est.clock_jumps
+        handed = []
+
+        def publish(estimates: List[Estimate]) -> None:
+            handed.append(True)
+            self.model_failing = False
+            self._published(estimates, now, t_rx, jumps)
+
         try:
-            self.est.prepare()
-        except Exception as exc:  # noqa: B902 - the next step redoes it and reports
-            self._failed('prepare', exc)
-        if self.budget_s > 0.0:
-            try:
-                self.est.background(self.budget_s)
-            except Exception as exc:  # noqa: B902
-                self.background_errors += 1
-                self.get_logger().error(f'forecast/margin failed: {exc}',
-                                        throttle_duration_sec=5.0)
+            self.est.take(channel, stamp_s, value, now, publish=publish, budget_s=self.budget_s)
+        except StepFailed as exc:
+            self._model_failed(exc.__cause__)
+            self._published([], now, t_rx, jumps)
+        except Exception as exc:  # noqa: B902 - the slow work never stops the node
+            if not handed:
+                raise
+            self._background_failed(exc)
 
-    def _step(self, now: Optional[float], t_rx: Optional[float] = None) -> None:
+    def _model_failed(self, exc: BaseException) -> None:
+        self.model_errors += 1
+        self.model_error = f'{type(exc).__name__}: {exc}'
+        self.model_failing = True
+        self.get_logger().error(f'model step failed: {self.model_error}',
+                                throttle_duration_sec=5.0)
+
+    def _background_failed(self, exc: BaseException) -> None:
+        self.background_errors += 1
+        self.get_logger().error(f'forecast/margin failed: {type(exc).__name__}: {exc}',
+                                throttle_duration_sec=5.0)
+
+    def _step(self, now: Optional[float]) -> None:
         """
-        Step the model as far as the samples (and the clock ``now``, if given) allow; publish.
+        Step the model as far as the clock ``now`` allows and publish (the publish timer).
 
-        Called from an input callback as soon as a sample may complete a step,
-        so the estimate leaves within the step's computing time, and from the
-        publish timer with the clock so that the estimator never stops.
-        ``t_rx`` is the callback's start (perf_counter s), for the latency figures.
+        The timer keeps the estimator going when the samples stop; then the
+        slow work (:meth:`Estimator.prepare`, :meth:`Estimator.background`), as
+        :meth:`Estimator.take` does after a sample that completed a step.
         """
         estimates: List[Estimate] = []
+        jumps = self.est.clock_jumps
         try:
-            jumps = self.est.clock_jumps
-            try:
-                estimates = self.est.advance(now)
-                self.model_failing = False
-            except Exception as exc:  # noqa: B902 - the model should not raise; never stop
-                self.model_errors += 1
-                self.model_error = f'{type(exc).__name__}: {exc}'
-                self.model_failing = True
-                self.get_logger().error(f'model step failed: {self.model_error}',
-                                        throttle_duration_sec=5.0)
+            estimates = self.est.advance(now)
+            self.model_failing = False
+        except Exception as exc:  # noqa: B902 - the model should not raise; never stop
+            self._model_failed(exc)
+        self._published(estimates, now, None, jumps)
+        if not estimates:
+            return
+        try:
+            self.est.prepare()
+            if self.budget_s > 0.0:
+                self.est.background(self.budget_s)
+        except Exception as exc:  # noqa: B902 - the next step redoes it
+            self._background_failed(exc)
+
+    def _published(self, estimates: List[Estimate], now: Optional[float],
+                   t_rx: Optional[float], jumps: int) -> None:
+        """
+        Publish what a step made: the last estimate, the state, alerts, events, the view.
+
+        With no estimate while the model fails, the last good one again,
+        stamped ``now``; ``jumps``: the estimator's clock jumps before the step.
+        ``t_rx`` is the callback's start (perf_counter s), for the latency figures.
+        """
+        try:
             if self.est.clock_jumps != jumps:
                 self._last_ns = None         # the estimates' stamps start over with the clock
             for e in estimates:
@@ -498,8 +528,6 @@ class EstimatorNode(Node):
                 self.view.offer(estimates[-1], dict(self.est.measured_C))
         except Exception as exc:  # noqa: B902
             self._failed('publish', exc)
-        if estimates:
-            self._after_publish()
 
     def _publish_estimate(self, est: Estimate, stamp_s: float) -> bool:
         """Publish the temperatures of ``est`` stamped ``stamp_s``; return whether they went."""
