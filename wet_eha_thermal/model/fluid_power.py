@@ -128,7 +128,8 @@ def line_pressure_drop(flow_m3_s, length_m: float, bore_m: float, rho, mu,
 
 def check_line_reynolds(log: Optional[ValidityLog], re) -> None:
     """Flag line Reynolds numbers outside the validity of :func:`line_pressure_drop`."""
-    check(log, 'line friction (Blasius)', 'Re', re, 0.0, BLASIUS_RE_MAX, 'above the smooth-tube range')
+    check(log, 'line friction (Blasius)', 'Re', re, 0.0, BLASIUS_RE_MAX,
+          'above the smooth-tube range')
 
 
 @jit
