@@ -57,8 +57,11 @@ NU_PARALLEL_PLATES_T = 7.54
 NU_PIPE_T = 3.66
 NU_PIPE_Q = 4.36
 
-_RE_LAMINAR = 2300.0
-_RE_TURBULENT = 4000.0
+#: Pipe Reynolds numbers (hydraulic diameter) up to which the flow is taken as laminar and
+#: from which as turbulent (a linear blend between): the Nusselt laws here, the friction
+#: factor of :func:`~.fluid_power.line_pressure_drop`
+PIPE_RE_LAMINAR = 2300.0
+PIPE_RE_TURBULENT = 4000.0
 
 
 def _scalar(x):
@@ -533,7 +536,7 @@ def _laminar_turbulent_nusselt(Re, Pr, nu_laminar, correlation, log):
     if log is not None:
         check(log, correlation, 'Re', re, 0.0, 5.0e6,
               'Reynolds number above the Gnielinski range; extrapolated')
-        check(log, correlation, 'Pr', np.where(re > _RE_LAMINAR, Pr, np.nan), 0.5, 2000.0,
+        check(log, correlation, 'Pr', np.where(re > PIPE_RE_LAMINAR, Pr, np.nan), 0.5, 2000.0,
               'Prandtl number outside the Gnielinski range; extrapolated')
     re_b, pr_b = np.broadcast_arrays(re, np.asarray(Pr, dtype=float))
     nu = laminar_turbulent_nusselt(re_b.ravel(), pr_b.ravel(), float(nu_laminar))
@@ -543,16 +546,16 @@ def _laminar_turbulent_nusselt(Re, Pr, nu_laminar, correlation, log):
 @jit
 def laminar_turbulent_nusselt(re, pr, nu_laminar):
     """Return the Nusselt number of :func:`_laminar_turbulent_nusselt` (1-D arrays, no checks)."""
-    if (re <= _RE_LAMINAR).all() and ((pr >= 0.0) & (pr < 1e300)).all():
+    if (re <= PIPE_RE_LAMINAR).all() and ((pr >= 0.0) & (pr < 1e300)).all():
         # laminar throughout, the usual case: the blend weight is zero, and the blend
         # below gives exactly the laminar value (for any physical Prandtl number)
         return np.full(re.shape, nu_laminar)
-    re_t = np.maximum(re, _RE_TURBULENT)
+    re_t = np.maximum(re, PIPE_RE_TURBULENT)
     f8 = 0.125 / np.square(0.790 * np.log(re_t) - 1.64)
     denominator = 1.0 + 12.7 * np.sqrt(f8) * (np.power(pr, 2.0 / 3.0) - 1.0)
     nu_gn = f8 * (re_t - 1000.0) * pr / denominator
-    weight = np.minimum(np.maximum((re - _RE_LAMINAR) / (_RE_TURBULENT - _RE_LAMINAR), 0.0),
-                        1.0)
+    weight = np.minimum(np.maximum((re - PIPE_RE_LAMINAR)
+                                   / (PIPE_RE_TURBULENT - PIPE_RE_LAMINAR), 0.0), 1.0)
     return nu_laminar + weight * (nu_gn - nu_laminar)
 
 

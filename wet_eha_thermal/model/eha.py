@@ -45,6 +45,79 @@ from ..config import Config
 CASE_BUFFER_FLOOR = 0.75
 
 
+class ActuatorGeometry(NamedTuple):
+    """The actuator's, the pump's and the lines' geometry in the flows kernels."""
+
+    area_m2: float              #: the actuator's piston area
+    displacement_m3_rad: float  #: the pump's displacement per radian
+    line_length_m: float
+    line_bore_m: float
+    dead_volume_m3: float       #: a chamber's oil at the end of its stroke
+    half_stroke_m: float
+
+
+class FlowConstants(NamedTuple):
+    """
+    The constants of :func:`step_flows_kernel`.
+
+    ``leak_coeffs_m3`` the laminar coefficients of the internal and external
+    leakage (2 x 1); the gap's height, length and discharge coefficient of
+    :func:`~.fluid_power.gap_leakage`; the pump's friction coefficients of
+    :func:`~.fluid_power.pump_friction_torque`; ``link_up``/``link_down`` the
+    oil nodes of each link of LINKS; ``oil_volumes_m3`` the nominal volumes.
+    As :class:`~.hydraulics.CircuitConstants`, a kernel called from Python
+    takes it as a plain tuple and names it again.
+    """
+
+    geometry: ActuatorGeometry
+    leak_coeffs_m3: np.ndarray
+    leak_gap_height_m: float
+    leak_gap_length_m: float
+    leak_discharge_coeff: float
+    viscous_friction_coeff: float
+    pressure_friction_coeff: float
+    coulomb_torque_Nm: float
+    oil_laws: tuple
+    link_up: np.ndarray
+    link_down: np.ndarray
+    oil_volumes_m3: np.ndarray
+
+
+class LastSample(NamedTuple):
+    """The last sample of the previous block, where the next block's intervals start."""
+
+    t_s: float
+    position_m: float
+    sensed_Pa: np.ndarray       #: p_a, p_b, p_acc as sensed
+    node_Pa: np.ndarray         #: the oil nodes' pressures
+
+
+class BlockSamples(NamedTuple):
+    """A :class:`SampleBlock`'s arrays in :func:`step_flows_kernel` (units as there)."""
+
+    t_s: np.ndarray
+    position_m: np.ndarray
+    p_a_Pa: np.ndarray
+    p_b_Pa: np.ndarray
+    p_acc_Pa: np.ndarray
+    speed_rad_s: np.ndarray
+    current_A: np.ndarray
+
+
+class IntervalSeries(NamedTuple):
+    """A block's series per sample interval, summed into sub-steps by :func:`segment_sums`."""
+
+    t_s: np.ndarray             #: the sample times, the previous block's last in front
+    position_m: np.ndarray      #: the positions at those times
+    dt_s: np.ndarray            #: the intervals
+    flow_m3_s: np.ndarray       #: each link's flow (links x intervals)
+    work_W: np.ndarray          #: each link's flow x pressure drop
+    volume_dp_m3Pa: np.ndarray  #: V dp of each oil node
+    p_Pa: np.ndarray            #: each oil node's interval-mean pressure
+    pump_friction_W: np.ndarray
+    external_leak_m3_s: np.ndarray
+
+
 @dataclass
 class SampleBlock:
     """
@@ -157,10 +230,14 @@ class EHAModel:
         self._leak_gap = (h.pump.leak_gap_height_m, h.pump.leak_gap_length_m,
                           h.pump.leak_discharge_coeff)
         # the constants of the flows kernel (see step_flows_kernel)
-        self._geometry = (self.area, self.d_rad, h.lines.length_m, h.lines.bore_m,
-                          h.actuator.dead_volume_m3, h.actuator.half_stroke_m)
-        self._friction = (h.pump.viscous_friction_coeff, h.pump.pressure_friction_coeff,
-                          h.pump.coulomb_torque_Nm)
+        self._geometry = ActuatorGeometry(self.area, self.d_rad, h.lines.length_m,
+                                          h.lines.bore_m, h.actuator.dead_volume_m3,
+                                          h.actuator.half_stroke_m)
+        ci = self.circuit
+        self._flow_constants = tuple(FlowConstants(
+            self._geometry, self._leak_coeffs, *self._leak_gap, h.pump.viscous_friction_coeff,
+            h.pump.pressure_friction_coeff, h.pump.coulomb_torque_Nm, self.oil.laws, ci.u, ci.d,
+            ci.oil_volumes))
         #: longest sub-step of the oil volumes (s); a forecast, on smoothed duty, takes longer
         self.oil_substep_s = h.substep_s
         self.T_hyd: Optional[np.ndarray] = None
@@ -277,14 +354,13 @@ class EHAModel:
         the end pressure would lag by half an interval and book spurious load
         work).
         """
-        t0, x0, raw0, p0 = self._last
-        h, ci = self.cfg.hydraulics, self.circuit
+        p0 = self._last[3]
+        h = self.cfg.hydraulics
         (flow, work, P_end, vdp, x_mean, dx, fric_W, q_ext, dt, wgt, raw_end,
          re, re_gap, seg, i_sq) = step_flows_kernel(
-            t0, x0, raw0, p0, b.t_s, b.position_m, b.p_a_Pa, b.p_b_Pa, b.p_acc_Pa,
-            b.speed_rad_s, b.current_A, 0.5 * (self.T_hyd[LINE_A] + self.T_hyd[LINE_B]),
-            float(self.T_hyd[CASE]), self._geometry, self._leak_coeffs, self._leak_gap,
-            self._friction, self.oil.laws, ci.u, ci.d, ci.oil_volumes, self.oil_substep_s)
+            self._last, (b.t_s, b.position_m, b.p_a_Pa, b.p_b_Pa, b.p_acc_Pa, b.speed_rad_s,
+                         b.current_A), 0.5 * (self.T_hyd[LINE_A] + self.T_hyd[LINE_B]),
+            float(self.T_hyd[CASE]), self._flow_constants, self.oil_substep_s)
         fp.check_line_reynolds(self.log, re)
         if not within(re_gap, 0.0, fp.GAP_LAMINAR_RE):   # laminar, the usual case: no flag
             fp.check_gap_reynolds(self.log, re_gap)
@@ -395,7 +471,7 @@ class EHAModel:
             self.case_buffer_m3 += self._case_change(q_k, q_motor, h_k)
             buffer[k + 1] = self.case_buffer_m3
         vol = substep_volumes(self._last[1], x_end, buffer, self.circuit.oil_volumes,
-                              self._geometry)
+                              tuple(self._geometry))
         return SubSteps(h, flow, work, vdp, p_mid, fric, vol)
 
     # --------------------------------------------------------------- outputs
@@ -470,21 +546,14 @@ def node_pressures(sensed, flow_m3_s, T_line_K, length_m, bore_m, laws):
 
 
 @jit
-def step_flows_kernel(t0, x0, raw0, p0, t_s, position_m, p_a, p_b, p_acc, speed, current,
-                      T_line_K, T_case_K, geometry, leak_coeffs, leak_gap, friction, laws,
-                      link_up, link_down, oil_volumes, substep_s):
+def step_flows_kernel(last, samples, T_line_K, T_case_K, constants, substep_s):
     """
     Return the flows of one block of samples, as :meth:`EHAModel.step_flows` uses them.
 
-    ``t0, x0, raw0, p0``: the last sample of the previous block (time s,
-    position m, sensed pressures Pa, node pressures Pa); ``geometry``: actuator
-    area m^2, pump displacement m^3/rad, line length and bore m, chamber dead
-    volume m^3 and half stroke m; ``leak_coeffs``: the laminar coefficients
-    of the internal and external leakage (2 x 1, m^3); ``leak_gap``: the gap
-    height m, length m and discharge coefficient of :func:`~.fluid_power.gap_leakage`;
-    ``friction``: the pump's viscous and pressure
-    coefficients and Coulomb torque N m; ``link_up``/``link_down``: the oil
-    nodes of each link of LINKS. Returns (mean flow of each link m^3/s, mean
+    ``last``: the :class:`LastSample` of the previous block; ``samples``: the
+    block's :class:`BlockSamples`; the lines' oil at ``T_line_K`` and the
+    leakage gaps' at ``T_case_K`` (K); ``constants``: the
+    :class:`FlowConstants` (all three as plain tuples). Returns (mean flow of each link m^3/s, mean
     flow x pressure drop W, end node pressures Pa, integral of V dp per oil
     node m^3 Pa, mean position m, position change m, pump friction W, mean
     external leakage m^3/s, step length s, interval weights, end sensed
@@ -492,7 +561,12 @@ def step_flows_kernel(t0, x0, raw0, p0, t_s, position_m, p_a, p_b, p_acc, speed,
     paths, the sub-steps: see :func:`segment_sums`, and the mean of the
     ``current`` (A) squared).
     """
-    area, d_rad, line_length, line_bore, dead_volume, half_stroke = geometry
+    c, smp = FlowConstants(*constants), BlockSamples(*samples)
+    t0, x0, raw0, p0 = LastSample(*last)
+    t_s, speed, current = smp.t_s, smp.speed_rad_s, smp.current_A
+    link_up, link_down, laws = c.link_up, c.link_down, c.oil_laws
+    geo = c.geometry
+    area, dead_volume, half_stroke = geo.area_m2, geo.dead_volume_m3, geo.half_stroke_m
     n = t_s.size
     # times, positions and pressures with the last sample of the previous step in front
     t = np.empty(n + 1)
@@ -505,15 +579,15 @@ def step_flows_kernel(t0, x0, raw0, p0, t_s, position_m, p_a, p_b, p_acc, speed,
     wgt = dts / dt
     x = np.empty(n + 1)
     x[0] = x0
-    x[1:] = position_m
+    x[1:] = smp.position_m
     q = area * (x[1:] - x[:-1]) / dts          # into chamber A
     raw = np.empty((3, n + 1))
     raw[:, 0] = raw0
-    raw[0, 1:] = p_a
-    raw[1, 1:] = p_b
-    raw[2, 1:] = p_acc
-    P, re = node_pressures(0.5 * (raw[:, 1:] + raw[:, :-1]), q, T_line_K, line_length,
-                           line_bore, laws)
+    raw[0, 1:] = smp.p_a_Pa
+    raw[1, 1:] = smp.p_b_Pa
+    raw[2, 1:] = smp.p_acc_Pa
+    P, re = node_pressures(0.5 * (raw[:, 1:] + raw[:, :-1]), q, T_line_K, geo.line_length_m,
+                           geo.line_bore_m, laws)
     # the two leakage gaps, in one evaluation: port to port (internal) and high port
     # to case (external), each with the viscosity and density at its mean pressure
     p_high = np.maximum(P[PORT_A], P[PORT_B])
@@ -526,8 +600,8 @@ def step_flows_kernel(t0, x0, raw0, p0, t_s, position_m, p_a, p_b, p_acc, speed,
     gap_p *= 0.5
     gap_rho = oil_density(T_case_K, gap_p, laws)
     gap_mu = oil_nu(T_case_K, gap_p, laws) * gap_rho
-    leak, re_gap = fp.gap_leakage(leak_coeffs, gap_dp, gap_mu, gap_rho, leak_gap[0], leak_gap[1],
-                                  leak_gap[2])
+    leak, re_gap = fp.gap_leakage(c.leak_coeffs_m3, gap_dp, gap_mu, gap_rho, c.leak_gap_height_m,
+                                  c.leak_gap_length_m, c.leak_discharge_coeff)
     q_int = leak[0]
     high_a = P[PORT_A] >= P[PORT_B]
     q_ext = np.maximum(leak[1], 0.0)
@@ -564,30 +638,31 @@ def step_flows_kernel(t0, x0, raw0, p0, t_s, position_m, p_a, p_b, p_acc, speed,
     F[MAKE_UP_B] = q_ext - make_up_a
     flow = F @ wgt
     work = (F * (P[link_up] - P[link_down])) @ wgt
-    c_v, c_f, coulomb = friction
-    fric = fp.pump_friction_torque(speed, gap_dp[0], gap_mu[0], d_rad, c_v, c_f, coulomb)
+    fric = fp.pump_friction_torque(speed, gap_dp[0], gap_mu[0], geo.displacement_m3_rad,
+                                   c.viscous_friction_coeff, c.pressure_friction_coeff,
+                                   c.coulomb_torque_Nm)
     x_mean = np.dot(0.5 * (x[1:] + x[:-1]), wgt)
     # integral of V dp per oil node: P holds interval-mean pressures, so between two
     # of them the chamber volume is the one at the sample instant in between
     dP = np.empty((N_OIL, n))
     dP[:, 0] = P[:, 0] - p0
     dP[:, 1:] = P[:, 1:] - P[:, :-1]
-    vdp_int = oil_volumes.reshape(-1, 1) * dP
+    vdp_int = c.oil_volumes_m3.reshape(-1, 1) * dP
     va = dead_volume + area * (half_stroke + x[:-1])
     vb = 2 * dead_volume + 2 * area * half_stroke - va
     vdp_int[CHAMBER_A] = va * dP[CHAMBER_A]
     vdp_int[CHAMBER_B] = vb * dP[CHAMBER_B]
     vdp = vdp_int.sum(axis=1)
     fric_W = fric * np.abs(speed)
-    seg = segment_sums(t, x, dts, F, F * (P[link_up] - P[link_down]), vdp_int, P, fric_W, q_ext,
-                       substep_s)
+    seg = segment_sums(IntervalSeries(t, x, dts, F, F * (P[link_up] - P[link_down]), vdp_int, P,
+                                      fric_W, q_ext), substep_s)
     return (flow, work, P[:, -1].copy(), vdp, x_mean, x[-1] - x[0],
             np.dot(fric_W, wgt), np.dot(q_ext, wgt), dt, wgt, raw[:, -1].copy(), re,
             re_gap.ravel(), seg, np.dot(current * current, wgt))
 
 
 @jit
-def segment_sums(t, x, dts, F, FdP, vdp_int, P, fric_W, q_ext, substep_s):
+def segment_sums(series, substep_s):
     """
     Split a step's sample intervals into sub-steps of at most ``substep_s`` (s); sum each.
 
@@ -596,8 +671,12 @@ def segment_sums(t, x, dts, F, FdP, vdp_int, P, fric_W, q_ext, substep_s):
     own). Returns, per sub-step: length (s), actuator position at its end (m),
     mean flow and mean flow x pressure drop of each link, integral of V dp
     of each oil node (m^3 Pa), mean node pressures (Pa), mean pump friction
-    (W) and mean external leakage (m^3/s).
+    (W) and mean external leakage (m^3/s). ``series``: the :class:`IntervalSeries`.
     """
+    t, x, dts, F, FdP = series.t_s, series.position_m, series.dt_s, series.flow_m3_s, \
+        series.work_W
+    vdp_int, P, fric_W, q_ext = series.volume_dp_m3Pa, series.p_Pa, series.pump_friction_W, \
+        series.external_leak_m3_s
     n = dts.size
     ids = np.empty(n, dtype=np.int64)
     cut = 0
@@ -644,9 +723,10 @@ def substep_volumes(x0, x_end, case_buffer, oil_volumes, geometry):
     ``x0`` the actuator position (m) at the start and ``x_end`` at the end of
     each sub-step; ``case_buffer`` the case oil above its nominal volume
     (m^3) at each boundary, which the accumulator gives; ``oil_volumes`` the
-    nominal volumes; ``geometry`` as :func:`step_flows_kernel` takes it.
+    nominal volumes; ``geometry`` the :class:`ActuatorGeometry` (a plain tuple).
     """
-    area, _, _, _, dead_volume, half_stroke = geometry
+    geo = ActuatorGeometry(*geometry)
+    area, dead_volume, half_stroke = geo.area_m2, geo.dead_volume_m3, geo.half_stroke_m
     x = np.empty(x_end.size + 1)
     x[0] = x0
     x[1:] = x_end

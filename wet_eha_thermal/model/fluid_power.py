@@ -12,6 +12,7 @@ from typing import Optional
 import numpy as np
 
 from .compiled import jit
+from .correlations import PIPE_RE_LAMINAR, PIPE_RE_TURBULENT
 from .validity import check, ValidityLog
 
 
@@ -24,6 +25,8 @@ def displacement_per_rad(displacement_m3_rev: float) -> float:
 GAP_BLEND_EXPONENT = 8.0
 #: Gap Reynolds number (hydraulic diameter 2 h) up to which the laminar gap law holds
 GAP_LAMINAR_RE = 2000.0
+#: Line Reynolds number up to which Blasius's smooth-tube friction factor holds
+BLASIUS_RE_MAX = 1.0e5
 
 
 @jit
@@ -113,9 +116,9 @@ def line_pressure_drop(flow_m3_s, length_m: float, bore_m: float, rho, mu,
     """
     Return the pressure drop (Pa) of a straight line, signed like the flow.
 
-    Darcy friction factor: 64/Re laminar (Re <= 2300), Blasius 0.316 Re^-0.25
-    turbulent (Re >= 4000, smooth tube, valid to Re = 1e5), linear blend
-    between. Fittings and bends are not included.
+    Darcy friction factor: 64/Re laminar (Re <= PIPE_RE_LAMINAR, 2300), Blasius
+    0.316 Re^-0.25 turbulent (Re >= PIPE_RE_TURBULENT, 4000; smooth tube, valid to
+    BLASIUS_RE_MAX, 1e5), linear blend between. Fittings and bends are not included.
     """
     q = np.asarray(flow_m3_s, dtype=float)
     dp, re = line_drop_and_reynolds(q.reshape(-1), length_m, bore_m, rho, mu)
@@ -125,7 +128,8 @@ def line_pressure_drop(flow_m3_s, length_m: float, bore_m: float, rho, mu,
 
 def check_line_reynolds(log: Optional[ValidityLog], re) -> None:
     """Flag line Reynolds numbers outside the validity of :func:`line_pressure_drop`."""
-    check(log, 'line friction (Blasius)', 'Re', re, 0.0, 1e5, 'above the smooth-tube range')
+    check(log, 'line friction (Blasius)', 'Re', re, 0.0, BLASIUS_RE_MAX,
+          'above the smooth-tube range')
 
 
 @jit
@@ -136,9 +140,11 @@ def line_drop_and_reynolds(flow_m3_s, length_m, bore_m, rho, mu):
     re = rho * v * bore_m / mu
     re_safe = np.maximum(re, 1e-12)
     f = 64.0 / re_safe
-    if not (re <= 2300.0).all():        # laminar throughout is the usual case
-        f_turb = 0.316 * np.maximum(re_safe, 2300.0) ** -0.25
-        blend = np.minimum(np.maximum((re - 2300.0) / 1700.0, 0.0), 1.0)
-        f = np.where(re <= 2300.0, f, (1.0 - blend) * 64.0 / 2300.0 + blend * f_turb)
-        f = np.where(re >= 4000.0, f_turb, f)
+    if not (re <= PIPE_RE_LAMINAR).all():        # laminar throughout is the usual case
+        f_turb = 0.316 * np.maximum(re_safe, PIPE_RE_LAMINAR) ** -0.25
+        blend = np.minimum(np.maximum((re - PIPE_RE_LAMINAR)
+                                      / (PIPE_RE_TURBULENT - PIPE_RE_LAMINAR), 0.0), 1.0)
+        f = np.where(re <= PIPE_RE_LAMINAR, f,
+                     (1.0 - blend) * 64.0 / PIPE_RE_LAMINAR + blend * f_turb)
+        f = np.where(re >= PIPE_RE_TURBULENT, f_turb, f)
     return np.sign(flow_m3_s) * f * (length_m / bore_m) * 0.5 * rho * v ** 2, re

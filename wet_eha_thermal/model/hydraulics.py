@@ -26,7 +26,7 @@ is one exact matrix-exponential step.
 """
 
 from dataclasses import dataclass
-from typing import Dict, Optional, Tuple
+from typing import Dict, NamedTuple, Optional, Tuple
 
 import numpy as np
 import scipy.linalg
@@ -118,8 +118,7 @@ class StepFlows:
     pump_friction_W: float
 
 
-@dataclass
-class SubSteps:
+class SubSteps(NamedTuple):
     """
     The sub-steps of one model step, one row each (SI units, means over the sub-step).
 
@@ -138,6 +137,57 @@ class SubSteps:
     p_mid_Pa: np.ndarray
     pump_friction_W: np.ndarray
     volumes_m3: np.ndarray
+
+
+class LineGeometry(NamedTuple):
+    """One hydraulic line's geometry (both lines are alike)."""
+
+    bore_m: float
+    flow_area_m2: float
+    inner_area_m2: float        #: the oil-wetted wall
+
+
+class CircuitConstants(NamedTuple):
+    """
+    The circuit's constants, as its kernels take them (as a plain tuple, see below).
+
+    ``K_static_W_K`` the constant conductances (shells to oil and to
+    ambient) as a matrix; ``k_index`` the flat indices into it of the
+    step's conductances (advection (d, d), (d, u); each line's convection
+    (i, i), (j, j), (i, j), (j, i); the motor's inflow into the
+    accumulator); ``capacities_J_K`` the heat capacities, the solids' filled
+    in (the oil's change every step); ``G_amb_W_K`` each node's conductance
+    to ambient; ``p_ref_Pa`` the pressure of the oil's density law in the
+    capacities and energies; ``is_pump``, ``link_up`` and ``link_down`` per
+    link of :data:`LINKS`; ``friction_to_case`` the share of the pump's
+    friction heat that goes to the case oil.
+
+    A kernel called from Python takes these as ``tuple(constants)`` and
+    names them again at its first line: numba types a plain tuple in C and
+    a NamedTuple in Python, three times slower (as :class:`~.oil.OilLaws`).
+    """
+
+    K_static_W_K: np.ndarray
+    k_index: np.ndarray
+    capacities_J_K: np.ndarray
+    G_amb_W_K: np.ndarray
+    line: LineGeometry
+    oil_laws: tuple
+    p_ref_Pa: float
+    is_pump: np.ndarray
+    link_up: np.ndarray
+    link_down: np.ndarray
+    friction_to_case: float
+
+
+class LoopInputs(NamedTuple):
+    """A step's inputs besides the flows: the motor's oil, its return, ambient, case heat."""
+
+    rho_cp_flow_J_m3K: float    #: the one rho c_p of every enthalpy flow of the loop
+    motor_rate_W_K: float       #: rho c_p times the oil flowing case -> motor -> accumulator
+    motor_outlet_K: float       #: its temperature back from the motor
+    ambient_K: float
+    extra_loss_W: float         #: heat into the case oil besides the pump's friction
 
 
 class HydraulicCircuit:
@@ -201,8 +251,12 @@ class HydraulicCircuit:
         # per-step constants: a line's bore (m), flow section (m^2) and inner wall area
         # (m^2), and the heat capacities with the solids' filled in (the oil's change
         # every step)
-        self._line_geometry = (ln.bore_m, 0.25 * np.pi * ln.bore_m ** 2, self.line_inner_area)
+        self._line_geometry = LineGeometry(ln.bore_m, 0.25 * np.pi * ln.bore_m ** 2,
+                                           self.line_inner_area)
         self._capacities = np.concatenate([np.zeros(self.n_oil), self.solid_capacity])
+        self._constants = tuple(CircuitConstants(
+            self.K_static, self._k_index, self._capacities, self.G_amb, self._line_geometry,
+            oil.laws, self.p_ref_Pa, self.is_pump, self.u, self.d, self.friction_to_case))
         self._T_alpha: Optional[float] = None
         # energies (J): heat generated, stored (a moving chamber's oil included), to
         # ambient, and the net enthalpy the motor adds to the oil passing through it
@@ -242,11 +296,13 @@ class HydraulicCircuit:
         n = self.n
         heat = self.sources(T0, dt_s, sf)
         motor_rate = rho_cp_flow * sf.motor_flow_m3_s
+        volumes = self.oil_volumes.copy()
+        volumes[CHAMBER_A], volumes[CHAMBER_B] = sf.chamber_volumes_m3
+        volumes[CASE] = sf.case_volume_m3
         K, M, C, s = circuit_matrices(
-            T0, dt_s, sf.flow_m3_s, 0.5 * (sf.p_start_Pa + sf.p_end_Pa), sf.chamber_volumes_m3,
-            sf.case_volume_m3, motor_rate, sf.motor_outlet_K, ambient_K, rho_cp_flow, heat,
-            self.K_static, self._k_index, self.oil_volumes, self._capacities, self.G_amb,
-            self._line_geometry, self.oil.laws, self.p_ref_Pa)
+            T0, dt_s, sf.flow_m3_s, 0.5 * (sf.p_start_Pa + sf.p_end_Pa), volumes, heat,
+            (rho_cp_flow, motor_rate, sf.motor_outlet_K, ambient_K, self.extra_loss_W),
+            self._constants)
         T0_1 = np.empty(n + 1)         # the start temperatures and the constant input's 1
         T0_1[:n] = T0
         T0_1[n] = 1.0
@@ -294,11 +350,9 @@ class HydraulicCircuit:
         alpha_T = self._alpha_T(T0, dt)
         motor_rate = rho_cp_flow * motor_flow_m3_s
         (T1, Tm, Phi, g_acc, g_case, C, heat, ledger) = cn_substeps(
-            T0, alpha_T, sub.dt_s, sub.flow_m3_s, sub.work_W, sub.volume_dp_m3Pa, sub.p_mid_Pa,
-            sub.pump_friction_W, sub.volumes_m3, motor_rate, motor_outlet_K, ambient_K,
-            rho_cp_flow, self.K_static, self._k_index, self._capacities, self.G_amb,
-            self._line_geometry, self.oil.laws, self.is_pump, self.u, self.d,
-            self.friction_to_case, self.extra_loss_W, self.keep_transition, self.p_ref_Pa)
+            T0, alpha_T, tuple(sub),
+            (rho_cp_flow, motor_rate, motor_outlet_K, ambient_K, self.extra_loss_W),
+            self._constants, self.keep_transition)
         self.T_mean = self.T_report = Tm
         e = self.energy_J
         e['sources'] += ledger[0]
@@ -347,9 +401,8 @@ class HydraulicCircuit:
         no pump work pays for). The few kelvin between volumes would change a
         throttle rise by < 0.5 %.
         """
-        return node_sources(self._alpha_T(T0, dt_s), dt_s, sf.work_W,
-                            sf.volume_dp_m3Pa, sf.pump_friction_W, self.is_pump, self.d,
-                            self.n, self.friction_to_case, self.extra_loss_W)
+        return node_sources(self._alpha_T(T0, dt_s), dt_s, sf.work_W, sf.volume_dp_m3Pa,
+                            sf.pump_friction_W, self.extra_loss_W, self._constants)
 
     def _alpha_T(self, T0: np.ndarray, dt_s: float) -> float:
         """Advance the filtered oil temperature by ``dt_s``; return alpha_p times it."""
@@ -362,9 +415,16 @@ class HydraulicCircuit:
 
 
 @jit
-def node_sources(alpha_T, dt_s, work_W, volume_dp_m3Pa, pump_friction_W, is_pump, link_down,
-                 n, friction_to_case, extra_loss_W):
-    """Return the heat input (W) of each node, see :meth:`HydraulicCircuit.sources`."""
+def node_sources(alpha_T, dt_s, work_W, volume_dp_m3Pa, pump_friction_W, extra_loss_W,
+                 constants):
+    """
+    Return the heat input (W) of each node, see :meth:`HydraulicCircuit.sources`.
+
+    ``constants``: the :class:`CircuitConstants`.
+    """
+    c = CircuitConstants(*constants)
+    is_pump, link_down, friction_to_case = c.is_pump, c.link_down, c.friction_to_case
+    n = c.K_static_W_K.shape[0]
     # throttles: (1 - alpha T) dp Q; pump: alpha T (p_d - p_u) Q = -alpha T * work
     per_link = np.where(is_pump, -alpha_T * work_W, (1 - alpha_T) * work_W)
     heat = np.bincount(link_down, weights=per_link, minlength=n)
@@ -375,16 +435,15 @@ def node_sources(alpha_T, dt_s, work_W, volume_dp_m3Pa, pump_friction_W, is_pump
 
 
 @jit
-def line_conductances(T_K, p_Pa, rho, cp, flows, line_geometry, laws):
+def line_conductances(T_K, p_Pa, rho, cp, flows, line, laws):
     """
     Return the oil-to-wall conductances (W/K) of lines A and B at their mean flows.
 
     Fully developed pipe flow (laminar 3.66, Gnielinski above Re 4000).
     ``T_K``, ``p_Pa``, ``rho`` and ``cp`` are the two lines' oil values;
-    ``flows`` the mean flow of every link; ``line_geometry`` the bore (m),
-    flow section (m^2) and inner wall area (m^2) of a line.
+    ``flows`` the mean flow of every link; ``line`` the :class:`LineGeometry`.
     """
-    bore, flow_area, inner_area = line_geometry
+    bore, flow_area, inner_area = line.bore_m, line.flow_area_m2, line.inner_area_m2
     mu = kinematic_viscosity(T_K, p_Pa, laws) * rho
     k = conductivity(T_K, laws)
     q = np.empty(2)
@@ -397,52 +456,50 @@ def line_conductances(T_K, p_Pa, rho, cp, flows, line_geometry, laws):
 
 
 @jit
-def conductances_and_input(T, p_mid, rho, cp, flows, motor_rate, motor_outlet_K, ambient_K,
-                           rho_cp_flow, heat, K_static, k_index, G_amb, line_geometry, laws):
+def conductances_and_input(T, p_mid, rho, cp, flows, heat, loop, c):
     """
     Return K (W/K) and s (W) of C dT/dt = -K T + s for the given flows and heat sources.
 
     K holds the constant conductances, each link's advection into its
     downstream node (only inflows change a temperature), the lines' forced
     convection and the motor's return into the accumulator; s the ambient's
-    and the sources' input and the motor outlet's enthalpy.
+    and the sources' input and the motor outlet's enthalpy. ``loop``: the
+    :class:`LoopInputs`; ``c``: the :class:`CircuitConstants` (both named).
     """
     n = T.size
-    rate = rho_cp_flow * flows
+    motor_rate = loop.motor_rate_W_K
+    rate = loop.rho_cp_flow_J_m3K * flows
     lines = slice(LINE_A, LINE_B + 1)       # adjacent nodes
-    g_line = line_conductances(T[lines], p_mid[lines], rho[lines], cp[lines], flows,
-                               line_geometry, laws)
+    g_line = line_conductances(T[lines], p_mid[lines], rho[lines], cp[lines], flows, c.line,
+                               c.oil_laws)
     weights = np.concatenate((rate, -rate, g_line, g_line, -g_line, -g_line,
                               np.full(1, motor_rate)))
-    K = K_static + np.bincount(k_index, weights=weights, minlength=n * n).reshape(n, n)
-    s = G_amb * ambient_K + heat
-    s[ACCUMULATOR] += motor_rate * motor_outlet_K
+    K = c.K_static_W_K + np.bincount(c.k_index, weights=weights, minlength=n * n).reshape(n, n)
+    s = c.G_amb_W_K * loop.ambient_K + heat
+    s[ACCUMULATOR] += motor_rate * loop.motor_outlet_K
     return K, s
 
 
 @jit
-def circuit_matrices(T0, dt_s, flows, p_mid, chamber_volumes, case_volume, motor_rate,
-                     motor_outlet_K, ambient_K, rho_cp_flow, heat, K_static, k_index,
-                     oil_volumes, capacities, G_amb, line_geometry, laws, p_ref):
+def circuit_matrices(T0, dt_s, flows, p_mid, volumes, heat, loop, constants):
     """
     Return (K, M, C, s) of one step of :meth:`HydraulicCircuit.step`.
 
     K (W/K) the conductance matrix with the step's advection and line
     convection, C (J/K) the heat capacities, s (W) the constant input and M
     the exponent of the augmented system (its last column holds s).
+    ``volumes`` (m^3) of the oil nodes; ``loop`` the :class:`LoopInputs` and
+    ``constants`` the :class:`CircuitConstants`, as plain tuples.
     """
+    c, loop = CircuitConstants(*constants), LoopInputs(*loop)
+    laws = c.oil_laws
     n = T0.size
     no = p_mid.size
     T_oil = T0[:no]
     rho, cp = density(T_oil, p_mid, laws), specific_heat(T_oil, laws)
-    vol = oil_volumes.copy()
-    vol[CHAMBER_A], vol[CHAMBER_B] = chamber_volumes
-    vol[CASE] = case_volume
-    C = capacities.copy()
-    C[:no] = density(T_oil, p_ref, laws) * cp * vol
-    K, s = conductances_and_input(T0, p_mid, rho, cp, flows, motor_rate, motor_outlet_K,
-                                  ambient_K, rho_cp_flow, heat, K_static, k_index, G_amb,
-                                  line_geometry, laws)
+    C = c.capacities_J_K.copy()
+    C[:no] = density(T_oil, c.p_ref_Pa, laws) * cp * volumes
+    K, s = conductances_and_input(T0, p_mid, rho, cp, flows, heat, loop, c)
     M = np.zeros((n + 1, n + 1))
     M[:n, :n] = -K * (dt_s / C.reshape(n, 1))
     M[:n, n] = s * (dt_s / C)
@@ -450,12 +507,12 @@ def circuit_matrices(T0, dt_s, flows, p_mid, chamber_volumes, case_volume, motor
 
 
 @jit
-def cn_substeps(T0, alpha_T, dts, flows, works, vdps, p_mids, frics, volumes, motor_rate,
-                motor_outlet_K, ambient_K, rho_cp_flow, K_static, k_index, capacities, G_amb,
-                line_geometry, laws, is_pump, link_up, link_down, friction_to_case,
-                extra_loss_W, with_transition, p_ref):
+def cn_substeps(T0, alpha_T, sub, loop, constants, with_transition):
     """
     Crank-Nicolson sub-steps of :meth:`HydraulicCircuit.step_substeps`.
+
+    ``sub`` the :class:`SubSteps`, ``loop`` the :class:`LoopInputs` and
+    ``constants`` the :class:`CircuitConstants`, as plain tuples.
 
     Returns (end temperatures K, step-mean temperatures K, transition,
     response to the motor outlet, response to case heat, end capacities J/K,
@@ -472,6 +529,13 @@ def cn_substeps(T0, alpha_T, dts, flows, works, vdps, p_mids, frics, volumes, mo
     volume's energy is exactly what came in and went: the books close in e
     whatever the step, the volumes and the temperatures do.
     """
+    c, loop = CircuitConstants(*constants), LoopInputs(*loop)
+    sub = SubSteps(*sub)
+    dts, flows, volumes, p_mids, laws = sub.dt_s, sub.flow_m3_s, sub.volumes_m3, sub.p_mid_Pa, \
+        c.oil_laws
+    capacities, p_ref, rho_cp_flow = c.capacities_J_K, c.p_ref_Pa, loop.rho_cp_flow_J_m3K
+    motor_rate, motor_outlet_K = loop.motor_rate_W_K, loop.motor_outlet_K
+    link_up, link_down = c.link_up, c.link_down
     n = T0.size
     no = volumes.shape[1]
     T = T0.copy()
@@ -486,8 +550,8 @@ def cn_substeps(T0, alpha_T, dts, flows, works, vdps, p_mids, frics, volumes, mo
     q_motor = motor_rate / rho_cp_flow                       # m^3/s
     for k in range(dts.size):
         h = dts[k]
-        heat = node_sources(alpha_T, h, works[k], vdps[k], frics[k], is_pump, link_down, n,
-                            friction_to_case, extra_loss_W)
+        heat = node_sources(alpha_T, h, sub.work_W[k], sub.volume_dp_m3Pa[k],
+                            sub.pump_friction_W[k], loop.extra_loss_W, c)
         T_oil = T[:no]
         rho = density(T_oil, p_mids[k], laws)
         cp = specific_heat(T_oil, laws)
@@ -497,9 +561,7 @@ def cn_substeps(T0, alpha_T, dts, flows, works, vdps, p_mids, frics, volumes, mo
         C1 = C0.copy()
         C1[:no] += rho_cp_flow * (volumes[k + 1] - volumes[k])
         Cm = 0.5 * (C0 + C1)
-        K, s = conductances_and_input(T, p_mids[k], rho, cp, flows[k], motor_rate,
-                                      motor_outlet_K, ambient_K, rho_cp_flow, heat, K_static,
-                                      k_index, G_amb, line_geometry, laws)
+        K, s = conductances_and_input(T, p_mids[k], rho, cp, flows[k], heat, loop, c)
         A = 0.5 * K
         B = -0.5 * K
         for i in range(n):
@@ -545,7 +607,7 @@ def cn_substeps(T0, alpha_T, dts, flows, works, vdps, p_mids, frics, volumes, mo
         heat_sum += heat * h
         ledger[0] += heat.sum() * h
         ledger[1] += (E1 - E0).sum() + np.dot(Cm[no:], T1[no:] - T[no:])
-        ledger[2] += np.dot(G_amb, Tm - ambient_K) * h
+        ledger[2] += np.dot(c.G_amb_W_K, Tm - loop.ambient_K) * h
         ledger[3] += motor_rate * (motor_outlet_K - Tm[CASE]) * h
         T = T1
     dt = dts.sum()

@@ -43,10 +43,10 @@ import numpy as np
 
 from .compiled import interpreted, jit
 from .validity import check, ValidityLog
-from ..units import C_TO_K as T0_K
+from ..units import C_TO_K
 
 #: Reference temperature of the density data (15 degC) in kelvin.
-T15_K = T0_K + 15.0
+T15_K = C_TO_K + 15.0
 #: Reference temperature of the bulk modulus law (40 degC) in kelvin.
 T40_K = 313.15
 #: Density of water at 15 degC (kg/m^3), the reference of the specific gravity.
@@ -172,7 +172,7 @@ def density(T_K, p_Pa, laws):
 def kinematic_viscosity(T_K, p_Pa, laws):
     """Return nu (m^2/s) of :meth:`Oil.kinematic_viscosity` (floats or arrays, no checks)."""
     log_t = np.log10(T_K)
-    z = np.where(T_K >= T0_K + 40.0, laws[5] - laws[6] * log_t, laws[7] - laws[8] * log_t)
+    z = np.where(T_K >= C_TO_K + 40.0, laws[5] - laws[6] * log_t, laws[7] - laws[8] * log_t)
     nu_cst = np.power(10.0, np.power(10.0, z)) - 0.7
     return 1.0e-6 * nu_cst * np.exp(laws[9] * p_Pa)
 
@@ -180,7 +180,7 @@ def kinematic_viscosity(T_K, p_Pa, laws):
 @jit
 def specific_heat(T_K, laws):
     """Return c_p (J/(kg K)) of :meth:`Oil.specific_heat` (floats or arrays, no checks)."""
-    return laws[10] + laws[11] * (T_K - T0_K)
+    return laws[10] + laws[11] * (T_K - C_TO_K)
 
 
 #: terms of the compression factor's series in e(T) (see :func:`volumetric_energy`)
@@ -200,7 +200,7 @@ def _rho_cp_series(p_Pa, laws):
     """
     r1 = -laws[0] * laws[1]                              # rho_0 = r0 + r1 T
     r0 = laws[0] - r1 * T15_K
-    d0 = laws[10] - laws[11] * T0_K                       # c_p = d0 + d1 T
+    d0 = laws[10] - laws[11] * C_TO_K                       # c_p = d0 + d1 T
     s = np.empty(ENERGY_SERIES_TERMS)
     s[0] = p_Pa / laws[2]
     ratio = -(laws[4] - 1.0) * p_Pa / laws[2]
@@ -285,7 +285,7 @@ def temperature_of_energy(e, T_guess_K, p_Pa, laws):
 @jit
 def conductivity(T_K, laws):
     """Return k (W/(m K)) of :meth:`Oil.conductivity` (floats or arrays, no checks)."""
-    return laws[12] + laws[13] * (T_K - T0_K)
+    return laws[12] + laws[13] * (T_K - C_TO_K)
 
 
 # a few operators: as Python arithmetic on a float, cheaper than a compiled call
@@ -356,12 +356,12 @@ class OilGrade:
     @property
     def walther_hot(self) -> Tuple[float, float]:
         """Return the Walther ``(A, B)`` through 40 and 100 degC (used for T >= 40 degC)."""
-        return walther_fit(T0_K + 40.0, self.nu_40_cSt, T0_K + 100.0, self.nu_100_cSt)
+        return walther_fit(C_TO_K + 40.0, self.nu_40_cSt, C_TO_K + 100.0, self.nu_100_cSt)
 
     @property
     def walther_cold(self) -> Tuple[float, float]:
         """Return the Walther ``(A, B)`` through the cold datum and 40 degC (T < 40 degC)."""
-        return walther_fit(self.T_cold_K, self.nu_cold_cSt, T0_K + 40.0, self.nu_40_cSt)
+        return walther_fit(self.T_cold_K, self.nu_cold_cSt, C_TO_K + 40.0, self.nu_40_cSt)
 
 
 class Oil:
@@ -389,7 +389,7 @@ class Oil:
         self._t_lo = grade.T_min_K
         self._t_hi = grade.T_max_K
         self._t_note = (f'{grade.name} property data valid for '
-                        f'{grade.T_min_K - T0_K:.0f}..{grade.T_max_K - T0_K:.0f} degC; '
+                        f'{grade.T_min_K - C_TO_K:.0f}..{grade.T_max_K - C_TO_K:.0f} degC; '
                         'value extrapolated')
         self._p_note = ('bulk modulus law and Barus viscosity factor accepted over '
                         '0..35 MPa gauge; value extrapolated')
@@ -643,12 +643,12 @@ def _grade_5606() -> OilGrade:
         nu_cold_cSt=495.0,
         nu_40_cSt=13.5,
         nu_100_cSt=5.1,
-        T_cold_K=T0_K - 40.0,
+        T_cold_K=C_TO_K - 40.0,
         barus_1_Pa=1.5e-8,
         cp_J_kgK=cp,
         k_W_mK=k,
-        T_min_K=T0_K - 54.0,
-        T_max_K=T0_K + 135.0,
+        T_min_K=C_TO_K - 54.0,
+        T_max_K=C_TO_K + 135.0,
         source_notes=(
             'Petroleum base, VI-improved (NATO H-515). Viscosity: typical values of '
             'qualified fluids: 13.5 cSt at 40 degC, 5.1 cSt at 100 degC, '
@@ -681,12 +681,12 @@ def _grade_83282() -> OilGrade:
         nu_cold_cSt=2050.0,
         nu_40_cSt=14.2,
         nu_100_cSt=3.6,
-        T_cold_K=T0_K - 40.0,
+        T_cold_K=C_TO_K - 40.0,
         barus_1_Pa=1.3e-8,
         cp_J_kgK=cp,
         k_W_mK=k,
-        T_min_K=T0_K - 40.0,
-        T_max_K=T0_K + 205.0,
+        T_min_K=C_TO_K - 40.0,
+        T_max_K=C_TO_K + 205.0,
         source_notes=(
             'Synthetic hydrocarbon (PAO) base, fire resistant (NATO H-537). Viscosity '
             '(est.): 14.2 cSt at 40 degC, 3.6 cSt at 100 degC, 2050 cSt at -40 degC, '

@@ -1,0 +1,321 @@
+"""
+Build the wet motor's thermal network: its blocks, oil path, links and sources.
+
+The layout is described in :mod:`.motor`; :class:`MotorNetworkBuilder` is
+the part of :class:`~.motor.WetMotor` that adds the nodes, links and sources
+once, in a fixed order (it sets the node indices), and indexes the nodes the
+steps use.
+"""
+
+from typing import Dict, NamedTuple
+
+import numpy as np
+
+from .mellor import add_cylinder
+from .motor_kernels import END_CAP, END_ROTOR_FACE, END_SHAFT, END_STATOR, EndSurfaces
+from ..units import C_TO_K
+
+#: the motor's loss groups in the order of its sources (:meth:`WetMotor.losses`)
+LOSS_GROUPS = ('copper', 'core_yoke', 'core_teeth', 'gap_friction', 'magnet', 'sleeve',
+               'rotor_core', 'end_face_friction', 'bearings')
+#: the names of :attr:`WetMotor.losses_W`: the groups, copper split into slots and end windings
+LOSS_NAMES = ('copper_slot', 'copper_end') + LOSS_GROUPS[1:]
+#: bearing steel (AISI 52100)
+BEARING_STEEL_SPECIFIC_HEAT_J_KGK = 475.0
+
+
+class Radii(NamedTuple):
+    """Radii (m) the builders share: tooth tip, magnet outer and inner, shaft."""
+
+    tip: float
+    magnet_outer: float
+    magnet_inner: float
+    shaft: float
+
+
+class MotorNetworkBuilder:
+    """The network builder of :class:`~.motor.WetMotor` (its ``cfg``, ``net`` and ``oil``)."""
+
+    def _build(self) -> None:
+        """Build the network part by part, in a fixed order (it sets the node indices)."""
+        c, net = self.cfg, self.net
+        self.dz = c.stack_length_m / c.slices
+        self.amb = net.add_boundary('ambient')
+        self.inlet = net.add_boundary('oil_inlet')
+        st, ro = c.stator, c.rotor
+        r_mag_out = ro.outer_radius_m - ro.sleeve_thickness_m
+        g = Radii(tip=st.bore_radius_m + st.tooth_tip_depth_m, magnet_outer=r_mag_out,
+                  magnet_inner=r_mag_out - ro.magnet_thickness_m,
+                  shaft=ro.core_inner_radius_m)
+        self._build_stack(g)
+        self._build_airgap_oil()
+        self.ambient_links, self.ambient_areas = [], []
+        self.cap_links, self.cap_areas = [], []
+        self.end_links, self.end_areas, self.end_surfaces = [], [], []
+        self.bearing = {}
+        self.gap_links_stator, self.gap_links_rotor = [], []
+        self._build_slice_contacts(g)
+        self.end_winding = {}
+        for side in ('front', 'rear'):
+            self._build_end(side, g)
+        self._build_sources()
+        self._build_indices()
+
+    def _cylinder(self, name, r1, r2, lengths, mat, frac=1.0, **kw):
+        return add_cylinder(self.net, name, r1, r2, lengths, mat.k_radial_W_mK,
+                            mat.k_axial_W_mK, mat.rho_c_J_m3K, frac, **kw)
+
+    def _to_ambient(self, node: str, area_m2: float) -> None:
+        self.ambient_links.append(self.net.add_conductance(node, self.amb))
+        self.ambient_areas.append(area_m2)
+
+    def _to_end_oil(self, node: str, side: str, area_m2: float, kind: int, radius_m: float,
+                    length_m: float) -> None:
+        """Link a surface to its end space's oil: its kind, mean radius and plate length (m)."""
+        self.end_links.append(self.net.add_conductance(node, self.end_oil[side]))
+        self.end_areas.append(area_m2)
+        self.end_surfaces.append((node, self.end_oil[side], kind, radius_m, length_m))
+
+    def _build_stack(self, g: 'Radii') -> None:
+        """Add the cylinders of the active length, a block per slice: frame to shaft."""
+        c, cyl = self.cfg, self._cylinder
+        stack = [self.dz] * c.slices
+        fr, st, wd, ro = c.frame, c.stator, c.winding, c.rotor
+        frame = cyl('frame', fr.outer_radius_m, fr.inner_radius_m, stack, fr.material)
+        yoke = cyl('yoke', st.outer_radius_m, st.yoke_inner_radius_m, stack, st.material)
+        teeth = cyl('teeth', st.yoke_inner_radius_m, st.bore_radius_m, stack, st.material,
+                    st.tooth_fraction, outer=yoke.inner)
+        # slot winding: copper + insulation mixture
+        rc_wind = (wd.copper_fill * wd.copper_density_kg_m3 * wd.copper_specific_heat_J_kgK
+                   + (1 - wd.copper_fill) * wd.insulation_density_kg_m3
+                   * wd.insulation_specific_heat_J_kgK)
+        winding = add_cylinder(self.net, 'winding', st.yoke_inner_radius_m, g.tip, stack,
+                               wd.k_radial_W_mK, wd.k_axial_W_mK, rc_wind,
+                               1.0 - st.tooth_fraction)
+        sleeve = cyl('sleeve', ro.outer_radius_m, g.magnet_outer, stack, ro.sleeve)
+        magnet = cyl('magnet', g.magnet_outer, g.magnet_inner, stack, ro.magnet)
+        core = cyl('rotor_core', g.magnet_inner, g.shaft, stack, ro.core)
+        shaft = cyl('shaft', g.shaft, 0.0, stack, ro.shaft)
+        self.parts = {'frame': frame, 'yoke': yoke, 'teeth': teeth, 'winding': winding,
+                      'sleeve': sleeve, 'magnet': magnet, 'rotor_core': core, 'shaft': shaft}
+
+    def _build_airgap_oil(self) -> None:
+        """Add the oil path: front end space, n mixed airgap sections, rear end space."""
+        c, net, n = self.cfg, self.net, self.cfg.slices
+        st, ro, es = c.stator, c.rotor, c.end_spaces
+        oil_rc = self._oil_rho_cp(C_TO_K + 40.0, 0.0)
+        gap_vol = np.pi * (st.bore_radius_m ** 2 - ro.outer_radius_m ** 2) * self.dz
+        self.gap = [net.add_node(f'gap_oil.s{i + 1}', oil_rc * gap_vol) for i in range(n)]
+        self.end_oil = {s: net.add_node(f'end_oil_{s}', oil_rc * es.oil_volume_m3)
+                        for s in ('front', 'rear')}
+        self.oil_nodes = [self.end_oil['front']] + self.gap + [self.end_oil['rear']]
+        self.oil_volumes = np.array([es.oil_volume_m3] + [gap_vol] * n + [es.oil_volume_m3])
+        self.adv = [net.add_advection(u, d) for u, d in
+                    zip([self.inlet] + self.oil_nodes[:-1], self.oil_nodes)]
+
+    def _build_slice_contacts(self, g: 'Radii') -> None:
+        """Link each slice radially: frame to ambient and yoke, slot liners, airgap, rotor."""
+        c, net, dz = self.cfg, self.net, self.dz
+        fr, st, wd, ro = c.frame, c.stator, c.winding, c.rotor
+        frame, yoke, teeth, winding, sleeve, magnet, core, shaft = (
+            self.parts[k] for k in ('frame', 'yoke', 'teeth', 'winding', 'sleeve', 'magnet',
+                                    'rotor_core', 'shaft'))
+        ring = 2 * np.pi * dz  # lateral area per unit radius of one slice
+        slot_frac = 1.0 - st.tooth_fraction
+        liner_h = wd.liner_conductivity_W_mK / wd.liner_thickness_m
+        gap_h = st.contact_gap_conductivity_W_mK / st.frame_contact_gap_m
+        tooth_pitch = 2 * np.pi * 0.5 * (st.yoke_inner_radius_m + g.tip) / c.slots
+        slot_depth = st.yoke_inner_radius_m - g.tip
+        for i in range(c.slices):
+            self._to_ambient(frame.outer[i], fr.outer_radius_m * ring)
+            net.add_conductance(frame.inner[i], yoke.outer[i],
+                                gap_h * fr.inner_radius_m * ring)
+            net.add_conductance(winding.outer[i], yoke.inner[i],
+                                liner_h * slot_frac * st.yoke_inner_radius_m * ring)
+            net.add_conductance(winding.inner[i], teeth.inner[i],
+                                liner_h * slot_frac * g.tip * ring)
+            # slot sides to the teeth: liner in series with the mean-to-wall
+            # resistance of a slab with uniform generation (w / (6 k A_walls))
+            walls = 2 * c.slots * slot_depth * dz
+            r_lat = (1 / (liner_h * walls)
+                     + slot_frac * tooth_pitch / (6 * wd.k_radial_W_mK * walls)
+                     + st.tooth_fraction * tooth_pitch / (6 * st.material.k_radial_W_mK
+                                                          * walls))
+            net.add_resistance(winding.mean[i], teeth.mean[i], r_lat)
+            self.gap_links_stator.append(net.add_conductance(teeth.inner[i], self.gap[i]))
+            self.gap_links_rotor.append(net.add_conductance(sleeve.outer[i], self.gap[i]))
+            net.add_conductance(sleeve.inner[i], magnet.outer[i],
+                                ro.sleeve_magnet_htc_W_m2K * g.magnet_outer * ring)
+            net.add_conductance(magnet.inner[i], core.outer[i],
+                                ro.magnet_core_htc_W_m2K * g.magnet_inner * ring)
+            net.add_conductance(core.inner[i], shaft.outer[i],
+                                ro.core_shaft_htc_W_m2K * g.shaft * ring)
+
+    def _build_end(self, side: str, g: 'Radii') -> None:
+        """
+        Add one end of the motor: end winding, stack faces, frame end, end cap, shaft end.
+
+        Everything there exchanges heat with the end space's oil; the frame end
+        and the cap also with ambient, the shaft end through the bearing (half its
+        conductance on either side of the bearing node).
+        """
+        c, st, ro = self.cfg, self.cfg.stator, self.cfg.rotor
+        p, n = self.parts, self.cfg.slices
+        stack_face = 0 if side == 'front' else n
+        outward = 0 if side == 'front' else 1   # index of the face away from the stack
+
+        def joined(part: str) -> dict:
+            """Join an end block to the stack face of ``part``."""
+            return ({'rear_face': p[part].faces[0]} if side == 'front'
+                    else {'front_face': p[part].faces[n]})
+
+        ew = self._build_end_winding(side, g, joined('winding'), outward)
+        # stack faces open to the end space
+        end = self._to_end_oil
+        r_ew = 0.5 * (st.yoke_inner_radius_m + g.tip)
+        coil = 2 * np.pi * r_ew / c.slots
+        r_yoke = 0.5 * (st.outer_radius_m + st.yoke_inner_radius_m)
+        end(p['yoke'].faces[stack_face], side,
+            np.pi * (st.outer_radius_m ** 2 - st.yoke_inner_radius_m ** 2), END_STATOR, r_yoke,
+            2 * np.pi * r_yoke)
+        end(p['teeth'].faces[stack_face], side,
+            st.tooth_fraction * np.pi * (st.yoke_inner_radius_m ** 2 - st.bore_radius_m ** 2),
+            END_STATOR, r_ew, coil)
+        for part, r1, r2 in (('sleeve', ro.outer_radius_m, g.magnet_outer),
+                             ('magnet', g.magnet_outer, g.magnet_inner),
+                             ('rotor_core', g.magnet_inner, g.shaft)):
+            end(p[part].faces[stack_face], side, np.pi * (r1 ** 2 - r2 ** 2), END_ROTOR_FACE,
+                0.5 * (r1 + r2), r1 - r2)
+        fe, cap, se = self._build_end_housing(side, g, joined, outward)
+        p.update({f'end_winding_{side}': ew, f'frame_end_{side}': fe,
+                  f'end_cap_{side}': cap, f'shaft_end_{side}': se})
+
+    def _build_end_winding(self, side: str, g: 'Radii', joined: dict, outward: int):
+        """Add one end winding (the end turns' copper and insulation) and its oil links."""
+        c, st, wd = self.cfg, self.cfg.stator, self.cfg.winding
+        slot_frac = 1.0 - st.tooth_fraction
+        # end windings: the slot conductors continue out of the stack; per side the
+        # end turns hold copper volume fill * A_slots * l_end_turn / 2
+        a_slots = slot_frac * np.pi * (st.yoke_inner_radius_m ** 2 - g.tip ** 2)
+        v_block = a_slots * wd.end_overhang_m
+        v_cu = wd.copper_fill * a_slots * wd.end_turn_length_m / 2
+        if v_cu > v_block:
+            v_cu = v_block  # tightly packed end turns: the block is all copper
+        rc_end = (v_cu * wd.copper_density_kg_m3 * wd.copper_specific_heat_J_kgK
+                  + (v_block - v_cu) * wd.insulation_density_kg_m3
+                  * wd.insulation_specific_heat_J_kgK) / v_block
+        ew = add_cylinder(self.net, f'end_winding_{side}', st.yoke_inner_radius_m, g.tip,
+                          [wd.end_overhang_m], wd.k_radial_W_mK, wd.k_axial_W_mK, rc_end,
+                          slot_frac, **joined)
+        self.end_winding[side] = ew
+        # the end turns are one coil per tooth: the oil's swirl meets each as a plate of
+        # one coil pitch; the smooth stack faces, frame and cap as one turn of the swirl
+        r_ew = 0.5 * (st.yoke_inner_radius_m + g.tip)
+        coil = 2 * np.pi * r_ew / c.slots
+        end = self._to_end_oil
+        end(ew.faces[outward], side, a_slots, END_STATOR, r_ew, coil)
+        end(ew.outer[0], side, 2 * np.pi * st.yoke_inner_radius_m * slot_frac * wd.end_overhang_m,
+            END_STATOR, st.yoke_inner_radius_m, coil)
+        end(ew.inner[0], side, 2 * np.pi * g.tip * slot_frac * wd.end_overhang_m, END_STATOR,
+            g.tip, coil)
+        return ew
+
+    def _build_end_housing(self, side: str, g: 'Radii', joined, outward: int) -> tuple:
+        """Add one end's frame segment, end cap, bearing and shaft end; return the blocks."""
+        c, net, cyl = self.cfg, self.net, self._cylinder
+        fr, ro, es, bg = c.frame, c.rotor, c.end_spaces, c.bearings
+        L_fend = 0.5 * (fr.length_m - c.stack_length_m)
+        L_send = 0.5 * (ro.shaft_length_m - c.stack_length_m)
+        end = self._to_end_oil
+        fe = cyl(f'frame_end_{side}', fr.outer_radius_m, fr.inner_radius_m, [L_fend],
+                 fr.material, **joined('frame'))
+        self._to_ambient(fe.outer[0], 2 * np.pi * fr.outer_radius_m * L_fend)
+        end(fe.inner[0], side, 2 * np.pi * fr.inner_radius_m * L_fend, END_STATOR,
+            fr.inner_radius_m, 2 * np.pi * fr.inner_radius_m)
+        cap = cyl(f'end_cap_{side}', fr.outer_radius_m, bg.seat_radius_m,
+                  [es.cap_thickness_m], es.cap_material)
+        net.add_conductance(cap.outer[0], fe.faces[outward], es.cap_frame_htc_W_m2K * np.pi
+                            * (fr.outer_radius_m ** 2 - fr.inner_radius_m ** 2))
+        self.cap_links.append(net.add_conductance(cap.faces[outward], self.amb))
+        self.cap_areas.append(np.pi * (fr.outer_radius_m ** 2 - bg.seat_radius_m ** 2))
+        # the cap's face: facing the rotor's end face out to its radius, a swirl plate beyond
+        a, r_seat = ro.outer_radius_m, bg.seat_radius_m
+        self._cap_disc_share = max(a ** 2 - r_seat ** 2, 0.0) / (fr.inner_radius_m ** 2
+                                                                 - r_seat ** 2)
+        r_cap = 0.5 * (fr.inner_radius_m + max(a, r_seat))
+        end(cap.faces[1 - outward], side, np.pi * (fr.inner_radius_m ** 2 - r_seat ** 2),
+            END_CAP, r_cap, 2 * np.pi * r_cap)
+        se = cyl(f'shaft_end_{side}', g.shaft, 0.0, [L_send], ro.shaft, **joined('shaft'))
+        end(se.outer[0], side, 2 * np.pi * g.shaft * min(L_send, L_fend), END_SHAFT, g.shaft,
+            2 * np.pi * g.shaft)
+        # the bearing between shaft end and cap: its rings and balls, heated by its friction
+        b = self.bearing[side] = net.add_node(
+            f'bearing_{side}', bg.mass_kg * BEARING_STEEL_SPECIFIC_HEAT_J_KGK)
+        net.add_conductance(se.outer[0], b, 2.0 * bg.conductance_W_K)
+        net.add_conductance(b, cap.inner[0], 2.0 * bg.conductance_W_K)
+        return fe, cap, se
+
+    def _build_sources(self) -> None:
+        """
+        Add the heat sources, one per heated node, in groups (:data:`LOSS_GROUPS`).
+
+        Copper (slot slices, end windings), stator iron (yoke and teeth slices),
+        airgap friction (its oil sections), rotor eddy currents (magnet, sleeve,
+        rotor core slices), end-face friction (the end-space oil) and bearings.
+        """
+        c, net, p = self.cfg, self.net, self.parts
+        wd, n = c.winding, c.slices
+        ends = [self.end_winding['front'].mean[0], self.end_winding['rear'].mean[0]]
+        self.copper_nodes = p['winding'].mean + ends
+        turn = c.stack_length_m + wd.end_turn_length_m   # half a turn's conductor length
+        self.copper_share = np.array([self.dz / turn] * n
+                                     + [wd.end_turn_length_m / (2 * turn)] * 2)
+        nodes = {'copper': self.copper_nodes, 'core_yoke': p['yoke'].mean,
+                 'core_teeth': p['teeth'].mean, 'gap_friction': self.gap,
+                 'magnet': p['magnet'].mean, 'sleeve': p['sleeve'].mean,
+                 'rotor_core': p['rotor_core'].mean,
+                 'end_face_friction': [self.end_oil['front'], self.end_oil['rear']],
+                 'bearings': [self.bearing['front'], self.bearing['rear']]}
+        #: each loss group's sources: a slice of the power vector
+        self.sources: Dict[str, slice] = {}
+        for group in LOSS_GROUPS:
+            ids = [net.add_source(m) for m in nodes[group]]
+            self.sources[group] = slice(ids[0], ids[-1] + 1)
+        self.src_copper = list(range(self.sources['copper'].start, self.sources['copper'].stop))
+        rho_fe = c.stator.material.density_kg_m3
+        self.yoke_mass = rho_fe * np.array(p['yoke'].volume_m3)
+        self.teeth_mass = rho_fe * np.array(p['teeth'].volume_m3)
+
+    def _build_indices(self) -> None:
+        """Index the nodes the steps and outputs use, and those that trigger a refresh."""
+        net, p = self.net, self.parts
+        self.ambient_areas = np.array(self.ambient_areas)
+        self.cap_areas = np.array(self.cap_areas)
+        self.end_areas = np.array(self.end_areas)
+        self.idx_copper = np.array([net.index(m) for m in self.copper_nodes])
+        self.idx_gap = np.array([net.index(m) for m in self.gap])
+        self.idx_oil = np.array([net.index(m) for m in self.oil_nodes])
+        self.idx_end_oil = self.idx_oil[[0, -1]]
+        # the surfaces the end-space oil washes: node, its oil, kind, radius, plate length
+        surf, oil, kind, radius, length = zip(*self.end_surfaces)
+        self.end_surfaces = EndSurfaces(
+            surface=np.array([net.index(m) for m in surf]),
+            oil=np.array([net.index(m) for m in oil]), kind=np.array(kind),
+            radius_m=np.array(radius), length_m=np.array(length))
+        self.idx_frame_outer = np.array([net.index(m) for m in p['frame'].outer])
+        self.idx_cap_outer = np.array([net.index(p[f'end_cap_{s}'].faces[o])
+                                       for s, o in (('front', 0), ('rear', 1))])
+        self.idx_frame = np.array([net.index(m) for m in p['frame'].mean])
+        # nodes whose temperature sets a coefficient, with the drift (in units of
+        # refresh_dT_K) that triggers a refresh: airgap oil viscosity sets the airgap h
+        # (~1.5 %/K); the end spaces' h follow their film temperatures (~0.4 %/K: the end
+        # oil and the end windings, the hottest surface there); end-space oil capacity
+        # and natural convection move < 0.2 %/K. Copper R(T) and friction viscosity are
+        # evaluated every step.
+        ends = [net.index(self.end_winding[s].mean[0]) for s in ('front', 'rear')]
+        self.idx_watch = np.concatenate([self.idx_gap, self.idx_end_oil, ends,
+                                         self.idx_frame_outer, self.idx_cap_outer])
+        self.watch_scale = np.concatenate([np.ones(self.idx_gap.size),
+                                           np.full(self.idx_watch.size - self.idx_gap.size, 4.0)])
+        # the links to ambient (frame, then end caps) for the ledger
+        self._to_ambient_ids = np.array(self.ambient_links + self.cap_links)
