@@ -169,6 +169,21 @@ def test_buffers_are_capped_and_overflow_is_counted():
     assert h.accepted == 1024 and h.received == 5000
 
 
+def test_a_full_buffer_that_the_steps_emptied_takes_the_next_sample():
+    """The live path keeps pushing past the buffer's end while steps consume its front."""
+    cfg = load_config(overrides={'estimator.buffer_samples': 1024})
+    est = Estimator(cfg)
+    t = 100.0
+    for k in range(5 * 1024):                    # five times round the buffer at 1 kHz
+        t += 1e-3
+        for ch in est.inputs:
+            assert est.intake.push(ch, t, LOAD[ch]), (ch, k)
+        if k % 20 == 19:
+            est.advance(now_s=t)
+    assert all(h.overflow == 0 and h.accepted == 5 * 1024 for h in est.health.values())
+    assert est.t_model is not None and est.t_model > t - 0.1
+
+
 def fuzz(est, rng, iterations=None, seconds=None):
     """
     Feed ``est`` everything a rig can send, seeded by ``rng``; return (clock, slowest call).

@@ -174,12 +174,12 @@ class Intake:
         overflow) when the input's buffer is full.
         """
         buf = self.buffers[channel]          # KeyError names an unknown channel
-        top = buf.top
-        if top == buf.size and not buf.room():
+        if buf.top == buf.size and not buf.room():
             h = self.health[channel]
             h.received += 1
             h.overflow += 1
             return False
+        top = buf.top                        # after room(), which may have moved the samples
         buf.t[top] = stamp_s
         buf.v[top] = value
         buf.top = top + 1
