@@ -44,6 +44,10 @@ re-anchors the schedule without restarting the duty. When the rig falls
 behind (a slow tick) it publishes the due samples in one tick, at most
 ``MAX_BURST_S`` worth; samples older than that are skipped and counted.
 
+Shutdown: one summary line (samples, timer jitter, publish lag, CPU) to
+stderr for people, and the same figures as data (an
+:class:`~wet_eha_thermal.interface.NodeReport` line) to stdout for ``live``.
+
 Run: ``python -m wet_eha_thermal.ros.sim_rig_node [--executor events|single]
 --ros-args -p stage:=3``.
 """
