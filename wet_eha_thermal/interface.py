@@ -180,7 +180,7 @@ class NodeReport:
             raise ValueError(f'not a node report: {exc!r}') from None
 
     def write(self, stream: TextIO) -> None:
-        """Write the report's line to ``stream`` in one call (no other output cuts into it)."""
+        """Put the report's line on ``stream`` as one piece (logs may share it), and flush."""
         stream.write(REPORT_PREFIX + self.to_json() + '\n')
         stream.flush()
 
