@@ -39,7 +39,7 @@ from procfs import cpu_seconds
 import rclpy
 from std_msgs.msg import Float64
 from wet_eha_thermal.bag.reader import FLOAT64, read_columns
-from wet_eha_thermal.ros import live
+from wet_eha_thermal.ros.live_monitor import domain_from_env, open_domain
 
 #: Longest wait for the recorder to match every topic (s).
 MATCH_TIMEOUT_S = 30.0
@@ -87,7 +87,7 @@ def main() -> int:
     rate_per_topic_Hz = args.rate / args.topics
     count = int(round(rate_per_topic_Hz * args.seconds))
 
-    context, domain = live.open_domain(live.domain_from_env())
+    context, domain = open_domain(domain_from_env())
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain),
                ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', OPENBLAS_NUM_THREADS='1')
     cmd = [sys.executable, '-m', 'wet_eha_thermal.ros.recorder_node', '--ros-args',

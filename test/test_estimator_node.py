@@ -344,6 +344,10 @@ def test_main_runs_and_stops_cleanly_on_ctrl_c():
                          interrupt_after='spinning with the events executor')
     assert rc == 0, text
     assert 'spinning with the events executor' in text and 'Traceback' not in text
+    # its counts as data for live, besides the summary line for people
+    report = interface.NodeReport.find(text.splitlines())
+    assert report is not None and report.node == interface.ESTIMATOR_NODE, text
+    assert set(report.inputs) >= {'current_A', 'speed_rad_s'} and 'estimates' in report.figures
     rc, text = _run_main('--ros-args', '-p', 'qos:=fast')
     assert rc == 2 and 'qos' in text and 'Traceback' not in text
 

@@ -1,6 +1,7 @@
 """End-to-end test of ``wet-eha-thermal live``: rig, estimator and status in one command."""
 
 import json
+import math
 import os
 from pathlib import Path
 import re
@@ -16,7 +17,11 @@ from wet_eha_thermal import interface
 from wet_eha_thermal.bag.reader import open_bag
 from wet_eha_thermal.config import default_config_path, load_config
 from wet_eha_thermal.estimator.warmup import compile_estimator
+from wet_eha_thermal.interface import InputCounts, NodeReport, REPORT_PREFIX
 from wet_eha_thermal.ros.live import address_taken
+from wet_eha_thermal.ros.live_children import Child, LiveOptions
+from wet_eha_thermal.ros.live_monitor import TwinState
+from wet_eha_thermal.ros.live_text import summary
 
 BIN = Path(sys.executable).parent / 'wet-eha-thermal'
 ROOT = Path(__file__).resolve().parents[1]
@@ -77,6 +82,10 @@ def test_live_runs_and_cleans_up(tmp_path):
     assert 'rig             exited cleanly' in out, out
     assert 'estimator       exited cleanly' in out, out
     assert 'recorder        exited cleanly' in out, out
+    # from the reports the rig and the estimator printed at their shutdown
+    assert re.search(r'samples\s+the rig published \d+ per input; the estimator received', out)
+    assert re.search(r'stale events\s+\d+ \(during the duty\)', out), out
+    assert re.search(r'rig figures\s+\d+\.\d s, \d+ samples x 6 topics', out), out
     assert ('Foxglove view: open https://app.foxglove.dev/?ds=foxglove-websocket&ds.url='
             f'ws://127.0.0.1:{port}') in out, out
     assert f'foxglove view   ws://127.0.0.1:{port}, served by the estimator' in out, out
@@ -120,3 +129,60 @@ def test_live_bad_foxglove_address_is_one_error_line():
                          timeout=60)
     assert res.returncode == 2 and res.stdout == ''
     assert res.stderr.strip().count('\n') == 0 and 'HOST:PORT' in res.stderr, res.stderr
+
+
+# every figure the rig's summary names (sim_rig_node.figures_text)
+RIG_FIGURES = ('run_s', 'input_topics', 'samples_skipped', 'tick_interval_p50_ms',
+               'tick_interval_p99_ms', 'tick_interval_max_ms', 'publish_lag_p50_ms',
+               'publish_lag_p99_ms', 'publish_lag_max_ms', 'block_p50_ms', 'block_p99_ms',
+               'cpu_percent')
+
+
+def test_node_report_round_trips_through_its_schema():
+    report = NodeReport(node=interface.ESTIMATOR_NODE, samples_published=7,
+                        inputs={'current_A': InputCounts(10, 8, 2, 1)},
+                        figures={'estimates': 3, 'longest_gap_s': 1.5, 'lag_ms': math.nan})
+    text = report.to_json()
+    assert 'NaN' not in text and json.loads(text)['schema'] == report.schema
+    back = NodeReport.from_json(text)
+    assert math.isnan(back.figures.pop('lag_ms'))
+    assert back == NodeReport(node=report.node, samples_published=7, inputs=report.inputs,
+                              figures={'estimates': 3, 'longest_gap_s': 1.5})
+    with pytest.raises(ValueError, match='schema'):
+        NodeReport.from_json(text.replace(report.schema, 'wet_eha_thermal.node_report/0'))
+    with pytest.raises(ValueError):
+        NodeReport.from_json('{"schema": "%s", "node": "x"}' % report.schema)
+    lines = ['a log line', REPORT_PREFIX + text, 'more log']
+    assert NodeReport.find(lines).inputs == report.inputs
+    assert NodeReport.find(['rig summary: 5 samples x 6 topics']) is None
+
+
+def _reporting_child(tmp_path, name, human, report):
+    """Return a finished child that printed ``human`` on stderr and ``report`` as its report."""
+    code = (f'import sys; print({human!r}, file=sys.stderr); '
+            f'sys.stdout.write({REPORT_PREFIX + report.to_json()!r} + "\\n")')
+    child = Child(name, [sys.executable, '-c', code], dict(os.environ), tmp_path)
+    child.proc.wait(timeout=30)
+    child.close()
+    return child
+
+
+def test_live_summary_counts_come_from_the_reports_not_the_log_text(tmp_path):
+    # the human lines lie (other numbers, another wording): the summary takes the data
+    rig = _reporting_child(tmp_path, 'rig', 'rig summary: 5 samples x 6 topics',
+                           NodeReport(node=interface.RIG_NODE, samples_published=1000,
+                                      figures=dict.fromkeys(RIG_FIGURES, 1.0)))
+    est = _reporting_child(
+        tmp_path, 'estimator', 'estimator summary: current_A 1 received, 1 accepted, '
+        '0 rejected, 9 stale events',
+        NodeReport(node=interface.ESTIMATOR_NODE,
+                   inputs={'current_A': InputCounts(990, 985, 5, 0),
+                           'speed_rad_s': InputCounts(995, 992, 3, 2)}))
+    lines = summary(LiveOptions(record=False, foxglove=None), TwinState(), [rig, est], 1.0, 0,
+                    'test')
+    text = '\n'.join(lines)
+    assert ('  samples         the rig published 1000 per input; the estimator received 990 of '
+            'them on its worst input (99.00 %), rejected 8') in lines, text
+    assert any(ln.startswith('  stale events    2 (during the duty): speed_rad_s 2;')
+               for ln in lines), text
+    assert '  rig figures     1.0 s, 1000 samples x 1 topics (1 skipped)' in text, text

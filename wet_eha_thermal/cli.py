@@ -336,10 +336,10 @@ def _live(args: argparse.Namespace) -> int:
     stage = None if args.duty is not None else (args.stage or 6)
     if stage is not None:
         stage_duty(cfg, stage)
-    from .ros import live
+    from .ros import live, live_monitor
 
     try:
-        domain = live.domain_from_env()
+        domain = live_monitor.domain_from_env()
     except ValueError as exc:
         raise BadArgument(str(exc)) from None
     opts = live.LiveOptions(stage=stage, duty=args.duty, duration_s=args.duration,

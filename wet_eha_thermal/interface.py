@@ -30,9 +30,17 @@ on /eha/alerts/ack (std_msgs/String: a quantity, or empty for all). The recorder
 reports its health on /eha/recorder/health (std_msgs/String holding JSON,
 transient-local) and in /diagnostics.
 
+At shutdown the simulated rig and the estimator print their counts as one
+line of JSON, a :class:`NodeReport`, which ``live`` summarises.
+
 The estimator, the offline tools and the ROS nodes take these names from
 here; :mod:`.ros.topics` adds what needs rclpy (QoS profiles, publishing).
 """
+
+from dataclasses import asdict, dataclass, field
+import json
+import math
+from typing import Dict, Iterable, Optional, TextIO
 
 PREFIX = '/eha'
 #: Message types of the twin's topics, as bags store them (pkg/msg/Type)
@@ -108,3 +116,79 @@ def prefixed(topic: str, prefix: str) -> str:
     if not topic.startswith(PREFIX):
         return topic
     return prefix.rstrip('/') + topic[len(PREFIX):]
+
+
+#: The line of a node's :class:`NodeReport` starts with this, then its JSON.
+REPORT_PREFIX = 'wet_eha_thermal node report: '
+#: Version of the report's fields: a reader refuses any other.
+REPORT_SCHEMA = 'wet_eha_thermal.node_report/1'
+
+
+@dataclass(frozen=True)
+class InputCounts:
+    """One input's samples over a run of the estimator (its diagnostics' counters)."""
+
+    received: int
+    accepted: int
+    rejected: int
+    stale_events: int
+
+
+@dataclass(frozen=True)
+class NodeReport:
+    """
+    A node's counts at the end of its run, as data: what ``live`` summarises.
+
+    The node writes it as its last line on stdout (:meth:`write`): ``live``
+    sends its children SIGINT and reads their output after they exited, and
+    a line flushed to the log file outlives the process, where a message on
+    a topic during the shutdown of both ends may never arrive.
+
+    ``samples_published``: the simulated rig's samples per input topic;
+    ``inputs``: the estimator's counts per input; ``figures``: the rest, each
+    name ending in its unit (``_s``, ``_ms``, ``_percent``) or naming a count
+    (NaN where there is no figure, written as null).
+    """
+
+    node: str
+    samples_published: Optional[int] = None
+    inputs: Dict[str, InputCounts] = field(default_factory=dict)
+    figures: Dict[str, float] = field(default_factory=dict)
+    schema: str = REPORT_SCHEMA
+
+    def to_json(self) -> str:
+        """Return the report as one line of strict JSON."""
+        data = asdict(self)
+        data['figures'] = {k: v if math.isfinite(v) else None for k, v in self.figures.items()}
+        return json.dumps(data, allow_nan=False)
+
+    @classmethod
+    def from_json(cls, text: str) -> 'NodeReport':
+        """Return the report in ``text``; ValueError if it is not one of this schema."""
+        try:
+            data = json.loads(text)
+            if data.get('schema') != REPORT_SCHEMA:
+                raise ValueError(f'schema {data.get("schema")!r}, expected {REPORT_SCHEMA!r}')
+            published = data['samples_published']
+            return cls(node=str(data['node']),
+                       samples_published=None if published is None else int(published),
+                       inputs={str(k): InputCounts(**{f: int(n) for f, n in v.items()})
+                               for k, v in data['inputs'].items()},
+                       figures={str(k): math.nan if v is None else float(v)
+                                for k, v in data['figures'].items()})
+        except (AttributeError, KeyError, TypeError) as exc:
+            raise ValueError(f'not a node report: {exc!r}') from None
+
+    def write(self, stream: TextIO) -> None:
+        """Put the report's line on ``stream`` as one piece (logs may share it), and flush."""
+        stream.write(REPORT_PREFIX + self.to_json() + '\n')
+        stream.flush()
+
+    @classmethod
+    def find(cls, lines: Iterable[str]) -> Optional['NodeReport']:
+        """Return the last report among ``lines`` (None when there is none or it is bad)."""
+        found = [ln[len(REPORT_PREFIX):] for ln in lines if ln.startswith(REPORT_PREFIX)]
+        try:
+            return cls.from_json(found[-1]) if found else None
+        except ValueError:
+            return None

@@ -33,7 +33,8 @@ matched a publisher, the node says so on ``/eha/ready`` (latched); the
 simulated rig waits for that. A second timer publishes /diagnostics. No
 callback ever raises: a failure is logged, counted and shown in the
 diagnostics. At shutdown one summary line (samples received and rejected per
-input, gaps, clock jumps) goes to stderr.
+input, gaps, clock jumps) goes to stderr for people, and the same counts as
+data (an :class:`~wet_eha_thermal.interface.NodeReport` line) to stdout.
 
 With ``foxglove_address`` (HOST:PORT) the node also serves the Foxglove view
 (:mod:`wet_eha_thermal.live_view`): each estimate, alert summary and count of
@@ -621,18 +622,30 @@ class EstimatorNode(Node):
                 'estimates shown')
         return text + (f'; {v.errors} errors (last: {v.last_error})' if v.errors else '')
 
-    def summary(self) -> str:
-        """Return a one-line account of the run: samples per input, gaps, clock jumps."""
-        parts = []
+    def report(self) -> interface.NodeReport:
+        """Return the run's counts as data: per input, estimates, gaps, errors."""
+        inputs = {}
         for name in self.est.inputs:
             h = self.est.health[name]
-            parts.append(f'{name} {h.received} received, {h.accepted} accepted, '
-                         f'{h.rejected} rejected, {h.stale_events} stale events')
+            inputs[name] = interface.InputCounts(h.received, h.accepted, h.rejected,
+                                                 h.stale_events)
         g = self.est.gaps
-        return (f'estimator summary: {self.published} estimates, {self.est.steps} steps; '
-                + '; '.join(parts) + f'; data gaps {g.count} (longest {g.longest_s:.1f} s); '
-                f'clock jumps {self.est.clock_jumps}; callback errors '
-                f'{sum(self.callback_errors.values())}, model errors {self.model_errors}')
+        return interface.NodeReport(node=NODE_NAME, inputs=inputs, figures={
+            'estimates': self.published, 'steps': self.est.steps, 'data_gaps': g.count,
+            'longest_gap_s': g.longest_s, 'clock_jumps': self.est.clock_jumps,
+            'callback_errors': sum(self.callback_errors.values()),
+            'model_errors': self.model_errors})
+
+    def summary(self) -> str:
+        """Return a one-line account of the run for a log: samples per input, gaps, jumps."""
+        r = self.report()
+        f = r.figures
+        parts = [f'{name} {c.received} received, {c.accepted} accepted, {c.rejected} '
+                 f'rejected, {c.stale_events} stale events' for name, c in r.inputs.items()]
+        return (f'estimator summary: {f["estimates"]} estimates, {f["steps"]} steps; '
+                + '; '.join(parts) + f'; data gaps {f["data_gaps"]} (longest '
+                f'{f["longest_gap_s"]:.1f} s); clock jumps {f["clock_jumps"]}; callback errors '
+                f'{f["callback_errors"]}, model errors {f["model_errors"]}')
 
 
 _DESCRIPTION = ('Live thermal estimator of the wet EHA (ROS 2 node). ROS arguments follow '
@@ -644,6 +657,7 @@ def main(args: Optional[List[str]] = None) -> int:
     """Run the estimator node until Ctrl-C or shutdown; return the exit status."""
     def close(node: EstimatorNode) -> int:
         print(node.summary(), file=sys.stderr, flush=True)
+        node.report().write(sys.stdout)
         return 0
 
     return run_node(args, 'wet-eha-thermal-estimator', _DESCRIPTION, EstimatorNode,

@@ -210,46 +210,16 @@ class RecorderNode(Node):
 
     def __init__(self, **kwargs) -> None:
         super().__init__(NODE_NAME, **kwargs)
-        accept_whole_numbers(self, {name: d for name, (d, _) in PARAMETERS.items()})
-        p = {name: self.declare_parameter(name, default, desc).value
-             for name, (default, desc) in PARAMETERS.items()}
-        p['extra_topics'] = list(p['extra_topics'] or [])
-        p['use_sim_time'] = self.get_parameter('use_sim_time').value
-        if p['executor'] not in EXECUTORS:
-            raise ValueError(f"parameter executor = {p['executor']!r}: expected one of "
-                             f'{", ".join(EXECUTORS)}')
-        if not p['topic_prefix'].startswith('/'):
-            raise ValueError(f"parameter topic_prefix = {p['topic_prefix']!r}: must start with /")
+        p = self._read_parameters()
+        # before the bag is made: a bad qos leaves no empty recording behind
         qos_of = {'sensor': topics.input_qos(p['qos'], p['qos_depth']),  # ValueError: bad kind
                   'output': topics.input_qos('reliable', p['qos_depth']),
                   'latched': topics.latched_qos()}
         self.hardware_id = p['hardware_id']
         self.depth = p['qos_depth']
-        # check the configuration as the estimator will, and keep its text
-        config_path = Path(p['config_file']) if p['config_file'] else default_config_path()
-        load_config(config_path)
-        metadata = {interface.CONFIG_METADATA: _text_record(config_path)}
-        if p['params_file']:
-            metadata[interface.PARAMS_METADATA] = _text_record(Path(p['params_file']))
         self.started_utc = datetime.now(timezone.utc).isoformat(timespec='seconds')
-        metadata[interface.RECORDER_METADATA] = {
-            'version': version('wet_eha_thermal'), 'node': self.get_fully_qualified_name(),
-            'started_utc': self.started_utc,
-            'parameters': yaml.safe_dump(p, sort_keys=False)}
         self.output = Path(p['output']) if p['output'] else default_output()
-        self.output.parent.mkdir(parents=True, exist_ok=True)
-        try:
-            # a full disk or a write error suspends the bag (files closed cleanly, messages
-            # counted as dropped) until there is room again: the run is never stopped by it
-            self.writer = BagWriter(
-                self.output, metadata=metadata, flush_interval_s=p['flush_interval_s'],
-                split_bytes=p['split_bytes'] or None,
-                split_duration_s=p['split_duration_s'] or None, compression=p['compression'],
-                directory=not is_single_file(self.output), on_error='suspend',
-                reserve_bytes=p['reserve_bytes'], resume_margin_bytes=p['resume_margin_bytes'])
-        except FileExistsError as exc:   # the directory, or the first file
-            raise FileExistsError(f'{exc.filename} exists: a recording is never '
-                                  'overwritten') from None
+        self.writer = self._open_bag(p)
 
         self.types: Dict[str, str] = {}             # subscribed topic -> type
         self.qos: Dict[str, QoSProfile] = {}        # ... and its subscription's QoS
@@ -264,19 +234,61 @@ class RecorderNode(Node):
         self._reported: Optional[tuple] = None      # what the last report said, to see news
         self.started_s = time.monotonic()
         self.clock = FastClock(self)
-        inputs = {interface.prefixed(t, p['topic_prefix'])
-                  for t in interface.INPUT_TOPICS.values()}
-        input_subs = []
-        for topic, (type_name, kind) in recorded_topics(p['topic_prefix']).items():
-            sub = self._subscribe(topic, type_name, qos_of[kind])
-            if topic in inputs:
-                input_subs.append(sub)
+        input_subs = self._subscribe_fixed(p['topic_prefix'], qos_of)
         extra = ['/' + t.lstrip('/') for t in p['extra_topics']]    # as rosbag2 names them
         self.extra_wanted = [t for t in extra if t not in self.types]
+        self._start_reporting(p['topic_prefix'], input_subs)
+        self.get_logger().info(
+            f'recording {len(self.types)} topics under {p["topic_prefix"]} ({p["qos"]} QoS for '
+            f'the sensors, depth {self.depth}) to {self.output}'
+            + (f'; waiting for {", ".join(self.extra_wanted)}' if self.extra_wanted else ''))
+
+    def _read_parameters(self) -> dict:
+        """Declare the parameters and return their values, checked (ValueError)."""
+        accept_whole_numbers(self, {name: d for name, (d, _) in PARAMETERS.items()})
+        p = {name: self.declare_parameter(name, default, desc).value
+             for name, (default, desc) in PARAMETERS.items()}
+        p['extra_topics'] = list(p['extra_topics'] or [])
+        p['use_sim_time'] = self.get_parameter('use_sim_time').value
+        if p['executor'] not in EXECUTORS:
+            raise ValueError(f"parameter executor = {p['executor']!r}: expected one of "
+                             f'{", ".join(EXECUTORS)}')
+        if not p['topic_prefix'].startswith('/'):
+            raise ValueError(f"parameter topic_prefix = {p['topic_prefix']!r}: must start with /")
+        return p
+
+    def _open_bag(self, p: dict) -> BagWriter:
+        """Return the writer of a new bag at ``self.output``, its metadata from ``p``."""
+        # check the configuration as the estimator will, and keep its text
+        config_path = Path(p['config_file']) if p['config_file'] else default_config_path()
+        load_config(config_path)
+        metadata = {interface.CONFIG_METADATA: _text_record(config_path)}
+        if p['params_file']:
+            metadata[interface.PARAMS_METADATA] = _text_record(Path(p['params_file']))
+        metadata[interface.RECORDER_METADATA] = {
+            'version': version('wet_eha_thermal'), 'node': self.get_fully_qualified_name(),
+            'started_utc': self.started_utc,
+            'parameters': yaml.safe_dump(p, sort_keys=False)}
+        self.output.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            # a full disk or a write error suspends the bag (files closed cleanly, messages
+            # counted as dropped) until there is room again: the run is never stopped by it
+            return BagWriter(
+                self.output, metadata=metadata, flush_interval_s=p['flush_interval_s'],
+                split_bytes=p['split_bytes'] or None,
+                split_duration_s=p['split_duration_s'] or None, compression=p['compression'],
+                directory=not is_single_file(self.output), on_error='suspend',
+                reserve_bytes=p['reserve_bytes'], resume_margin_bytes=p['resume_margin_bytes'])
+        except FileExistsError as exc:   # the directory, or the first file
+            raise FileExistsError(f'{exc.filename} exists: a recording is never '
+                                  'overwritten') from None
+
+    def _start_reporting(self, prefix: str, input_subs: list) -> None:
+        """Start the health and diagnostics, the ready handshake and the extra topics' search."""
         self.diag_pub = self.create_publisher(DiagnosticArray, interface.DIAGNOSTICS_TOPIC,
                                               QoSProfile(depth=10))
         self.health_pub = self.create_publisher(
-            String, interface.prefixed(interface.RECORDER_HEALTH_TOPIC, p['topic_prefix']),
+            String, interface.prefixed(interface.RECORDER_HEALTH_TOPIC, prefix),
             topics.latched_qos())
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._report, clock=steady)
@@ -284,19 +296,25 @@ class RecorderNode(Node):
         # ready once every input topic that has a publisher is matched (a rig publishes
         # either the three pressures or the differential one)
         self.readiness = Readiness(
-            self, interface.prefixed(interface.READY_TOPIC, p['topic_prefix']), input_subs,
+            self, interface.prefixed(interface.READY_TOPIC, prefix), input_subs,
             self.hardware_id, require_all=False)
         if self.extra_wanted:
             # steady clock: under use_sim_time an extra topic may be /clock itself
             self._discovery = self.create_timer(DISCOVERY_PERIOD_S, self._discover,
-                                                clock=Clock(clock_type=ClockType.STEADY_TIME))
+                                                clock=steady)
             self._discover()
-        self.get_logger().info(
-            f'recording {len(self.types)} topics under {p["topic_prefix"]} ({p["qos"]} QoS for '
-            f'the sensors, depth {self.depth}) to {self.output}'
-            + (f'; waiting for {", ".join(self.extra_wanted)}' if self.extra_wanted else ''))
 
     # ------------------------------------------------------------ subscriptions
+    def _subscribe_fixed(self, prefix: str, qos_of: Dict[str, QoSProfile]) -> list:
+        """Subscribe to every fixed topic under ``prefix``; return the inputs' subscriptions."""
+        inputs = {interface.prefixed(t, prefix) for t in interface.INPUT_TOPICS.values()}
+        input_subs = []
+        for topic, (type_name, kind) in recorded_topics(prefix).items():
+            sub = self._subscribe(topic, type_name, qos_of[kind])
+            if topic in inputs:
+                input_subs.append(sub)
+        return input_subs
+
     def _subscribe(self, topic: str, type_name: str, qos: QoSProfile):
         sub = self.create_subscription(topics.message_class(type_name), topic,
                                        functools.partial(self._on_message, topic), qos,

@@ -44,6 +44,10 @@ re-anchors the schedule without restarting the duty. When the rig falls
 behind (a slow tick) it publishes the due samples in one tick, at most
 ``MAX_BURST_S`` worth; samples older than that are skipped and counted.
 
+Shutdown: one summary line (samples, timer jitter, publish lag, CPU) to
+stderr for people, and the same figures as data (an
+:class:`~wet_eha_thermal.interface.NodeReport` line) to stdout for ``live``.
+
 Run: ``python -m wet_eha_thermal.ros.sim_rig_node [--executor events|single]
 --ros-args -p stage:=3``.
 """
@@ -64,8 +68,8 @@ from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64, String
 from wet_eha_thermal.config import ConfigError, load_config
 from wet_eha_thermal.interface import (AMBIENT_TOPIC, DIAGNOSTICS_TOPIC, INPUT_TOPICS,
-                                       MEASURED_PREFIX, PREFIX, prefixed, PRESSURE_INPUTS,
-                                       READY_TOPIC, RIG_NODE, THERMOCOUPLES)
+                                       MEASURED_PREFIX, NodeReport, PREFIX, prefixed,
+                                       PRESSURE_INPUTS, READY_TOPIC, RIG_NODE, THERMOCOUPLES)
 from wet_eha_thermal.model.kinetics import DutyError, load_duty_csv, stage_duty, STAGES
 from wet_eha_thermal.ros.runtime import (accept_whole_numbers, descriptor, prepare_model_step,
                                          run_node)
@@ -368,17 +372,16 @@ class SimRigNode(Node):
                 'block_p50_ms': b50, 'block_p99_ms': b99,
                 'cpu_percent': 100.0 * cpu / wall if wall > 0 else 0.0}
 
+    def report(self) -> NodeReport:
+        """Return the run's counts and figures as data: what ``live`` summarises."""
+        figures = self.statistics()
+        published = figures.pop('samples_published')
+        figures['input_topics'] = len(self.inputs)
+        return NodeReport(node=NODE_NAME, samples_published=published, figures=figures)
+
     def summary(self) -> str:
-        """Return a one-line account of the run (samples, jitter, lag, CPU)."""
-        s = self.statistics()
-        return (f'rig summary: {s["run_s"]:.1f} s, {s["samples_published"]} samples x '
-                f'{len(self.inputs)} topics ({s["samples_skipped"]} skipped), tick interval '
-                f'p50/p99/max {s["tick_interval_p50_ms"]:.3f}/{s["tick_interval_p99_ms"]:.3f}/'
-                f'{s["tick_interval_max_ms"]:.1f} ms, publish lag p50/p99/max '
-                f'{s["publish_lag_p50_ms"]:.3f}/{s["publish_lag_p99_ms"]:.3f}/'
-                f'{s["publish_lag_max_ms"]:.1f} ms, block (kinetics + truth step) p50/p99 '
-                f'{s["block_p50_ms"]:.2f}/{s["block_p99_ms"]:.2f} ms, CPU '
-                f'{s["cpu_percent"]:.1f} % of a core')
+        """Return a one-line account of the run (samples, jitter, lag, CPU) for a log."""
+        return f'rig summary: {figures_text(self.report())}'
 
     def _publish_diagnostics(self) -> None:
         s = self.statistics()
@@ -403,10 +406,24 @@ class SimRigNode(Node):
         self.diag_pub.publish(arr)
 
 
+def figures_text(report: NodeReport) -> str:
+    """Return the figures of the rig's report in words: samples, jitter, lag, block, CPU."""
+    s = report.figures
+    return (f'{s["run_s"]:.1f} s, {report.samples_published} samples x '
+            f'{s["input_topics"]:.0f} topics ({s["samples_skipped"]:.0f} skipped), tick interval '
+            f'p50/p99/max {s["tick_interval_p50_ms"]:.3f}/{s["tick_interval_p99_ms"]:.3f}/'
+            f'{s["tick_interval_max_ms"]:.1f} ms, publish lag p50/p99/max '
+            f'{s["publish_lag_p50_ms"]:.3f}/{s["publish_lag_p99_ms"]:.3f}/'
+            f'{s["publish_lag_max_ms"]:.1f} ms, block (kinetics + truth step) p50/p99 '
+            f'{s["block_p50_ms"]:.2f}/{s["block_p99_ms"]:.2f} ms, CPU '
+            f'{s["cpu_percent"]:.1f} % of a core')
+
+
 def main(args: Optional[List[str]] = None) -> int:
     """Run the simulated rig until Ctrl-C (or SIGTERM); return the exit status."""
     def close(node: SimRigNode) -> int:
         print(node.summary(), file=sys.stderr, flush=True)
+        node.report().write(sys.stdout)
         return 0
 
     return run_node(args, 'wet-eha-thermal-rig', 'Simulated wet-EHA rig (ROS 2 node '
