@@ -16,6 +16,7 @@ from typing import Dict, List, Optional, TextIO
 from wet_eha_thermal.bag.reader import BagError, open_bag
 from wet_eha_thermal.interface import ESTIMATOR_NODE, NodeReport
 from wet_eha_thermal.live_view import address_text, app_url
+from wet_eha_thermal.model.quantity_table import label
 from wet_eha_thermal.ros.live_children import Child, LiveOptions
 from wet_eha_thermal.ros.live_monitor import TwinState, WATCHED
 from wet_eha_thermal.ros.sim_rig_node import figures_text
@@ -79,7 +80,8 @@ def status_line(state: TwinState, elapsed_s: float, duration_s: float) -> str:
     margin = f'{state.margin} A' if _is_number(state.margin) else state.margin
     alert = state.alert_level if state.alert_message in ('OK', '') else \
         f'{state.alert_level}: {state.alert_message}'
-    return (f't {elapsed_s:5.1f}/{duration_s:g} s | winding hot-spot {t("winding_hotspot")}'
+    return (f't {elapsed_s:5.1f}/{duration_s:g} s | '
+            f'{label("winding_hotspot")} {t("winding_hotspot")}'
             f' mean {t("winding_mean")} | magnet {t("magnet")} | oil {t("oil")} degC | '
             f'margin {margin} | limit: {limit_text(state)} | alerts {alert} | '
             f'stale: {state.fallback}' + _recorder_part(state))
@@ -217,16 +219,16 @@ def _estimate_lines(state: TwinState) -> List[str]:
     sample_span = state.last_stamp - state.first_stamp
     out = [f'  estimates       {state.estimates} received, {rate:.1f} per s over '
            f'{span:.1f} s ({sample_span:.1f} s of sample time)']
-    peaks = ', '.join(f'{n.replace("_", " ")} {state.peaks[n]:.1f}' for n in WATCHED
+    peaks = ', '.join(f'{label(n)} {state.peaks[n]:.1f}' for n in WATCHED
                       if n in state.peaks)
     out.append(f'  peak estimates  {peaks} degC')
-    ends = ', '.join(f'{n.replace("_", " ")} {state.temps[n]:.1f}' for n in WATCHED
+    ends = ', '.join(f'{label(n)} {state.temps[n]:.1f}' for n in WATCHED
                      if n in state.temps)
     sigma = f' (1 sigma {state.sigma_K:.1f} K)' if state.sigma_K is not None else ''
     out.append(f'  at the end      {ends} degC{sigma}')
     truth = {k: state.rig.get(f'truth_{k}_C') for k in WATCHED}
     if all(v is not None and _is_number(v) for v in truth.values()):
-        diff = ', '.join(f'{n.replace("_", " ")} {float(truth[n]):.1f} '
+        diff = ', '.join(f'{label(n)} {float(truth[n]):.1f} '
                          f'({state.temps[n] - float(truth[n]):+.1f})' for n in WATCHED
                          if n in state.temps)
         out.append(f'  rig truth       {diff} degC (estimate - truth in brackets; last '
