@@ -142,19 +142,7 @@ class EstimatorNode(Node):
 
     def __init__(self, **kwargs) -> None:
         super().__init__(NODE_NAME, **kwargs)
-        accept_whole_numbers(self, {name: d for name, (d, _) in PARAMETERS.items()})
-        for name, (default, desc) in PARAMETERS.items():
-            self.declare_parameter(name, default, desc)
-        p = {name: self.get_parameter(name).value for name in PARAMETERS}
-        if p['executor'] not in EXECUTORS:
-            raise ValueError(f"parameter executor = {p['executor']!r}: expected one of "
-                             f'{", ".join(EXECUTORS)}')
-        view_at = None         # checked before the model's slow start
-        if p['foxglove_address']:
-            try:
-                view_at = parse_address(p['foxglove_address'])
-            except ValueError as exc:
-                raise ValueError(f'parameter foxglove_address = {exc}') from None
+        p, view_at = self._read_parameters()
         self.cfg = load_config(p['config_file'] or None)
         self.est = Estimator(self.cfg)
         # before any subscription or publisher: a first step that compiled would keep
@@ -169,8 +157,48 @@ class EstimatorNode(Node):
         self.prefix = p['topic_prefix'].rstrip('/')
         in_qos = topics.input_qos(p['qos'], p['qos_depth'])   # ValueError names a bad kind
         out_qos = QoSProfile(depth=10)                         # reliable, volatile
+        self._init_counters()
+        input_subs = self._subscribe(in_qos)
+        self._advertise(out_qos)
+        self.budget_s = p['background_budget_ms'] * 1e-3
+        self.publish_timer = self.create_timer(1.0 / p['publish_rate_Hz'], self._on_tick)
+        self.diag_timer = self.create_timer(1.0 / p['diagnostics_rate_Hz'], self._on_diagnostics)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.view_error = ''
+        self.view = self._start_view(view_at, p) if view_at is not None else None
+        if self.view is not None:
+            # the recorder's health, shown in the view beside the estimates
+            self.create_subscription(String, self._topic(interface.RECORDER_HEALTH_TOPIC),
+                                     self._on_recorder_health, topics.latched_qos())
+        self._publish_alerts(force=True)
+        self.readiness = Readiness(self, self._topic(interface.READY_TOPIC), input_subs,
+                                   self.hardware_id, require_all=True,
+                                   extra={'foxglove': self.view.url if self.view else None,
+                                          'foxglove_error': self.view_error})
+        self.get_logger().info(
+            f"estimating {len(interface.ESTIMATES)} temperatures at {p['publish_rate_Hz']:g} Hz "
+            f"from {self.prefix or '/'}/* ({p['qos']} QoS, depth {p['qos_depth']}); config "
+            f"{p['config_file'] or 'reference_eha.yaml (shipped)'}")
 
-        # counters the diagnostics report besides the core's
+    def _read_parameters(self) -> tuple:
+        """Declare and read the parameters; return them and the view's address (or None)."""
+        accept_whole_numbers(self, {name: d for name, (d, _) in PARAMETERS.items()})
+        for name, (default, desc) in PARAMETERS.items():
+            self.declare_parameter(name, default, desc)
+        p = {name: self.get_parameter(name).value for name in PARAMETERS}
+        if p['executor'] not in EXECUTORS:
+            raise ValueError(f"parameter executor = {p['executor']!r}: expected one of "
+                             f'{", ".join(EXECUTORS)}')
+        view_at = None         # checked before the model's slow start
+        if p['foxglove_address']:
+            try:
+                view_at = parse_address(p['foxglove_address'])
+            except ValueError as exc:
+                raise ValueError(f'parameter foxglove_address = {exc}') from None
+        return p, view_at
+
+    def _init_counters(self) -> None:
+        """Zero the counters the diagnostics report besides the core's."""
         self.callback_errors: Dict[str, int] = {}
         self.waiting_for_clock = 0
         self.model_errors = 0
@@ -190,6 +218,8 @@ class EstimatorNode(Node):
         # the topic of every input and of every thermocouple (measured/<name>), as subscribed
         self.topic_names: Dict[str, str] = {}
 
+    def _subscribe(self, in_qos: QoSProfile) -> list:
+        """Subscribe to the inputs (raw), the ambient, the thermocouples and the acks."""
         # inputs, raw: decoded here in a fraction of rclpy's deserialisation
         input_subs = []
         for name in self.est.inputs:
@@ -212,8 +242,10 @@ class EstimatorNode(Node):
                                      functools.partial(self._on_measured, tc), in_qos)
         self.create_subscription(String, self._topic(interface.ACK_TOPIC), self._on_ack,
                                  QoSProfile(depth=10))
+        return input_subs
 
-        # outputs
+    def _advertise(self, out_qos: QoSProfile) -> None:
+        """Create the publishers: estimates, state, its names (latched), alerts, diagnostics."""
         self.estimate_pubs = {
             name: self.create_publisher(
                 Temperature, self._topic(f'{interface.ESTIMATE_PREFIX}/{name}'), out_qos)
@@ -232,26 +264,6 @@ class EstimatorNode(Node):
                                                topics.latched_qos())
         self.diag_pub = self.create_publisher(DiagnosticArray, interface.DIAGNOSTICS_TOPIC,
                                               QoSProfile(depth=10))
-
-        self.budget_s = p['background_budget_ms'] * 1e-3
-        self.publish_timer = self.create_timer(1.0 / p['publish_rate_Hz'], self._on_tick)
-        self.diag_timer = self.create_timer(1.0 / p['diagnostics_rate_Hz'], self._on_diagnostics)
-        self.add_on_set_parameters_callback(self._on_set_parameters)
-        self.view_error = ''
-        self.view = self._start_view(view_at, p) if view_at is not None else None
-        if self.view is not None:
-            # the recorder's health, shown in the view beside the estimates
-            self.create_subscription(String, self._topic(interface.RECORDER_HEALTH_TOPIC),
-                                     self._on_recorder_health, topics.latched_qos())
-        self._publish_alerts(force=True)
-        self.readiness = Readiness(self, self._topic(interface.READY_TOPIC), input_subs,
-                                   self.hardware_id, require_all=True,
-                                   extra={'foxglove': self.view.url if self.view else None,
-                                          'foxglove_error': self.view_error})
-        self.get_logger().info(
-            f"estimating {len(interface.ESTIMATES)} temperatures at {p['publish_rate_Hz']:g} Hz "
-            f"from {self.prefix or '/'}/* ({p['qos']} QoS, depth {p['qos_depth']}); config "
-            f"{p['config_file'] or 'reference_eha.yaml (shipped)'}")
 
     # ------------------------------------------------------------- helpers
     def _topic(self, name: str) -> str:
