@@ -49,7 +49,7 @@ def write_log(job: tuple) -> str:
     from wet_eha_thermal import interface
     from wet_eha_thermal.config import default_config_path, load_config, with_values
     from wet_eha_thermal.model.kinetics import stage_duty
-    from wet_eha_thermal.simulated_rig import SimulatedRig, write_rig_bag
+    from wet_eha_thermal.offline.simulated_rig import SimulatedRig, write_rig_bag
 
     path, stage, minutes = job
     data = yaml.safe_load(default_config_path().read_text())

@@ -50,7 +50,7 @@ def peak_rss_MB(who: int = resource.RUSAGE_SELF) -> float:
 
 def run_phase(phase: str, path: Path) -> None:
     """Child process: one pass over the log, its figures as JSON on stdout."""
-    from wet_eha_thermal import replay as rp
+    from wet_eha_thermal.offline import replay as rp
     from wet_eha_thermal.config import with_values
 
     before = peak_rss_MB()
@@ -78,7 +78,7 @@ def write_log(path: Path, minutes: float) -> None:
     """Write ``minutes`` of the simulated rig on stage 6 to ``path``, with progress."""
     from wet_eha_thermal.config import load_config
     from wet_eha_thermal.model.kinetics import stage_duty
-    from wet_eha_thermal.simulated_rig import SimulatedRig, write_rig_bag
+    from wet_eha_thermal.offline.simulated_rig import SimulatedRig, write_rig_bag
 
     cfg = load_config(overrides={'estimator.pressure_inputs': 'differential'})
     t = time.perf_counter()

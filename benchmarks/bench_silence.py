@@ -30,7 +30,7 @@ import numpy as np
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.estimator import core
 from wet_eha_thermal.estimator.core import Estimator
-from wet_eha_thermal.simulation import compile_model
+from wet_eha_thermal.offline.simulation import compile_model
 
 LOAD = {'current_A': 15.0, 'speed_rad_s': 800.0, 'p_a_Pa': 3e6, 'p_b_Pa': 1e6,
         'p_acc_Pa': 1e6, 'position_m': 0.0}

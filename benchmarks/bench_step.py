@@ -43,7 +43,7 @@ from wet_eha_thermal.estimator.core import Estimator, sensor_inputs, sensor_sign
 from wet_eha_thermal.interface import THERMOCOUPLES
 from wet_eha_thermal.model.kinetics import KineticModel, stage_duty, ThermalFeedback
 from wet_eha_thermal.model.oil import get_oil
-from wet_eha_thermal.simulated_rig import NOISE_SIGMA
+from wet_eha_thermal.offline.simulated_rig import NOISE_SIGMA
 from wet_eha_thermal.units import C_TO_K
 
 RATE_HZ = 1000.0

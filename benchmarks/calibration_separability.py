@@ -24,7 +24,7 @@ import time
 from wet_eha_thermal import calibration as cb
 from wet_eha_thermal.config import load_config, with_values
 from wet_eha_thermal.model.kinetics import L_MIN, stage_duty, TableDuty
-from wet_eha_thermal.simulated_rig import log_from_rig, SimulatedRig
+from wet_eha_thermal.offline.simulated_rig import log_from_rig, SimulatedRig
 
 GAP = 'motor.stator.frame_contact_gap_m'
 SEAL = 'hydraulics.pump.extra_loss_W'

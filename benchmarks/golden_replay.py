@@ -38,17 +38,14 @@ def write_bag(path: Path, seconds: float) -> None:
     """Write the rig's log as the tests' ``record_rig_log`` fixture does (stage 6, seed 1)."""
     from wet_eha_thermal.config import default_config_path, load_config
     from wet_eha_thermal.model.kinetics import stage_duty
-    try:
-        from wet_eha_thermal.offline.simulated_rig import SimulatedRig, write_rig_bag
-    except ImportError:  # before the offline tools had a subpackage
-        from wet_eha_thermal.simulated_rig import SimulatedRig, write_rig_bag
+    from wet_eha_thermal.offline.simulated_rig import SimulatedRig, write_rig_bag
     from wet_eha_thermal import interface
 
     data = yaml.safe_load(default_config_path().read_text())
     data['estimator']['pressure_inputs'] = 'differential'
     key = getattr(interface, 'CONFIG_METADATA_KEY', None)
     if key is None:
-        from wet_eha_thermal import replay as rp
+        from wet_eha_thermal.offline import replay as rp
         meta = {rp.CONFIG_METADATA: {rp.CONFIG_METADATA_KEY: yaml.safe_dump(data)}}
     else:
         meta = {interface.CONFIG_METADATA: {key: yaml.safe_dump(data)}}

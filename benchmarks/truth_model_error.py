@@ -41,7 +41,7 @@ from wet_eha_thermal import calibration as cb
 from wet_eha_thermal.config import load_config, with_values
 from wet_eha_thermal.estimator.core import Estimator
 from wet_eha_thermal.model.kinetics import stage_duty
-from wet_eha_thermal.simulated_rig import log_from_rig, SimulatedRig
+from wet_eha_thermal.offline.simulated_rig import log_from_rig, SimulatedRig
 from wet_eha_thermal.units import C_TO_K
 
 GAP = 'motor.stator.frame_contact_gap_m'

@@ -178,7 +178,7 @@ def channel_errors(log: LogData, w: Windows, t_model: np.ndarray,
     Max abs, RMS and bias over the window means (the readings' noise averaged
     out), and the max abs against every single reading (noise included).
     """
-    from ..replay import error_stats
+    from ..offline.replay import error_stats
 
     means = window_means(w, t_model, y)
     out = {}

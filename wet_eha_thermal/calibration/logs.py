@@ -235,7 +235,7 @@ def plan_log(path: os.PathLike, config: tuple, mapping: Optional[Mapping[str, st
     :func:`~wet_eha_thermal.replay.choose_config`, one for all logs. Reads only the bag's
     summary: every log can be checked before any is read.
     """
-    from ..replay import plan_replay, ReplayError
+    from ..offline.replay import plan_replay, ReplayError
 
     try:
         plan = plan_replay(path, mapping=mapping, config=config)

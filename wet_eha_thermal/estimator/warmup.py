@@ -18,7 +18,7 @@ from .core import Estimator, sensor_signal
 from ..config import Config
 from ..model.kinetics import KineticModel, stage_duty, ThermalFeedback
 from ..model.oil import get_oil
-from ..simulation import compile_model
+from ..offline.simulation import compile_model
 
 #: Length of the synthetic stage-6 record fed to the estimator (s) and its rate (Hz).
 WARM_SECONDS, WARM_RATE_HZ = 0.3, 1000.0

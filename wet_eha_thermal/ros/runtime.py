@@ -109,7 +109,7 @@ def prepare_model_step(node: Node, cfg: Config, estimator: bool = False) -> None
     """
     # imported here: the recorder and the player use this module and need no model
     from wet_eha_thermal.estimator.warmup import compile_estimator
-    from wet_eha_thermal.simulation import compile_model
+    from wet_eha_thermal.offline.simulation import compile_model
     node.get_logger().info('loading the compiled model step (after an install or a change of '
                            'the model code it compiles once, in about a minute)')
     seconds = (compile_estimator if estimator else compile_model)(cfg)

@@ -32,13 +32,13 @@ from typing import Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
-from . import interface
-from .bag.reader import BagError, BagInfo, Columns, iter_column_blocks, open_bag
-from .config import (Config, config_from_yaml, ConfigError, default_config_path, load_config,
-                     with_values)
-from .estimator.core import Estimator, INPUTS, sensor_inputs
-from .model import quantity_table
-from .outputs import atomic, markdown_table, save_figure, write_text
+from .. import interface
+from ..bag.reader import BagError, BagInfo, Columns, iter_column_blocks, open_bag
+from ..config import (Config, config_from_yaml, ConfigError, default_config_path, load_config,
+                      with_values)
+from ..estimator.core import Estimator, INPUTS, sensor_inputs
+from ..model import quantity_table
+from ..outputs import atomic, markdown_table, save_figure, write_text
 
 #: Estimates written to the outputs (degC), in column order.
 OUTPUT_ESTIMATES = interface.ESTIMATES
@@ -386,8 +386,8 @@ def write_csv(result: ReplayResult, path: Path) -> Path:
 
 def write_mcap(result: ReplayResult, path: Path) -> Path:
     """Write the estimates as /eha/estimate/<name> Temperature messages, with the config."""
-    from .bag import cdr
-    from .bag.writer import BagWriter, offered_qos
+    from ..bag import cdr
+    from ..bag.writer import BagWriter, offered_qos
 
     cfg_yaml = result.plan.config_yaml
     metadata = {interface.CONFIG_METADATA: {interface.CONFIG_METADATA_KEY: cfg_yaml,

@@ -27,14 +27,14 @@ from typing import Callable, Dict, Iterator, Optional, Tuple
 
 import numpy as np
 
-from .config import Calibration, Config
-from .estimator.core import sensor_inputs, sensor_signal
-from .interface import (AMBIENT_TOPIC, INPUT_TOPICS, INPUT_TYPES, MEASURED_PREFIX,
-                        PRESSURE_INPUTS, TEMPERATURE, THERMOCOUPLES)
-from .model.eha import EHAModel
-from .model.kinetics import Duty, KineticModel, ThermalFeedback
 from .simulation import feedback
-from .units import C_TO_K
+from ..config import Calibration, Config
+from ..estimator.core import sensor_inputs, sensor_signal
+from ..interface import (AMBIENT_TOPIC, INPUT_TOPICS, INPUT_TYPES, MEASURED_PREFIX,
+                         PRESSURE_INPUTS, TEMPERATURE, THERMOCOUPLES)
+from ..model.eha import EHAModel
+from ..model.kinetics import Duty, KineticModel, ThermalFeedback
+from ..units import C_TO_K
 
 #: Length of one kinetics block and one truth-model step (s).
 BLOCK_S = 0.02
@@ -156,8 +156,8 @@ def write_rig_bag(path: os.PathLike, rig: SimulatedRig, seconds: float, *,
     same stamp in their header. Thermocouples and ambient come at
     ``thermocouple_rate_Hz`` and 1 Hz.
     """
-    from .bag import cdr
-    from .bag.writer import BagWriter, offered_qos
+    from ..bag import cdr
+    from ..bag.writer import BagWriter, offered_qos
 
     def temperature(value_C: float, sigma_K: float, ns: int) -> bytes:
         return cdr.encode_stamped(np.array([ns]), '', [[value_C, sigma_K ** 2 if rig.noise
@@ -210,7 +210,7 @@ def log_from_rig(rig, seconds: float, calib: Calibration, name: str = 'rig',
     """
     # here, not at the top: the rig's ROS node imports this module and has no use for the
     # calibration package
-    from .calibration.logs import channel_ranges, CHANNELS, LogBuilder
+    from ..calibration.logs import channel_ranges, CHANNELS, LogBuilder
 
     builder = LogBuilder(name, rig.inputs, calib, channel_ranges(rig.cfg))
     h = 1.0 / calib.average_rate_Hz

@@ -18,12 +18,12 @@ import warnings
 
 import numpy as np
 
-from .config import Config
-from .model import quantity_table
-from .model.motor import LOSS_NAMES
-from .model.quantities import OIL_OUTPUTS
-from .outputs import atomic, save_figure
-from .units import C_TO_K
+from ..config import Config
+from ..model import quantity_table
+from ..model.motor import LOSS_NAMES
+from ..model.quantities import OIL_OUTPUTS
+from ..outputs import atomic, save_figure
+from ..units import C_TO_K
 
 #: Temperatures of the table, in print order.
 TABLE = ('winding_mean', 'winding_hotspot', 'frame', 'magnet', 'airgap_oil_outlet',
