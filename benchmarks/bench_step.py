@@ -9,7 +9,7 @@ The inputs are the kinetic model's signals of a reference stage
 (:class:`~wet_eha_thermal.model.kinetics.KineticModel`, oil at 40 degC) at
 1 kHz, with the simulated rig's seeded sensor noise, stamped since the epoch
 as a recorded bag is. They go to :class:`~wet_eha_thermal.estimator.core.Estimator`
-as :func:`wet_eha_thermal.replay.replay` feeds them: ``add_many`` per input
+as :func:`wet_eha_thermal.offline.replay.replay` feeds them: ``add_many`` per input
 in blocks of 10 s of log, then ``advance()`` (no ambient readings, no
 background work).
 

@@ -2,7 +2,7 @@
 Calibration of the thermal model on bench logs: fit parameters to the thermocouples.
 
 A log (a rosbag2-style MCAP holding the sensor topics and the thermocouples,
-read as :mod:`wet_eha_thermal.replay` reads it: the same topic mapping, the same stamps) is
+read as :mod:`wet_eha_thermal.offline.replay` reads it: the same topic mapping, the same stamps) is
 read once. Its inputs are averaged onto a coarse grid (``calibration.
 average_rate_Hz``: the current as the root of the mean of I^2, speed and
 pressures as means, the position sampled at the end of each interval, as the

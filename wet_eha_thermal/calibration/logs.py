@@ -3,7 +3,7 @@ Logs: a bag read once into memory, its inputs averaged onto the fit's grid.
 
 :func:`plan_log` chooses a bag's topics as a replay does and checks it before
 anything is read; :func:`read_log` routes its samples as a replay does
-(:meth:`~wet_eha_thermal.replay.ReplayPlan.route`, the same stamps) into a
+(:meth:`~wet_eha_thermal.offline.replay.ReplayPlan.route`, the same stamps) into a
 :class:`LogBuilder`, which averages the inputs (:class:`InputAverager`), keeps
 the thermocouple and ambient readings raw and takes the starting temperature
 from the thermocouples' first readings: a :class:`LogData`.
@@ -232,7 +232,7 @@ def plan_log(path: os.PathLike, config: tuple, mapping: Optional[Mapping[str, st
     Open a bag and choose its topics as a replay would; raise CalibrationError if unusable.
 
     ``config`` is the (configuration, source, text) of
-    :func:`~wet_eha_thermal.replay.choose_config`, one for all logs. Reads only the bag's
+    :func:`~wet_eha_thermal.offline.replay.choose_config`, one for all logs. Reads only the bag's
     summary: every log can be checked before any is read.
     """
     from ..offline.replay import plan_replay, ReplayError
