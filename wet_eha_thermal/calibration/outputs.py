@@ -14,7 +14,7 @@ from .evaluator import window_means
 from .logs import CHANNELS
 from .results import CalibrationRun, LogFit, plain
 from ..config import Config, config_from_yaml, ConfigError
-from ..outputs import markdown_table, save_figure, write_text
+from ..output_files import markdown_table, save_figure, write_text
 
 #: Name of the calibrated configuration in the output folder.
 CALIBRATED_YAML = 'calibrated.yaml'

@@ -34,7 +34,7 @@ from . import replay as rp
 from .. import interface
 from ..bag.reader import is_bag
 from ..estimator.alerts import Level
-from ..outputs import atomic, markdown_table, save_figure, write_text
+from ..output_files import atomic, markdown_table, save_figure, write_text
 
 #: How long to wait for a scheduler to answer, and for a worker to join it (s).
 CONNECT_TIMEOUT_S = 30.0

@@ -22,7 +22,7 @@ from ..model import quantity_table
 from ..model.motor import LOSS_NAMES, MotorInputs, WetMotor
 from ..model.oil import get_oil
 from ..model.validity import ValidityLog
-from ..outputs import atomic, save_figure
+from ..output_files import atomic, save_figure
 from ..units import C_TO_K, RPM
 
 TEMPERATURES = ('winding_mean', 'winding_hotspot', 'frame', 'magnet', 'airgap_oil_outlet',

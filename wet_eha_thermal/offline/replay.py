@@ -38,7 +38,7 @@ from ..config import (Config, config_from_yaml, ConfigError, default_config_path
                       with_values)
 from ..estimator.core import Estimator, INPUTS, sensor_inputs
 from ..model import quantity_table
-from ..outputs import atomic, markdown_table, save_figure, write_text
+from ..output_files import atomic, markdown_table, save_figure, write_text
 
 #: Estimates written to the outputs (degC), in column order.
 OUTPUT_ESTIMATES = interface.ESTIMATES

@@ -22,7 +22,7 @@ from ..config import Config
 from ..model import quantity_table
 from ..model.motor import LOSS_NAMES
 from ..model.quantities import OIL_OUTPUTS
-from ..outputs import atomic, save_figure
+from ..output_files import atomic, save_figure
 from ..units import C_TO_K
 
 #: Temperatures of the table, in print order.
