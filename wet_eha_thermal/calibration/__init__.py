@@ -72,10 +72,10 @@ calibrated configuration, the report and the plots.
 """
 
 from .evaluator import (channel_errors, evaluate_run, Evaluator, lagged, make_windows,
-                        residuals, run_config, simulate, window_means, Windows)
+                        residuals, run_config, simulate_log, window_means, Windows)
 from .fit import calibrate, effective_samples, fit_keys, screen
-from .logs import (CalibrationError, CHANNELS, InputAverager, load_log, LogBuilder, LogData,
-                   plan_log, read_log)
+from .logs import (CalibrationError, CHANNELS, InputAverager, load_log, log_from_rig,
+                   LogBuilder, LogData, plan_log, read_log)
 from .outputs import (CALIBRATED_YAML, config_yaml, error_table, report_text, write_outputs,
                       write_plots)
 from .results import CalibrationRun, LogFit, ParameterFit, result_record
@@ -83,8 +83,8 @@ from .results import CalibrationRun, LogFit, ParameterFit, result_record
 __all__ = [
     'calibrate', 'CALIBRATED_YAML', 'CalibrationError', 'CalibrationRun', 'channel_errors',
     'CHANNELS', 'config_yaml', 'effective_samples', 'error_table', 'evaluate_run', 'Evaluator',
-    'fit_keys', 'InputAverager', 'lagged', 'load_log', 'LogBuilder', 'LogData', 'LogFit',
-    'make_windows', 'ParameterFit', 'plan_log', 'read_log', 'report_text', 'residuals',
-    'result_record', 'run_config', 'screen', 'simulate', 'window_means', 'Windows',
+    'fit_keys', 'InputAverager', 'lagged', 'load_log', 'log_from_rig', 'LogBuilder', 'LogData',
+    'LogFit', 'make_windows', 'ParameterFit', 'plan_log', 'read_log', 'report_text', 'residuals',
+    'result_record', 'run_config', 'screen', 'simulate_log', 'window_means', 'Windows',
     'write_outputs', 'write_plots',
 ]

@@ -1,7 +1,7 @@
 """
 The outputs of a calibration: ``calibrated.yaml``, ``report.md`` and a plot per log.
 
-:func:`write_outputs` writes them atomically (:mod:`wet_eha_thermal.outputs`),
+:func:`write_outputs` writes them atomically (:mod:`wet_eha_thermal.output_files`),
 the configuration last.
 """
 

@@ -30,7 +30,7 @@ from typing import Callable, Dict, List, Optional, Sequence
 
 import numpy as np
 
-from . import replay as rp
+from . import replay as rp     # a campaign is one replay per bag
 from .. import interface
 from ..bag.reader import is_bag
 from ..estimator.alerts import Level
