@@ -500,25 +500,57 @@ def _plot_inputs(plt, result: ReplayResult, t0: float):
     return fig
 
 
+#: The estimates the temperature figure always shows (besides those a thermocouple measures)
+PLOTTED_ESTIMATES = ('winding_hotspot', 'winding_mean', 'magnet', 'frame', 'pump_case', 'oil')
+
+
 def _plot_temperatures(plt, result: ReplayResult, t0: float, t_min: np.ndarray):
-    """Return the figure of the estimates, the thermocouples and the limits within reach."""
-    fig, ax = plt.subplots(figsize=(10, 5))
-    for name in ('winding_hotspot', 'winding_mean', 'magnet', 'frame', 'pump_case', 'oil'):
-        ax.plot(t_min, result.temperatures_C[name], lw=1.0,
-                label=f'{quantity_table.label(name)} (estimate)')
-    for tc, (t, v) in result.measured.items():
-        if t.size:
-            ax.plot((t - t0) / 60.0, v, '.', ms=1.5, label=f'{tc} (thermocouple)')
-    limits = {quantity_table.LIMIT_LABELS[name]: value
-              for name, value in quantity_table.limits_C(result.plan.cfg).items()}
-    for label, value in limits.items():
-        if value < 1.3 * max(float(np.max(v)) for v in result.temperatures_C.values()):
-            ax.axhline(value, ls='--', lw=0.8, color='grey')
-            ax.text(t_min[0], value, label, fontsize=7, va='bottom')
-    ax.set_xlabel('time [min]')
-    ax.set_ylabel('temperature [degC]')
-    ax.legend(fontsize=7, ncol=2)
-    ax.grid(alpha=0.3)
+    """
+    Return a small multiple of the estimates: one panel each, sharing the time axis.
+
+    A panel shows an estimate (line), the thermocouples that measure it (dots)
+    and its limit (dashed) when the limit is within reach of the data; a
+    limit out of reach is named in the panel's title instead.
+    """
+    measures = {}
+    for tc, estimate in interface.THERMOCOUPLES.items():
+        if tc in result.measured and result.measured[tc][0].size:
+            measures.setdefault(estimate, []).append(tc)
+    names = [n for n in OUTPUT_ESTIMATES if n in PLOTTED_ESTIMATES or n in measures]
+    rows = math.ceil(len(names) / 2)
+    fig, axes = plt.subplots(rows, 2, figsize=(10, 1.9 * rows + 0.6), sharex=True,
+                             squeeze=False)
+    limits = quantity_table.limits_C(result.plan.cfg)
+    for ax, name in zip(axes.flat, names):
+        estimate = result.temperatures_C[name]
+        # the line over the dots: ten readings a second would hide it
+        ax.plot(t_min, estimate, color='C0', lw=1.5, label='estimate', zorder=3)
+        top = float(np.max(estimate))
+        for tc in measures.get(name, []):
+            t, v = result.measured[tc]
+            ax.plot((t - t0) / 60.0, v, '.', color='C3', ms=1.5, alpha=0.6, label='thermocouple')
+            top = max(top, float(np.max(v)))
+        title = quantity_table.label(name)
+        if name in measures:
+            title += f' (thermocouple {", ".join(measures[name])})'
+        if name in limits:
+            value = limits[name]
+            if value < 1.3 * top:
+                ax.axhline(value, ls='--', lw=1.0, color='grey',
+                           label=quantity_table.LIMIT_LABELS[name])
+            else:
+                title += f'; {quantity_table.LIMIT_LABELS[name]} {value:g} degC, off the scale'
+        ax.set_title(title, fontsize=9, loc='left')
+        ax.set_ylabel('degC', fontsize=8)
+        ax.tick_params(labelsize=8)
+        ax.grid(alpha=0.3)
+    for ax in axes.flat[len(names):]:
+        ax.set_visible(False)
+    for ax in axes[-1]:
+        ax.set_xlabel('time since the first estimate [min]', fontsize=8)
+    # one key for all panels, in the first that has every kind of line it needs
+    keyed = next((ax for ax, n in zip(axes.flat, names) if n in measures), axes[0, 0])
+    keyed.legend(fontsize=7, loc='best')
     return fig
 
 
