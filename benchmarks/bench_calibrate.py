@@ -8,7 +8,7 @@ Run: OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_calibrate.py
 The logs come from the simulated rig running the known truth of docs/calibration.md: the reference
 rig with a 30 % larger frame-yoke contact gap (30 % more contact resistance)
 and a 20 W seal loss into the pump case oil. Each is what the recorder writes
-(:func:`~wet_eha_thermal.simulated_rig.write_rig_bag`): current, speed, one
+(:func:`~wet_eha_thermal.offline.simulated_rig.write_rig_bag`): current, speed, one
 differential pressure and position at 1 kHz from 20 ms truth steps,
 thermocouples at 10 Hz, ambient at 1 Hz, and the nominal configuration stored
 as the estimator's. They are written once (about 5 minutes per hour of log,
@@ -49,7 +49,7 @@ def write_log(job: tuple) -> str:
     from wet_eha_thermal import interface
     from wet_eha_thermal.config import default_config_path, load_config, with_values
     from wet_eha_thermal.model.kinetics import stage_duty
-    from wet_eha_thermal.simulated_rig import SimulatedRig, write_rig_bag
+    from wet_eha_thermal.offline.simulated_rig import SimulatedRig, write_rig_bag
 
     path, stage, minutes = job
     data = yaml.safe_load(default_config_path().read_text())

@@ -5,7 +5,7 @@ Run: OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_replay.py
      [--minutes 60] [--bag EXISTING.mcap] [--keep] [--dir DIR] [--rounds N]
 
 Without ``--bag`` it first writes a log of the simulated rig on stage 6
-(:func:`~wet_eha_thermal.simulated_rig.write_rig_bag`: current, speed, one
+(:func:`~wet_eha_thermal.offline.simulated_rig.write_rig_bag`: current, speed, one
 differential pressure and position at 1 kHz, thermocouples at 10 Hz, ambient
 at 1 Hz), ``--minutes`` long. Then, each in its own process so that its peak
 RSS is its own:
@@ -13,7 +13,7 @@ RSS is its own:
 - ``plain``: the reference loop, ``mcap.reader.make_reader``
   ``iter_messages()`` with a struct unpack of every message's double
   (``read_plain`` of ``bench_replay_read.py``);
-- ``open-loop``: :func:`wet_eha_thermal.replay.replay` of the whole log (read,
+- ``open-loop``: :func:`wet_eha_thermal.offline.replay.replay` of the whole log (read,
   decode, estimator in sample time at its 20 ms step) plus the CSV and MCAP
   outputs, as ``wet-eha-thermal replay --no-report --open-loop`` does: the
   work of a rig log: four sensor topics and no thermocouple;
@@ -50,7 +50,7 @@ def peak_rss_MB(who: int = resource.RUSAGE_SELF) -> float:
 
 def run_phase(phase: str, path: Path) -> None:
     """Child process: one pass over the log, its figures as JSON on stdout."""
-    from wet_eha_thermal import replay as rp
+    from wet_eha_thermal.offline import replay as rp
     from wet_eha_thermal.config import with_values
 
     before = peak_rss_MB()
@@ -78,7 +78,7 @@ def write_log(path: Path, minutes: float) -> None:
     """Write ``minutes`` of the simulated rig on stage 6 to ``path``, with progress."""
     from wet_eha_thermal.config import load_config
     from wet_eha_thermal.model.kinetics import stage_duty
-    from wet_eha_thermal.simulated_rig import SimulatedRig, write_rig_bag
+    from wet_eha_thermal.offline.simulated_rig import SimulatedRig, write_rig_bag
 
     cfg = load_config(overrides={'estimator.pressure_inputs': 'differential'})
     t = time.perf_counter()

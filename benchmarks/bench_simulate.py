@@ -20,7 +20,7 @@ import numpy as np
 
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.model.kinetics import stage_duty
-from wet_eha_thermal.simulation import simulate
+from wet_eha_thermal.offline.simulation import simulate
 from wet_eha_thermal.units import C_TO_K
 
 

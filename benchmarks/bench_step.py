@@ -9,7 +9,7 @@ The inputs are the kinetic model's signals of a reference stage
 (:class:`~wet_eha_thermal.model.kinetics.KineticModel`, oil at 40 degC) at
 1 kHz, with the simulated rig's seeded sensor noise, stamped since the epoch
 as a recorded bag is. They go to :class:`~wet_eha_thermal.estimator.core.Estimator`
-as :func:`wet_eha_thermal.replay.replay` feeds them: ``add_many`` per input
+as :func:`wet_eha_thermal.offline.replay.replay` feeds them: ``add_many`` per input
 in blocks of 10 s of log, then ``advance()`` (no ambient readings, no
 background work).
 
@@ -44,7 +44,7 @@ from wet_eha_thermal.estimator.intake import sensor_inputs, sensor_signal
 from wet_eha_thermal.interface import THERMOCOUPLES
 from wet_eha_thermal.model.kinetics import KineticModel, stage_duty, ThermalFeedback
 from wet_eha_thermal.model.oil import get_oil
-from wet_eha_thermal.simulated_rig import NOISE_SIGMA
+from wet_eha_thermal.offline.simulated_rig import NOISE_SIGMA
 from wet_eha_thermal.units import C_TO_K
 
 RATE_HZ = 1000.0

@@ -24,7 +24,7 @@ import time
 from wet_eha_thermal import calibration as cb
 from wet_eha_thermal.config import load_config, with_values
 from wet_eha_thermal.model.kinetics import L_MIN, stage_duty, TableDuty
-from wet_eha_thermal.simulated_rig import log_from_rig, SimulatedRig
+from wet_eha_thermal.offline.simulated_rig import SimulatedRig
 
 GAP = 'motor.stator.frame_contact_gap_m'
 SEAL = 'hydraulics.pump.extra_loss_W'
@@ -66,8 +66,8 @@ def record(job: tuple):
     rig_cfg = with_values(cfg, truth(cfg))
     rig = SimulatedRig(rig_cfg, duty(rig_cfg, name), rate_Hz=50.0, block_s=0.1,
                        seed=hash(name) % 1000)
-    return name, log_from_rig(rig, seconds, cfg.calibration, name=name,
-                              thermocouple_rate_Hz=10.0)
+    return name, cb.log_from_rig(rig, seconds, cfg.calibration, name=name,
+                                 thermocouple_rate_Hz=10.0)
 
 
 def main() -> None:

@@ -16,7 +16,7 @@ import numpy as np
 
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.model.oil import get_oil
-from wet_eha_thermal.outputs import markdown_table, save_figure
+from wet_eha_thermal.output_files import markdown_table, save_figure
 from wet_eha_thermal.units import C_TO_K
 from wet_eha_thermal.verification import fem
 

@@ -32,6 +32,11 @@ import subprocess
 import sys
 import tempfile
 
+from mcap.reader import make_reader
+from wet_eha_thermal import interface
+from wet_eha_thermal.config import default_config_path, load_config
+from wet_eha_thermal.model.kinetics import stage_duty
+from wet_eha_thermal.offline.simulated_rig import SimulatedRig, write_rig_bag
 import yaml
 
 MODES = {'closed': [], 'open': ['--open-loop']}
@@ -40,22 +45,9 @@ OUTPUTS = ('estimates.csv', 'estimates.mcap')
 
 def write_bag(path: Path, seconds: float) -> None:
     """Write the rig's log as the tests' ``record_rig_log`` fixture does (stage 6, seed 1)."""
-    from wet_eha_thermal.config import default_config_path, load_config
-    from wet_eha_thermal.model.kinetics import stage_duty
-    try:
-        from wet_eha_thermal.offline.simulated_rig import SimulatedRig, write_rig_bag
-    except ImportError:  # before the offline tools had a subpackage
-        from wet_eha_thermal.simulated_rig import SimulatedRig, write_rig_bag
-    from wet_eha_thermal import interface
-
     data = yaml.safe_load(default_config_path().read_text())
     data['estimator']['pressure_inputs'] = 'differential'
-    key = getattr(interface, 'CONFIG_METADATA_KEY', None)
-    if key is None:
-        from wet_eha_thermal import replay as rp
-        meta = {rp.CONFIG_METADATA: {rp.CONFIG_METADATA_KEY: yaml.safe_dump(data)}}
-    else:
-        meta = {interface.CONFIG_METADATA: {key: yaml.safe_dump(data)}}
+    meta = {interface.CONFIG_METADATA: {interface.CONFIG_METADATA_KEY: yaml.safe_dump(data)}}
     cfg = load_config(overrides={'estimator.pressure_inputs': 'differential'})
     write_rig_bag(path, SimulatedRig(cfg, stage_duty(cfg, 6), seed=1), seconds, metadata=meta)
 
@@ -70,8 +62,6 @@ def digest(path: Path) -> str:
     """Return the SHA-256 of a CSV's bytes, or of an MCAP's messages in order."""
     if path.suffix != '.mcap':
         return hashlib.sha256(path.read_bytes()).hexdigest()
-    from mcap.reader import make_reader
-
     h = hashlib.sha256()
     with open(path, 'rb') as f:
         for schema, channel, message in make_reader(f).iter_messages(log_time_order=False):

@@ -55,7 +55,7 @@ from typing import Dict, List, Optional
 
 import procfs
 from soak_stats import Fit, linear_fit, parse_status_line, parse_summary
-from wet_eha_thermal.outputs import save_figure, write_text
+from wet_eha_thermal.output_files import save_figure, write_text
 
 #: The children of ``live``, by a piece of their command line.
 NODES = {'rig': 'wet_eha_thermal.ros.sim_rig_node',

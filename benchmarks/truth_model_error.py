@@ -41,7 +41,7 @@ from wet_eha_thermal import calibration as cb
 from wet_eha_thermal.config import load_config, with_values
 from wet_eha_thermal.estimator.core import Estimator
 from wet_eha_thermal.model.kinetics import stage_duty
-from wet_eha_thermal.simulated_rig import log_from_rig, SimulatedRig
+from wet_eha_thermal.offline.simulated_rig import SimulatedRig
 from wet_eha_thermal.units import C_TO_K
 
 GAP = 'motor.stator.frame_contact_gap_m'
@@ -101,8 +101,8 @@ def record(job: tuple):
     truth = structured_truth(cfg)
     rig = TapedRig(truth, stage_duty(truth, stage), rate_Hz=50.0, block_s=0.1, seed=stage,
                    point_thermocouples=True)
-    log = log_from_rig(rig, seconds, cfg.calibration, name=f'stage{stage}',
-                       thermocouple_rate_Hz=10.0)
+    log = cb.log_from_rig(rig, seconds, cfg.calibration, name=f'stage{stage}',
+                          thermocouple_rate_Hz=10.0)
     return stage, log, rig.tape, time.process_time() - t0
 
 

@@ -13,12 +13,12 @@ import shutil
 import numpy as np
 import pytest
 from wet_eha_thermal import interface
-from wet_eha_thermal import replay as rp
 from wet_eha_thermal.bag.reader import (bag_files, BagError, iter_column_blocks, iter_raw,
                                         open_bag, read_columns, ROSBAG2_METADATA)
 from wet_eha_thermal.bag.writer import BagWriter
 from wet_eha_thermal.calibration import load_log
 from wet_eha_thermal.cli import main
+from wet_eha_thermal.offline import replay as rp
 import yaml
 
 SECONDS = 20.0

@@ -19,7 +19,6 @@ import multiprocessing
 import numpy as np
 import pytest
 from wet_eha_thermal import calibration as cb
-from wet_eha_thermal import replay as rp
 from wet_eha_thermal.bag.reader import iter_raw, open_bag
 from wet_eha_thermal.bag.writer import BagWriter
 from wet_eha_thermal.cli import main
@@ -27,7 +26,8 @@ from wet_eha_thermal.config import (config_from_yaml, ConfigError, default_confi
                                     load_config, with_values)
 from wet_eha_thermal.estimator.core import Estimator
 from wet_eha_thermal.model.kinetics import stage_duty
-from wet_eha_thermal.simulated_rig import log_from_rig, SimulatedRig
+from wet_eha_thermal.offline import replay as rp
+from wet_eha_thermal.offline.simulated_rig import SimulatedRig
 import yaml
 
 GAP = 'motor.stator.frame_contact_gap_m'
@@ -48,8 +48,8 @@ def _rig_log(stage):
     cfg = nominal_config()
     truth = with_values(cfg, truth_values(cfg))
     rig = SimulatedRig(truth, stage_duty(truth, stage), rate_Hz=50.0, block_s=0.1, seed=stage)
-    return log_from_rig(rig, SECONDS, cfg.calibration, name=f'stage{stage}',
-                        thermocouple_rate_Hz=10.0)
+    return cb.log_from_rig(rig, SECONDS, cfg.calibration, name=f'stage{stage}',
+                           thermocouple_rate_Hz=10.0)
 
 
 @pytest.fixture(scope='module')

@@ -23,11 +23,11 @@ import sys
 from distributed import Client
 import pytest
 from wet_eha_thermal import calibration as cb
-from wet_eha_thermal import campaign
-from wet_eha_thermal import replay as rp
 from wet_eha_thermal.bag.reader import BagError, open_bag
 from wet_eha_thermal.cli import main
 from wet_eha_thermal.config import load_config, with_values
+from wet_eha_thermal.offline import campaign
+from wet_eha_thermal.offline import replay as rp
 
 SECONDS = 4.0
 STAGES = (1, 3, 5, 6)

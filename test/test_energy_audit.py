@@ -15,7 +15,7 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from wet_eha_thermal.config import load_config  # noqa: E402
 from wet_eha_thermal.model.kinetics import stage_duty  # noqa: E402
-from wet_eha_thermal.simulation import simulate  # noqa: E402
+from wet_eha_thermal.offline.simulation import simulate  # noqa: E402
 
 
 @pytest.fixture(scope='module')

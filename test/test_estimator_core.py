@@ -8,7 +8,7 @@ from wet_eha_thermal.config import load_config
 from wet_eha_thermal.estimator.core import Estimator, INPUTS
 from wet_eha_thermal.model.eha import EHAModel
 from wet_eha_thermal.model.kinetics import KineticModel, stage_duty, ThermalFeedback
-from wet_eha_thermal.simulation import feedback, simulate
+from wet_eha_thermal.offline.simulation import feedback, simulate
 from wet_eha_thermal.units import C_TO_K
 
 STEADY = {'speed_rad_s': 800.0, 'p_a_Pa': 3e6, 'p_b_Pa': 1e6, 'p_acc_Pa': 1e6,

@@ -16,7 +16,7 @@ from wet_eha_thermal.model.kinetics import stage_duty
 from wet_eha_thermal.model.motor import MotorInputs, WetMotor
 from wet_eha_thermal.model.oil import get_oil
 from wet_eha_thermal.model.validity import ValidityLog
-from wet_eha_thermal.simulation import simulate
+from wet_eha_thermal.offline.simulation import simulate
 from wet_eha_thermal.units import C_TO_K, RPM
 SPEEDS = (0.0, 5000.0, 12000.0, 20000.0)
 CURRENTS = (0.0, 10.0, 25.0, 45.0)

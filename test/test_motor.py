@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from wet_eha_thermal.config import load_config
-from wet_eha_thermal.maps import compute_maps
 from wet_eha_thermal.model.motor import MotorInputs, WetMotor
 from wet_eha_thermal.model.oil import get_oil
+from wet_eha_thermal.offline.maps import compute_maps
 from wet_eha_thermal.units import C_TO_K, RPM
 
 

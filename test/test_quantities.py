@@ -11,7 +11,7 @@ from wet_eha_thermal.estimator.kalman import output_variances
 from wet_eha_thermal.model.hydraulics import NODES
 from wet_eha_thermal.model.kinetics import stage_duty
 from wet_eha_thermal.model.quantities import MAX, MEAN, PORT, Quantity, QuantityMap, STATE
-from wet_eha_thermal.simulation import simulate
+from wet_eha_thermal.offline.simulation import simulate
 
 
 @pytest.fixture(scope='module')

@@ -12,12 +12,12 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64
 from wet_eha_thermal import interface
-from wet_eha_thermal import replay as rp
 from wet_eha_thermal.bag.reader import iter_raw, open_bag
 from wet_eha_thermal.bag.writer import BagWriter
 from wet_eha_thermal.cli import main
 from wet_eha_thermal.config import ConfigError, default_config_path, with_values
 from wet_eha_thermal.estimator.core import Estimator
+from wet_eha_thermal.offline import replay as rp
 
 SECONDS = 20.0
 

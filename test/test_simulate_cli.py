@@ -7,9 +7,9 @@ import math
 
 import numpy as np
 import pytest
-from wet_eha_thermal import simulation
 from wet_eha_thermal.cli import main
-from wet_eha_thermal.report import check_limit, fit_first_order, TABLE
+from wet_eha_thermal.offline import simulation
+from wet_eha_thermal.offline.report import check_limit, fit_first_order, TABLE
 
 PNG_MAGIC = b'\x89PNG\r\n\x1a\n'
 

@@ -85,7 +85,7 @@ def _add_maps_parser(sub) -> None:
 
 
 def _maps(args: argparse.Namespace) -> int:
-    from . import maps
+    from .offline import maps
 
     overrides = {}
     for key, value in (('maps.oil_inlet_C', args.oil_inlet_C),
@@ -166,12 +166,12 @@ def _check_simulate_args(args: argparse.Namespace) -> None:
 
 
 def _simulate(args: argparse.Namespace) -> int:
-    from . import report
+    from .offline import report
     from .model import quantity_table
     from .model.kinetics import L_MIN, load_duty_csv, MPA, stage_duty
     from .model.oil import OIL_GRADES
-    from . import simulation
-    from .simulation import simulate
+    from .offline import simulation
+    from .offline.simulation import simulate
     from .units import C_TO_K
 
     _check_simulate_args(args)
@@ -385,8 +385,8 @@ def _add_replay_parser(sub) -> None:
 
 
 def _replay(args: argparse.Namespace) -> int:
-    from . import campaign
-    from . import replay as rp
+    from .offline import campaign
+    from .offline import replay as rp
 
     if not args.output_rate_Hz > 0.0:
         raise BadArgument(f'--output-rate-Hz {args.output_rate_Hz}: must be > 0')
@@ -405,7 +405,7 @@ def _replay(args: argparse.Namespace) -> int:
 
 def _replay_one(bag: Path, options, out: Path) -> int:
     """Replay one bag with progress and the details on the console (the original command)."""
-    from . import replay as rp
+    from .offline import replay as rp
 
     try:
         plan = options.plan(bag)
@@ -450,7 +450,7 @@ def _replay_one(bag: Path, options, out: Path) -> int:
 
 def _replay_campaign(bags: List[Path], options, args: argparse.Namespace) -> int:
     """Replay many bags on Dask, each into its own folder, and summarise them."""
-    from . import campaign
+    from .offline import campaign
 
     if args.config is not None:
         load_config(args.config)         # a bad file is one error, not one per log
@@ -489,7 +489,7 @@ def _check_dask_args(args: argparse.Namespace) -> None:
 @contextlib.contextmanager
 def _dask(args: argparse.Namespace):
     """Yield the Dask client of --scheduler, else of a local cluster of --workers processes."""
-    from .campaign import ClusterError, dask_client
+    from .offline.campaign import ClusterError, dask_client
 
     try:
         with dask_client(args.scheduler, args.workers) as client:
@@ -534,7 +534,7 @@ def _add_calibrate_parser(sub) -> None:
 def _calibrate(args: argparse.Namespace) -> int:
     from . import calibration as cb
     from .bag.reader import BagError, open_bag
-    from .replay import choose_config, parse_mapping, ReplayError
+    from .offline.replay import choose_config, parse_mapping, ReplayError
 
     if args.jobs < 1:
         raise BadArgument(f'--jobs {args.jobs}: must be at least 1')
@@ -578,7 +578,7 @@ def _calibrate(args: argparse.Namespace) -> int:
         with contextlib.ExitStack() as stack:
             client = None
             if args.workers is not None or args.scheduler is not None:
-                from .campaign import describe
+                from .offline.campaign import describe
                 client = stack.enter_context(_dask(args))
                 where = f'Dask, {describe(client)}'
                 say(f'model runs on {where}')

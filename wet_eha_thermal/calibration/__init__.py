@@ -2,7 +2,7 @@
 Calibration of the thermal model on bench logs: fit parameters to the thermocouples.
 
 A log (a rosbag2-style MCAP holding the sensor topics and the thermocouples,
-read as :mod:`wet_eha_thermal.replay` reads it: the same topic mapping, the same stamps) is
+read as :mod:`wet_eha_thermal.offline.replay` reads it: the same topic mapping, the same stamps) is
 read once. Its inputs are averaged onto a coarse grid (``calibration.
 average_rate_Hz``: the current as the root of the mean of I^2, speed and
 pressures as means, the position sampled at the end of each interval, as the
@@ -72,10 +72,10 @@ calibrated configuration, the report and the plots.
 """
 
 from .evaluator import (channel_errors, evaluate_run, Evaluator, lagged, make_windows,
-                        residuals, run_config, simulate, window_means, Windows)
+                        residuals, run_config, simulate_log, window_means, Windows)
 from .fit import calibrate, effective_samples, fit_keys, screen
-from .logs import (CalibrationError, CHANNELS, InputAverager, load_log, LogBuilder, LogData,
-                   plan_log, read_log)
+from .logs import (CalibrationError, CHANNELS, InputAverager, load_log, log_from_rig,
+                   LogBuilder, LogData, plan_log, read_log)
 from .outputs import (CALIBRATED_YAML, config_yaml, error_table, report_text, write_outputs,
                       write_plots)
 from .results import CalibrationRun, LogFit, ParameterFit, result_record
@@ -83,8 +83,8 @@ from .results import CalibrationRun, LogFit, ParameterFit, result_record
 __all__ = [
     'calibrate', 'CALIBRATED_YAML', 'CalibrationError', 'CalibrationRun', 'channel_errors',
     'CHANNELS', 'config_yaml', 'effective_samples', 'error_table', 'evaluate_run', 'Evaluator',
-    'fit_keys', 'InputAverager', 'lagged', 'load_log', 'LogBuilder', 'LogData', 'LogFit',
-    'make_windows', 'ParameterFit', 'plan_log', 'read_log', 'report_text', 'residuals',
-    'result_record', 'run_config', 'screen', 'simulate', 'window_means', 'Windows',
+    'fit_keys', 'InputAverager', 'lagged', 'load_log', 'log_from_rig', 'LogBuilder', 'LogData',
+    'LogFit', 'make_windows', 'ParameterFit', 'plan_log', 'read_log', 'report_text', 'residuals',
+    'result_record', 'run_config', 'screen', 'simulate_log', 'window_means', 'Windows',
     'write_outputs', 'write_plots',
 ]

@@ -1,7 +1,7 @@
 """
 The evaluator: the model run on a log and compared with its thermocouples.
 
-:func:`simulate` runs the estimator open-loop over a :class:`~.logs.LogData`
+:func:`simulate_log` runs the estimator open-loop over a :class:`~.logs.LogData`
 (the configuration of :func:`run_config`); :func:`lagged` passes the run
 through the thermocouples' lag; :func:`make_windows` and :func:`residuals`
 compare it with the readings over the residual windows, and
@@ -38,8 +38,8 @@ def run_config(cfg: Config, log: LogData) -> Config:
     return with_values(cfg, values)
 
 
-def simulate(log: LogData, cfg: Config,
-             start_offset_K: float = 0.0) -> Tuple[np.ndarray, np.ndarray]:
+def simulate_log(log: LogData, cfg: Config,
+                 start_offset_K: float = 0.0) -> Tuple[np.ndarray, np.ndarray]:
     """
     Run the estimator open-loop over a log; return step-end stamps and temperatures (degC).
 
@@ -178,7 +178,8 @@ def channel_errors(log: LogData, w: Windows, t_model: np.ndarray,
     Max abs, RMS and bias over the window means (the readings' noise averaged
     out), and the max abs against every single reading (noise included).
     """
-    from ..replay import error_stats
+    # the replay report's statistics, so that a fit's errors and a replay's compare
+    from ..offline.replay import error_stats
 
     means = window_means(w, t_model, y)
     out = {}
@@ -211,7 +212,7 @@ def evaluate_run(log: LogData, cfg: Config, keys: Sequence[str], task: tuple) ->
     t0 = time.perf_counter()
     try:
         cfg = with_values(cfg, changes) if changes else cfg
-        t, y = simulate(log, cfg, offset)
+        t, y = simulate_log(log, cfg, offset)
     except (ArithmeticError, ValueError, RuntimeError) as exc:
         # reported by the parent as one line, with the values that failed
         return vi, li, None, f'{type(exc).__name__}: {exc}', time.perf_counter() - t0

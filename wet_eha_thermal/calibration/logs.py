@@ -3,10 +3,11 @@ Logs: a bag read once into memory, its inputs averaged onto the fit's grid.
 
 :func:`plan_log` chooses a bag's topics as a replay does and checks it before
 anything is read; :func:`read_log` routes its samples as a replay does
-(:meth:`~wet_eha_thermal.replay.ReplayPlan.route`, the same stamps) into a
+(:meth:`~wet_eha_thermal.offline.replay.ReplayPlan.route`, the same stamps) into a
 :class:`LogBuilder`, which averages the inputs (:class:`InputAverager`), keeps
 the thermocouple and ambient readings raw and takes the starting temperature
-from the thermocouples' first readings: a :class:`LogData`.
+from the thermocouples' first readings: a :class:`LogData`. :func:`log_from_rig`
+builds one from a simulated rig without a bag.
 """
 
 import dataclasses
@@ -217,6 +218,45 @@ def channel_ranges(cfg: Config) -> Dict[str, Tuple[float, float]]:
             for f in dataclasses.fields(channels)}
 
 
+def log_from_rig(rig, seconds: float, calib: Calibration, name: str = 'rig',
+                 thermocouple_rate_Hz: float = 1.0):
+    """
+    Record ``seconds`` of a :class:`SimulatedRig` straight into a calibration's LogData.
+
+    The same averaging as a bag gets, without writing one (tests, studies).
+    """
+    # here, not at the top: the rig's ROS node imports this module and has no use for the
+    # calibration package
+    from ..calibration.logs import channel_ranges, CHANNELS, LogBuilder
+
+    builder = LogBuilder(name, rig.inputs, calib, channel_ranges(rig.cfg))
+    h = 1.0 / calib.average_rate_Hz
+    tcs: Dict[str, Tuple[list, list]] = {c: ([], []) for c in CHANNELS}
+    amb: Tuple[list, list] = ([], [])
+    chunk: Dict[str, list] = {n: [] for n in ['t_s'] + list(rig.inputs)}
+    for k, n_blocks, block, readings, ambient in rig.run(seconds, thermocouple_rate_Hz):
+        for n in chunk:
+            chunk[n].append(block[n])
+        t_end = float(block['t_s'][-1]) + h
+        if readings is not None:
+            for c, v in readings.items():
+                tcs[c][0].append(t_end)
+                tcs[c][1].append(v)
+        if ambient is not None:
+            amb[0].append(t_end)
+            amb[1].append(ambient)
+        if len(chunk['t_s']) >= 500 or k == n_blocks - 1:
+            t = np.concatenate(chunk['t_s']) + h     # the origin one interval before
+            for n in rig.inputs:
+                builder.add_input(n, t, np.concatenate(chunk[n]))
+            chunk = {n: [] for n in chunk}
+    sigma = rig.thermocouple_sigma_K
+    for c, (t, v) in tcs.items():
+        builder.add_thermocouple(c, np.array(t), np.array(v), np.full(len(t), sigma ** 2))
+    builder.add_ambient(np.array(amb[0]), np.array(amb[1]))
+    return builder.build(rig.cfg.estimator.pressure_inputs)
+
+
 def file_digest(paths: Sequence[os.PathLike]) -> str:
     """Return the sha256 hex digest of files read one after another (a bag's, in order)."""
     h = hashlib.sha256()
@@ -232,10 +272,11 @@ def plan_log(path: os.PathLike, config: tuple, mapping: Optional[Mapping[str, st
     Open a bag and choose its topics as a replay would; raise CalibrationError if unusable.
 
     ``config`` is the (configuration, source, text) of
-    :func:`~wet_eha_thermal.replay.choose_config`, one for all logs. Reads only the bag's
+    :func:`~wet_eha_thermal.offline.replay.choose_config`, one for all logs. Reads only the bag's
     summary: every log can be checked before any is read.
     """
-    from ..replay import plan_replay, ReplayError
+    # the replay's topic plan: a log is read as a replay of it would read it
+    from ..offline.replay import plan_replay, ReplayError
 
     try:
         plan = plan_replay(path, mapping=mapping, config=config)

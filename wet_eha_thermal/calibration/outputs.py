@@ -1,7 +1,7 @@
 """
 The outputs of a calibration: ``calibrated.yaml``, ``report.md`` and a plot per log.
 
-:func:`write_outputs` writes them atomically (:mod:`wet_eha_thermal.outputs`),
+:func:`write_outputs` writes them atomically (:mod:`wet_eha_thermal.output_files`),
 the configuration last.
 """
 
@@ -14,7 +14,7 @@ from .evaluator import window_means
 from .logs import CHANNELS
 from .results import CalibrationRun, LogFit, plain
 from ..config import Config, config_from_yaml, ConfigError
-from ..outputs import markdown_table, save_figure, write_text
+from ..output_files import markdown_table, save_figure, write_text
 
 #: Name of the calibrated configuration in the output folder.
 CALIBRATED_YAML = 'calibrated.yaml'

@@ -71,11 +71,11 @@ from wet_eha_thermal.interface import (AMBIENT_TOPIC, DIAGNOSTICS_TOPIC, INPUT_T
                                        MEASURED_PREFIX, NodeReport, PREFIX, prefixed,
                                        PRESSURE_INPUTS, READY_TOPIC, RIG_NODE, THERMOCOUPLES)
 from wet_eha_thermal.model.kinetics import DutyError, load_duty_csv, stage_duty, STAGES
+from wet_eha_thermal.offline.simulated_rig import (AMBIENT_SIGMA_K, NOISE_SIGMA, SimulatedRig,
+                                                   THERMOCOUPLE_SIGMA_K)
 from wet_eha_thermal.ros.runtime import (accept_whole_numbers, descriptor, prepare_model_step,
                                          run_node)
 from wet_eha_thermal.ros.topics import input_qos, latched_qos, publish_inputs
-from wet_eha_thermal.simulated_rig import (AMBIENT_SIGMA_K, NOISE_SIGMA, SimulatedRig,
-                                           THERMOCOUPLE_SIGMA_K)
 from wet_eha_thermal.units import C_TO_K
 
 NODE_NAME = RIG_NODE

@@ -30,10 +30,11 @@ from typing import Callable, Dict, List, Optional, Sequence
 
 import numpy as np
 
-from . import interface, replay as rp
-from .bag.reader import is_bag
-from .estimator.alerts import Level
-from .outputs import atomic, markdown_table, save_figure, write_text
+from . import replay as rp     # a campaign is one replay per bag
+from .. import interface
+from ..bag.reader import is_bag
+from ..estimator.alerts import Level
+from ..output_files import atomic, markdown_table, save_figure, write_text
 
 #: How long to wait for a scheduler to answer, and for a worker to join it (s).
 CONNECT_TIMEOUT_S = 30.0

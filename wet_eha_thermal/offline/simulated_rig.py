@@ -17,8 +17,9 @@ instead of the means the estimator publishes, as a bonded thermocouple does.
 
 The ROS node (:mod:`wet_eha_thermal.ros.sim_rig_node`) publishes these
 blocks in real time; :func:`write_rig_bag` writes them straight to a bag,
-as the recorder would have recorded the rig, for replays and tests, and
-:func:`log_from_rig` averages them straight into a calibration's log.
+as the recorder would have recorded the rig, for replays and tests;
+:func:`~wet_eha_thermal.calibration.logs.log_from_rig` averages them straight
+into a calibration's log.
 """
 
 import math
@@ -27,14 +28,15 @@ from typing import Callable, Dict, Iterator, Optional, Tuple
 
 import numpy as np
 
-from .config import Calibration, Config
-from .estimator.intake import sensor_inputs, sensor_signal
-from .interface import (AMBIENT_TOPIC, INPUT_TOPICS, INPUT_TYPES, MEASURED_PREFIX,
-                        PRESSURE_INPUTS, TEMPERATURE, THERMOCOUPLES)
-from .model.eha import EHAModel
-from .model.kinetics import Duty, KineticModel, ThermalFeedback
+# the rig's kinetics see its truth model as a duty simulation's see its model: one feedback
 from .simulation import feedback
-from .units import C_TO_K
+from ..config import Config
+from ..estimator.intake import sensor_inputs, sensor_signal
+from ..interface import (AMBIENT_TOPIC, INPUT_TOPICS, INPUT_TYPES, MEASURED_PREFIX,
+                         PRESSURE_INPUTS, TEMPERATURE, THERMOCOUPLES)
+from ..model.eha import EHAModel
+from ..model.kinetics import Duty, KineticModel, ThermalFeedback
+from ..units import C_TO_K
 
 #: Length of one kinetics block and one truth-model step (s).
 BLOCK_S = 0.02
@@ -62,6 +64,7 @@ class SimulatedRig:
         self.n_block = max(1, int(round(rate_Hz * block_s)))
         self.period_s = block_s / self.n_block   # exact: a block is a whole number of samples
         self.noise = noise
+        self.thermocouple_sigma_K = THERMOCOUPLE_SIGMA_K if noise else 0.0
         self.ambient_C = ambient_C
         self.rng = np.random.default_rng(seed)
         self.truth = EHAModel(cfg)
@@ -114,7 +117,7 @@ class SimulatedRig:
 
     def thermocouples_C(self) -> Dict[str, float]:
         """Return the thermocouple readings now (degC, lagged, with noise)."""
-        sigma = THERMOCOUPLE_SIGMA_K if self.noise else 0.0
+        sigma = self.thermocouple_sigma_K
         noise = self.rng.normal(0.0, sigma, len(THERMOCOUPLES)) if sigma else \
             np.zeros(len(THERMOCOUPLES))
         return {name: self.tc_lag_K[name] - C_TO_K + float(e)
@@ -156,8 +159,8 @@ def write_rig_bag(path: os.PathLike, rig: SimulatedRig, seconds: float, *,
     same stamp in their header. Thermocouples and ambient come at
     ``thermocouple_rate_Hz`` and 1 Hz.
     """
-    from .bag import cdr
-    from .bag.writer import BagWriter, offered_qos
+    from ..bag import cdr
+    from ..bag.writer import BagWriter, offered_qos
 
     def temperature(value_C: float, sigma_K: float, ns: int) -> bytes:
         return cdr.encode_stamped(np.array([ns]), '', [[value_C, sigma_K ** 2 if rig.noise
@@ -199,42 +202,3 @@ def write_rig_bag(path: os.PathLike, rig: SimulatedRig, seconds: float, *,
             if on_progress is not None and k % 500 == 0:
                 on_progress((k + 1) / n_blocks)
     return count
-
-
-def log_from_rig(rig, seconds: float, calib: Calibration, name: str = 'rig',
-                 thermocouple_rate_Hz: float = 1.0):
-    """
-    Record ``seconds`` of a :class:`SimulatedRig` straight into a calibration's LogData.
-
-    The same averaging as a bag gets, without writing one (tests, studies).
-    """
-    # here, not at the top: the rig's ROS node imports this module and has no use for the
-    # calibration package
-    from .calibration.logs import channel_ranges, CHANNELS, LogBuilder
-
-    builder = LogBuilder(name, rig.inputs, calib, channel_ranges(rig.cfg))
-    h = 1.0 / calib.average_rate_Hz
-    tcs: Dict[str, Tuple[list, list]] = {c: ([], []) for c in CHANNELS}
-    amb: Tuple[list, list] = ([], [])
-    chunk: Dict[str, list] = {n: [] for n in ['t_s'] + list(rig.inputs)}
-    for k, n_blocks, block, readings, ambient in rig.run(seconds, thermocouple_rate_Hz):
-        for n in chunk:
-            chunk[n].append(block[n])
-        t_end = float(block['t_s'][-1]) + h
-        if readings is not None:
-            for c, v in readings.items():
-                tcs[c][0].append(t_end)
-                tcs[c][1].append(v)
-        if ambient is not None:
-            amb[0].append(t_end)
-            amb[1].append(ambient)
-        if len(chunk['t_s']) >= 500 or k == n_blocks - 1:
-            t = np.concatenate(chunk['t_s']) + h     # the origin one interval before
-            for n in rig.inputs:
-                builder.add_input(n, t, np.concatenate(chunk[n]))
-            chunk = {n: [] for n in chunk}
-    sigma = THERMOCOUPLE_SIGMA_K if rig.noise else 0.0
-    for c, (t, v) in tcs.items():
-        builder.add_thermocouple(c, np.array(t), np.array(v), np.full(len(t), sigma ** 2))
-    builder.add_ambient(np.array(amb[0]), np.array(amb[1]))
-    return builder.build(rig.cfg.estimator.pressure_inputs)

@@ -13,10 +13,10 @@ from typing import Callable, Dict, List, Optional
 
 import numpy as np
 
-from .config import Config
-from .model.eha import EHAModel
-from .model.kinetics import Duty, KineticModel, ThermalFeedback
-from .units import C_TO_K
+from ..config import Config
+from ..model.eha import EHAModel
+from ..model.kinetics import Duty, KineticModel, ThermalFeedback
+from ..units import C_TO_K
 
 SENSORS = ('current_A', 'speed_rad_s', 'p_a_Pa', 'p_b_Pa', 'p_acc_Pa', 'position_m')
 RUNAWAY_C = 300.0   # far past every limit (oil 135, insulation 180 degC): stop, do not extrapolate

@@ -17,13 +17,13 @@ from typing import Callable, Dict, List, Optional
 
 import numpy as np
 
-from .config import Config
-from .model import quantity_table
-from .model.motor import LOSS_NAMES, MotorInputs, WetMotor
-from .model.oil import get_oil
-from .model.validity import ValidityLog
-from .outputs import atomic, save_figure
-from .units import C_TO_K, RPM
+from ..config import Config
+from ..model import quantity_table
+from ..model.motor import LOSS_NAMES, MotorInputs, WetMotor
+from ..model.oil import get_oil
+from ..model.validity import ValidityLog
+from ..output_files import atomic, save_figure
+from ..units import C_TO_K, RPM
 
 TEMPERATURES = ('winding_mean', 'winding_hotspot', 'frame', 'magnet', 'airgap_oil_outlet',
                 'motor_oil_outlet')

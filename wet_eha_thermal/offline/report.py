@@ -18,12 +18,12 @@ import warnings
 
 import numpy as np
 
-from .config import Config
-from .model import quantity_table
-from .model.motor import LOSS_NAMES
-from .model.quantities import OIL_OUTPUTS
-from .outputs import atomic, save_figure
-from .units import C_TO_K
+from ..config import Config
+from ..model import quantity_table
+from ..model.motor import LOSS_NAMES
+from ..model.quantities import OIL_OUTPUTS
+from ..output_files import atomic, save_figure
+from ..units import C_TO_K
 
 #: Temperatures of the table, in print order.
 TABLE = ('winding_mean', 'winding_hotspot', 'frame', 'magnet', 'airgap_oil_outlet',
@@ -397,6 +397,64 @@ def _plot_heat(ax_made, ax_goes, result, x, n) -> None:
         ax.legend(fontsize=8, loc='upper left', bbox_to_anchor=(1.01, 1.0))
 
 
+def _plot_temperature_panels(axes, x: np.ndarray, temps: Dict[str, np.ndarray],
+                             cfg: Config) -> None:
+    """Plot the motor's and the oil's temperatures, each with its limits within 30 K."""
+    limits = quantity_table.limits_C(cfg)
+    # per panel: the temperatures (colour, line style) and the limits (colour) drawn
+    panels = (
+        ('motor temperature (degC)',
+         (('winding_hotspot', 'C3', '-'), ('winding_mean', 'C1', '-'), ('magnet', 'C4', '-'),
+          ('frame', 'C7', '-')),
+         (('winding_hotspot', 'C3'), ('magnet', 'C4'))),
+        ('oil temperature (degC)',
+         (('airgap_oil_outlet', 'C5', ':'), ('motor_oil_outlet', 'C0', '-'),
+          ('pump_case', 'C2', '-'), ('chamber_a', 'C1', '-'), ('chamber_b', 'C6', '--'),
+          ('accumulator', 'C9', '-')),
+         (('oil', 'C2'),)),
+    )
+    for ax, (ylabel, series, limited) in zip(axes, panels):
+        top = -math.inf
+        for key, color, style in series:
+            if key in temps:
+                ax.plot(x, temps[key], style, color=color, lw=1.5,
+                        label=quantity_table.label(key))
+                top = max(top, float(np.max(temps[key])))
+        for name, color in limited:
+            value = limits[name]
+            grade = f' ({cfg.fluid.grade})' if name == 'oil' else ''
+            if value - top <= 30.0:
+                ax.axhline(value, color=color, ls='--', lw=1.2, alpha=0.8,
+                           label=f'{quantity_table.LIMIT_LABELS[name]}{grade} {value:g} degC')
+        ax.set_ylabel(ylabel)
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8, loc='upper left', bbox_to_anchor=(1.01, 1.0))
+
+
+def _plot_inputs_panel(ax, result, x: np.ndarray, n: int) -> None:
+    """Plot the RMS current and, on a twin axis, the speed: as recorded and per period."""
+    handles = []
+    current = result.inputs.get('current_A_rms')
+    if current is not None:
+        current = np.asarray(current, dtype=float)
+        handles += _plot_input(ax, x, current, np.sqrt(_moving_mean(current ** 2, n)), 'C3',
+                               'current, RMS', n)
+    ax.set_ylabel('current, RMS (A)', color='C3')
+    ax.tick_params(axis='y', colors='C3')
+    ax.set_ylim(0.0, 1.15 * max(_top(current), 1e-3))
+    ax.grid(True, alpha=0.3)
+    speed = result.inputs.get('speed_rpm')
+    if speed is not None:
+        speed = np.asarray(speed, dtype=float)
+        ax2 = ax.twinx()
+        handles += _plot_input(ax2, x, speed, _moving_mean(speed, n), 'C0', 'speed, mean |n|', n)
+        ax2.set_ylabel('speed, mean |n| (r/min)', color='C0')
+        ax2.tick_params(axis='y', colors='C0')
+        ax2.set_ylim(0.0, 1.15 * max(_top(speed), 1.0))
+    if handles:
+        ax.legend(handles=handles, fontsize=8, loc='upper left', bbox_to_anchor=(1.09, 1.0))
+
+
 def plot(result, cfg: Config, path: Path, title: str,
          period_s: Optional[float] = None) -> None:
     """
@@ -419,61 +477,13 @@ def plot(result, cfg: Config, path: Path, title: str,
     t = np.asarray(result.time_s, dtype=float)
     scale, unit = (1.0, 's') if t[-1] <= 1200.0 else (60.0, 'min')
     x = t / scale
-    limits = quantity_table.limits_C(cfg)
-    # per panel: the temperatures (colour, line style) and the limits (colour) drawn
-    panels = (
-        ('motor temperature (degC)',
-         (('winding_hotspot', 'C3', '-'), ('winding_mean', 'C1', '-'), ('magnet', 'C4', '-'),
-          ('frame', 'C7', '-')),
-         (('winding_hotspot', 'C3'), ('magnet', 'C4'))),
-        ('oil temperature (degC)',
-         (('airgap_oil_outlet', 'C5', ':'), ('motor_oil_outlet', 'C0', '-'),
-          ('pump_case', 'C2', '-'), ('chamber_a', 'C1', '-'), ('chamber_b', 'C6', '--'),
-          ('accumulator', 'C9', '-')),
-         (('oil', 'C2'),)),
-    )
     fig, axes = plt.subplots(5, 1, figsize=(12, 16), sharex=True,
                              gridspec_kw={'height_ratios': (3, 3, 2, 2, 2)})
-    for ax, (ylabel, series, limited) in zip(axes, panels):
-        top = -math.inf
-        for key, color, style in series:
-            if key in temps:
-                ax.plot(x, temps[key], style, color=color, lw=1.5,
-                        label=quantity_table.label(key))
-                top = max(top, float(np.max(temps[key])))
-        for name, color in limited:
-            value = limits[name]
-            grade = f' ({cfg.fluid.grade})' if name == 'oil' else ''
-            if value - top <= 30.0:
-                ax.axhline(value, color=color, ls='--', lw=1.2, alpha=0.8,
-                           label=f'{quantity_table.LIMIT_LABELS[name]}{grade} {value:g} degC')
-        ax.set_ylabel(ylabel)
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=8, loc='upper left', bbox_to_anchor=(1.01, 1.0))
+    _plot_temperature_panels(axes[:2], x, temps, cfg)
     n = _window(t, period_s)
     _plot_heat(axes[2], axes[3], result, x, n)
-    ax = axes[4]
-    handles = []
-    current = result.inputs.get('current_A_rms')
-    if current is not None:
-        current = np.asarray(current, dtype=float)
-        handles += _plot_input(ax, x, current, np.sqrt(_moving_mean(current ** 2, n)), 'C3',
-                               'current, RMS', n)
-    ax.set_ylabel('current, RMS (A)', color='C3')
-    ax.tick_params(axis='y', colors='C3')
-    ax.set_ylim(0.0, 1.15 * max(_top(current), 1e-3))
-    ax.grid(True, alpha=0.3)
-    speed = result.inputs.get('speed_rpm')
-    if speed is not None:
-        speed = np.asarray(speed, dtype=float)
-        ax2 = ax.twinx()
-        handles += _plot_input(ax2, x, speed, _moving_mean(speed, n), 'C0', 'speed, mean |n|', n)
-        ax2.set_ylabel('speed, mean |n| (r/min)', color='C0')
-        ax2.tick_params(axis='y', colors='C0')
-        ax2.set_ylim(0.0, 1.15 * max(_top(speed), 1.0))
-    if handles:
-        ax.legend(handles=handles, fontsize=8, loc='upper left', bbox_to_anchor=(1.09, 1.0))
-    ax.set_xlabel(f'time ({unit})')
-    ax.set_xlim(0.0, x[-1])
+    _plot_inputs_panel(axes[4], result, x, n)
+    axes[4].set_xlabel(f'time ({unit})')
+    axes[4].set_xlim(0.0, x[-1])
     fig.suptitle(title, fontsize=10)
     save_figure(fig, path)

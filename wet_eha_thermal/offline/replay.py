@@ -32,14 +32,14 @@ from typing import Callable, Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
-from . import interface
-from .bag.reader import BagError, BagInfo, Columns, iter_column_blocks, open_bag
-from .config import (Config, config_from_yaml, ConfigError, default_config_path, load_config,
-                     with_values)
-from .estimator.core import Estimator
-from .estimator.intake import INPUTS, sensor_inputs
-from .model import quantity_table
-from .outputs import atomic, markdown_table, save_figure, write_text
+from .. import interface
+from ..bag.reader import BagError, BagInfo, Columns, iter_column_blocks, open_bag
+from ..config import (Config, config_from_yaml, ConfigError, default_config_path, load_config,
+                      with_values)
+from ..estimator.core import Estimator
+from ..estimator.intake import INPUTS, sensor_inputs
+from ..model import quantity_table
+from ..output_files import atomic, markdown_table, save_figure, write_text
 
 #: Estimates written to the outputs (degC), in column order.
 OUTPUT_ESTIMATES = interface.ESTIMATES
@@ -275,6 +275,40 @@ class _Decimator:
         return np.concatenate(self.t), np.concatenate(self.v)
 
 
+def _feed(est: Estimator, samples: Samples, advance: Callable[[], None]) -> None:
+    """Give one routed block to the estimator in stamp order, calling ``advance`` to step."""
+    series, ambient = samples.inputs, samples.ambient
+    for tc, (t, v, _) in samples.thermocouples.items():
+        # for the live correction (and the display): each reading is used by stamp, so
+        # the whole block may go in before the steps
+        for stamp, value in zip(t.tolist(), v.tolist()):
+            est.add_measured(tc, stamp, value)
+    # an ambient reading applies from its stamp on, as it does live: feed the inputs
+    # up to each reading, step, then take it
+    cuts = {name: np.searchsorted(t, ambient[0], side='right')
+            for name, (t, _) in series.items()}
+    for k in range(ambient[0].size + 1):
+        for name, (t, v) in series.items():
+            lo = cuts[name][k - 1] if k else 0
+            hi = cuts[name][k] if k < ambient[0].size else t.size
+            if hi > lo:
+                est.add_many(name, t[lo:hi], v[lo:hi])
+        advance()
+        if k < ambient[0].size:
+            est.add_ambient(float(ambient[0][k]), float(ambient[1][k]))
+
+
+def _correction_summary(est: Estimator) -> Optional[dict]:
+    """Return the live correction's learned heats and thermocouple counters; None when off."""
+    if est.correction is None:
+        return None
+    return {'active': est.correction.active, 'updates': est.correction.updates,
+            'disturbance_W': dict(zip(est.correction.disturbance_names,
+                                      est.correction.d.tolist())),
+            'thermocouples': {tc: dict(vars(h)) for tc, h in est.correction.tcs.items()
+                              if h.received}}
+
+
 def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
            on_progress: Optional[Callable[[float, float, float], None]] = None,
            plot_interval_s: float = 0.1, prefetch: bool = True) -> ReplayResult:
@@ -315,29 +349,12 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
         samples = plan.route(block)
         if samples.first_s is not None:
             first_s = samples.first_s if first_s is None else min(first_s, samples.first_s)
-        series, ambient = samples.inputs, samples.ambient
-        for name, (t, v) in series.items():
+        for name, (t, v) in samples.inputs.items():
             inputs_plot[name].add(t, v)
         for tc, (t, v, _) in samples.thermocouples.items():
             measured[tc][0].append(t)
             measured[tc][1].append(v)
-            # for the live correction (and the display): each reading is used by stamp, so
-            # the whole block may go in before the steps
-            for stamp, value in zip(t.tolist(), v.tolist()):
-                est.add_measured(tc, stamp, value)
-        # an ambient reading applies from its stamp on, as it does live: feed the inputs
-        # up to each reading, step, then take it
-        cuts = {name: np.searchsorted(t, ambient[0], side='right')
-                for name, (t, _) in series.items()}
-        for k in range(ambient[0].size + 1):
-            for name, (t, v) in series.items():
-                lo = cuts[name][k - 1] if k else 0
-                hi = cuts[name][k] if k < ambient[0].size else t.size
-                if hi > lo:
-                    est.add_many(name, t[lo:hi], v[lo:hi])
-            advance()
-            if k < ambient[0].size:
-                est.add_ambient(float(ambient[0][k]), float(ambient[1][k]))
+        _feed(est, samples, advance)
         if on_progress is not None:
             wall = time.perf_counter() - t_wall
             t_model = (est.t_model - first_s) if est.t_model is not None and first_s else 0.0
@@ -361,13 +378,7 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
         sample_time_s=est.steps * step_s, wall_s=wall, truncated=blocks.truncated,
         problem=blocks.problem,
         health={name: dict(vars(h)) for name, h in est.health.items()},
-        implausible=dict(est.implausible_counts),
-        correction=None if est.correction is None else {
-            'active': est.correction.active, 'updates': est.correction.updates,
-            'disturbance_W': dict(zip(est.correction.disturbance_names,
-                                      est.correction.d.tolist())),
-            'thermocouples': {tc: dict(vars(h)) for tc, h in est.correction.tcs.items()
-                              if h.received}},
+        implausible=dict(est.implausible_counts), correction=_correction_summary(est),
         limits_C=dict(est.limits_C))
 
 
@@ -387,8 +398,8 @@ def write_csv(result: ReplayResult, path: Path) -> Path:
 
 def write_mcap(result: ReplayResult, path: Path) -> Path:
     """Write the estimates as /eha/estimate/<name> Temperature messages, with the config."""
-    from .bag import cdr
-    from .bag.writer import BagWriter, offered_qos
+    from ..bag import cdr
+    from ..bag.writer import BagWriter, offered_qos
 
     cfg_yaml = result.plan.config_yaml
     metadata = {interface.CONFIG_METADATA: {interface.CONFIG_METADATA_KEY: cfg_yaml,
@@ -451,15 +462,34 @@ def error_stats(err: np.ndarray) -> Dict[str, float]:
 
 def write_report(result: ReplayResult, out_dir: Path) -> Path:
     """Write PNG plots (inputs, temperatures, errors, alerts) and report.md; return its path."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    errors = thermocouple_errors(result)
+    images = _write_plots(result, errors, out_dir)
+    lines = _summary_lines(result) + _temperature_lines(result) + _error_lines(errors) \
+        + _health_lines(result) + _correction_lines(result.correction)
+    lines += [''] + [f'![{p.stem}]({p.name})' for p in images]
+    return write_text(out_dir / 'report.md', '\n'.join(lines) + '\n')
+
+
+def _write_plots(result: ReplayResult, errors: Dict[str, dict], out_dir: Path) -> List[Path]:
+    """Write the report's PNGs (errors.png only with thermocouples); return their paths."""
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    out_dir.mkdir(parents=True, exist_ok=True)
     t0 = float(result.stamp_s[0])
     t_min = (result.stamp_s - t0) / 60.0
-    images = []
+    images = [save_figure(_plot_inputs(plt, result, t0), out_dir / 'inputs.png'),
+              save_figure(_plot_temperatures(plt, result, t0, t_min),
+                          out_dir / 'temperatures.png')]
+    if errors:
+        images.append(save_figure(_plot_errors(plt, errors, t0), out_dir / 'errors.png'))
+    images.append(save_figure(_plot_alerts(plt, result, t_min), out_dir / 'alerts.png'))
+    return images
 
+
+def _plot_inputs(plt, result: ReplayResult, t0: float):
+    """Return the figure of the inputs as replayed, one panel each."""
     fig, axes = plt.subplots(len(result.inputs), 1, figsize=(10, 1.8 * len(result.inputs) + 1),
                              sharex=True, squeeze=False)
     for ax, (name, (t, v)) in zip(axes[:, 0], result.inputs.items()):
@@ -468,48 +498,90 @@ def write_report(result: ReplayResult, out_dir: Path) -> Path:
         ax.grid(alpha=0.3)
     axes[-1, 0].set_xlabel('time since the first estimate [min]')
     fig.suptitle(f'inputs of {result.plan.info.path.name}')
-    images.append(save_figure(fig, out_dir / 'inputs.png'))
+    return fig
 
-    fig, ax = plt.subplots(figsize=(10, 5))
-    for name in ('winding_hotspot', 'winding_mean', 'magnet', 'frame', 'pump_case', 'oil'):
-        ax.plot(t_min, result.temperatures_C[name], lw=1.0,
-                label=f'{quantity_table.label(name)} (estimate)')
-    for tc, (t, v) in result.measured.items():
-        if t.size:
-            ax.plot((t - t0) / 60.0, v, '.', ms=1.5, label=f'{tc} (thermocouple)')
-    limits = {quantity_table.LIMIT_LABELS[name]: value
-              for name, value in quantity_table.limits_C(result.plan.cfg).items()}
-    for label, value in limits.items():
-        if value < 1.3 * max(float(np.max(v)) for v in result.temperatures_C.values()):
-            ax.axhline(value, ls='--', lw=0.8, color='grey')
-            ax.text(t_min[0], value, label, fontsize=7, va='bottom')
-    ax.set_xlabel('time [min]')
-    ax.set_ylabel('temperature [degC]')
-    ax.legend(fontsize=7, ncol=2)
-    ax.grid(alpha=0.3)
-    images.append(save_figure(fig, out_dir / 'temperatures.png'))
 
-    errors = thermocouple_errors(result)
-    if errors:
-        fig, ax = plt.subplots(figsize=(10, 4))
-        for tc, e in errors.items():
-            ax.plot((e['t_s'] - t0) / 60.0, e['error_K'], lw=0.8,
-                    label=f'{e["estimate"]} - {tc}')
-        ax.axhline(0.0, color='k', lw=0.5)
-        ax.set_xlabel('time [min]')
-        ax.set_ylabel('estimate - thermocouple [K]')
-        ax.legend(fontsize=7)
+#: The estimates the temperature figure always shows (besides those a thermocouple measures)
+PLOTTED_ESTIMATES = ('winding_hotspot', 'winding_mean', 'magnet', 'frame', 'pump_case', 'oil')
+
+
+def _plot_temperatures(plt, result: ReplayResult, t0: float, t_min: np.ndarray):
+    """
+    Return a small multiple of the estimates: one panel each, sharing the time axis.
+
+    A panel shows an estimate (line), the thermocouples that measure it (dots)
+    and its limit (dashed) when the limit is within reach of the data; a
+    limit out of reach is named in the panel's title instead.
+    """
+    measures = {}
+    for tc, estimate in interface.THERMOCOUPLES.items():
+        if tc in result.measured and result.measured[tc][0].size:
+            measures.setdefault(estimate, []).append(tc)
+    names = [n for n in OUTPUT_ESTIMATES if n in PLOTTED_ESTIMATES or n in measures]
+    rows = math.ceil(len(names) / 2)
+    fig, axes = plt.subplots(rows, 2, figsize=(10, 1.9 * rows + 0.6), sharex=True,
+                             squeeze=False)
+    limits = quantity_table.limits_C(result.plan.cfg)
+    for ax, name in zip(axes.flat, names):
+        estimate = result.temperatures_C[name]
+        # the line over the dots: ten readings a second would hide it
+        ax.plot(t_min, estimate, color='C0', lw=1.5, label='estimate', zorder=3)
+        top = float(np.max(estimate))
+        for tc in measures.get(name, []):
+            t, v = result.measured[tc]
+            ax.plot((t - t0) / 60.0, v, '.', color='C3', ms=1.5, alpha=0.6, label='thermocouple')
+            top = max(top, float(np.max(v)))
+        title = quantity_table.label(name)
+        if name in measures:
+            title += f' (thermocouple {", ".join(measures[name])})'
+        if name in limits:
+            value = limits[name]
+            if value < 1.3 * top:
+                ax.axhline(value, ls='--', lw=1.0, color='grey',
+                           label=quantity_table.LIMIT_LABELS[name])
+            else:
+                title += f'; {quantity_table.LIMIT_LABELS[name]} {value:g} degC, off the scale'
+        ax.set_title(title, fontsize=9, loc='left')
+        ax.set_ylabel('degC', fontsize=8)
+        ax.tick_params(labelsize=8)
         ax.grid(alpha=0.3)
-        images.append(save_figure(fig, out_dir / 'errors.png'))
+    for ax in axes.flat[len(names):]:
+        ax.set_visible(False)
+    for ax in axes[-1]:
+        ax.set_xlabel('time since the first estimate [min]', fontsize=8)
+    # one key for all panels, in the first that has every kind of line it needs
+    keyed = next((ax for ax, n in zip(axes.flat, names) if n in measures), axes[0, 0])
+    keyed.legend(fontsize=7, loc='best')
+    return fig
 
+
+def _plot_errors(plt, errors: Dict[str, dict], t0: float):
+    """Return the figure of each thermocouple's estimate minus its readings."""
+    fig, ax = plt.subplots(figsize=(10, 4))
+    for tc, e in errors.items():
+        ax.plot((e['t_s'] - t0) / 60.0, e['error_K'], lw=0.8,
+                label=f'{e["estimate"]} - {tc}')
+    ax.axhline(0.0, color='k', lw=0.5)
+    ax.set_xlabel('time [min]')
+    ax.set_ylabel('estimate - thermocouple [K]')
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3)
+    return fig
+
+
+def _plot_alerts(plt, result: ReplayResult, t_min: np.ndarray):
+    """Return the figure of the alert level over time."""
     fig, ax = plt.subplots(figsize=(10, 2.2))
     ax.step(t_min, result.alert_level, where='post')
     ax.set_yticks([0, 1, 2], ['OK', 'WARN', 'CRITICAL'])
     ax.set_xlabel('time [min]')
     ax.set_title('alert level')
     ax.grid(alpha=0.3)
-    images.append(save_figure(fig, out_dir / 'alerts.png'))
+    return fig
 
+
+def _summary_lines(result: ReplayResult) -> List[str]:
+    """Return the report's title and what was replayed, how fast."""
     lines = [f'# Replay of {result.plan.info.path.name}', '',
              f'- configuration: {result.plan.config_source}',
              '- inputs: ' + ', '.join(f'{n} <- {t}' for n, t in result.plan.inputs.items()),
@@ -519,19 +591,31 @@ def write_report(result: ReplayResult, out_dir: Path) -> Path:
              f'({result.speed_x:.0f}x real time)']
     if result.truncated:
         lines.append(f'- **the bag is truncated**: replayed what could be read ({result.problem})')
-    lines += ['', '## Temperatures at the end and at their peak (degC)', '']
-    lines += markdown_table(('estimate', 'end', 'peak'),
-                            ((n, f'{v[-1]:.1f}', f'{np.max(v):.1f}')
-                             for n, v in result.temperatures_C.items()))
-    lines += ['', '## Estimate minus thermocouple (K)', '']
-    if errors:
-        lines += markdown_table(
-            ('thermocouple', 'estimate', 'samples', 'max abs', 'RMS', 'bias'),
-            ((tc, e['estimate'], e['n'], f'{e["max_abs_K"]:.2f}', f'{e["rms_K"]:.2f}',
-              f'{e["bias_K"]:+.2f}') for tc, e in errors.items()))
-    else:
-        lines.append('The bag holds no thermocouple topics.')
-    lines += ['', '## Alerts', '']
+    return lines
+
+
+def _temperature_lines(result: ReplayResult) -> List[str]:
+    """Return the report's table of the estimates at the end and at their peak."""
+    return ['', '## Temperatures at the end and at their peak (degC)', ''] + markdown_table(
+        ('estimate', 'end', 'peak'),
+        ((n, f'{v[-1]:.1f}', f'{np.max(v):.1f}') for n, v in result.temperatures_C.items()))
+
+
+def _error_lines(errors: Dict[str, dict]) -> List[str]:
+    """Return the report's table of estimate minus thermocouple."""
+    lines = ['', '## Estimate minus thermocouple (K)', '']
+    if not errors:
+        return lines + ['The bag holds no thermocouple topics.']
+    return lines + markdown_table(
+        ('thermocouple', 'estimate', 'samples', 'max abs', 'RMS', 'bias'),
+        ((tc, e['estimate'], e['n'], f'{e["max_abs_K"]:.2f}', f'{e["rms_K"]:.2f}',
+          f'{e["bias_K"]:+.2f}') for tc, e in errors.items()))
+
+
+def _health_lines(result: ReplayResult) -> List[str]:
+    """Return the report's alerts, input health and implausible steps."""
+    t0 = float(result.stamp_s[0])
+    lines = ['', '## Alerts', '']
     lines += [f'- {s - t0:9.1f} s: {text}' for s, text in result.alert_events] or ['- none']
     lines += ['', '## Input health', '']
     lines += markdown_table(
@@ -540,25 +624,26 @@ def write_report(result: ReplayResult, out_dir: Path) -> Path:
           h['non_finite'] + h['out_of_range'] + h['backwards'] + h['late'])
          for name, h in result.health.items()))
     implausible = ', '.join(f'{k} {v}' for k, v in result.implausible.items())
-    lines += ['', f'Implausible steps: {implausible}']
-    lines += ['', '## Live correction', '']
-    c = result.correction
+    return lines + ['', f'Implausible steps: {implausible}']
+
+
+def _correction_lines(c: Optional[dict]) -> List[str]:
+    """Return the report's section on the live correction (:func:`_correction_summary`)."""
+    lines = ['', '## Live correction', '']
     if c is None:
-        lines.append('Off (`--open-loop`, or estimator.correction.enabled: false): the '
-                     'estimates are open loop.')
-    elif not c['active']:
-        lines.append('On, but no thermocouple reading was usable: the estimates are open loop.')
-    else:
-        heats = ', '.join(f'{k} {v:.2f} W' for k, v in c['disturbance_W'].items()) or 'none'
-        lines += [f'On: {c["updates"]} updates; learned heats at the end: {heats}. The errors '
-                  'above compare the corrected estimates with the thermocouples that '
-                  'corrected them.', '']
-        lines += markdown_table(
-            ('thermocouple', 'status', 'received', 'used', 'gated', 'stale', 'dropped'),
-            ((tc, h['status'], h['received'], h['used'], h['gated'], h['stale_events'],
-              h['dropped_events']) for tc, h in c['thermocouples'].items()))
-    lines += [''] + [f'![{p.stem}]({p.name})' for p in images]
-    return write_text(out_dir / 'report.md', '\n'.join(lines) + '\n')
+        return lines + ['Off (`--open-loop`, or estimator.correction.enabled: false): the '
+                        'estimates are open loop.']
+    if not c['active']:
+        return lines + ['On, but no thermocouple reading was usable: the estimates are open '
+                        'loop.']
+    heats = ', '.join(f'{k} {v:.2f} W' for k, v in c['disturbance_W'].items()) or 'none'
+    lines += [f'On: {c["updates"]} updates; learned heats at the end: {heats}. The errors '
+              'above compare the corrected estimates with the thermocouples that '
+              'corrected them.', '']
+    return lines + markdown_table(
+        ('thermocouple', 'status', 'received', 'used', 'gated', 'stale', 'dropped'),
+        ((tc, h['status'], h['received'], h['used'], h['gated'], h['stale_events'],
+          h['dropped_events']) for tc, h in c['thermocouples'].items()))
 
 
 def parse_mapping(items: Sequence[str]) -> Dict[str, str]:
