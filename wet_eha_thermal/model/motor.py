@@ -237,8 +237,8 @@ class WetMotor(MotorNetworkBuilder):
         """
         h, re_disc, re_plate, pr = end_space_htc(T, tuple(self.end_surfaces), w, p_Pa,
                                                  tuple(self._end_geometry), self.oil.laws)
-        corr.check_enclosed_disc(self.log, re_disc, self._end_geometry.gap_ratio)
-        corr.check_flat_plate(self.log, re_plate, pr)
+        corr.check_enclosed_disc_nusselt(self.log, re_disc, self._end_geometry.gap_ratio)
+        corr.check_flat_plate_nusselt(self.log, re_plate, pr)
         return self.cfg.end_spaces.htc_multiplier * h
 
     def _to_ambient_htc(self, Ts_K, T_amb_K, natural_convection) -> np.ndarray:
