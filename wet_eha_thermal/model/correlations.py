@@ -496,9 +496,9 @@ def modified_taylor_number(omega, r_rotor, r_bore, nu):
                    / becker_kaye_geometric_factor(r_rotor, r_bore))
 
 
-def taylor_couette_nusselt(Ta_m, log: Optional[ValidityLog] = None):
+def taylor_couette_nusselt(Ta_m, Pr=None, gap_ratio=None, log: Optional[ValidityLog] = None):
     """
-    Return the wall-to-wall Nusselt number of a rotating annulus.
+    Return the wall-to-wall Nusselt number of a rotating annulus (Becker-Kaye).
 
     Source: Becker and Kaye (1962), Nu = h 2 delta / k, h the coefficient
     between the two walls (rotor and stator) of the annulus:
@@ -513,6 +513,9 @@ def taylor_couette_nusselt(Ta_m, log: Optional[ValidityLog] = None):
     Validity flagged: Ta_m > 1e7.
 
     :param Ta_m: modified Taylor number (:func:`modified_taylor_number`).
+    :param Pr: not used (the law depends on Ta_m alone); in the signature
+        every law of ``AIRGAP_NUSSELT`` shares.
+    :param gap_ratio: not used, as ``Pr``.
     :param log: optional validity log.
 
     Examples
@@ -534,7 +537,85 @@ def taylor_couette_nusselt(Ta_m, log: Optional[ValidityLog] = None):
     return _scalar(np.where(ta < 1700.0, 2.0, nu))
 
 
-def _laminar_turbulent_nusselt(Re, Pr, nu_laminar, correlation, log):
+def tachibana_fukui_nusselt(Ta_m, Pr, gap_ratio, log: Optional[ValidityLog] = None):
+    """
+    Return the wall-to-wall Nusselt number of a rotating annulus (Tachibana et al.).
+
+    Source: F. Tachibana, S. Fukui and H. Mitsumura, "Heat transfer in an
+    annulus with an inner rotating cylinder", Bull. JSME 3(9), 1960, 119-123,
+    as quoted by the review of M. Fenot, Y. Bertin, E. Dorignac and G.
+    Lalizel, Int. J. Thermal Sci. 50, 2011, 1138-1155:
+    Nu = 0.21 (Ta^2 Pr)^(1/4) (delta/r1)^(1/4), Nu = h 2 delta / k, with their
+    Taylor number Ta = (omega r1 delta / nu) (delta / r1)^(1/2), so that
+    Ta^2 = omega^2 r1 delta^3 / nu^2 = Ta_m F_g r1 / R_m (F_g of
+    :func:`becker_kaye_geometric_factor`, r1 / R_m = 2 / (2 + delta/r1)).
+    Unlike Becker-Kaye's it grows with the Prandtl number, which for oil
+    (Pr 100-1000) gives several times Becker-Kaye's value. Below the vortex
+    onset (Ta_m < ``TAYLOR_ONSET``) and wherever the law falls below it, the
+    conduction value 2 is used, as in :func:`taylor_couette_nusselt`.
+
+    Not checked: the coefficients and the definition of Ta are the review's
+    as recalled here; the paper itself (and the range of Ta, Pr and gap of
+    its data, air and water) could not be read. Validity flagged: Pr above
+    1000 (an assumption, not the paper's range). Use it as the alternative
+    it is, to see the spread between published laws.
+
+    :param Ta_m: modified Taylor number (:func:`modified_taylor_number`).
+    :param Pr: Prandtl number of the oil.
+    :param gap_ratio: delta / r1.
+    :param log: optional validity log.
+
+    Examples
+    --------
+    Hand-checked at Ta_m = 1e4, Pr = 1 and delta/r1 = 0.5/18 (F_g = 1.0281,
+    r1 / R_m = 0.98630): Ta^2 = 1e4 * 1.0281 * 0.98630 = 10 140,
+    Nu = 0.21 (10 140)^0.25 (0.027778)^0.25 = 0.21 * 10.035 * 0.40825 = 0.860,
+    below conduction, so 2; at Pr = 200: 0.86034 * 200^0.25 = 3.235.
+
+    >>> [round(float(tachibana_fukui_nusselt(1.0e4, pr, 0.5 / 18)), 2) for pr in (1.0, 200.0)]
+    [2.0, 3.24]
+
+    """
+    if log is not None:
+        check(log, 'Tachibana-Fukui Taylor-Couette Nusselt', 'Pr', Pr, 0.0, 1000.0,
+              'Prandtl number above the assumed range of Tachibana et al.; extrapolated')
+    ta = np.asarray(Ta_m, dtype=float)
+    g = np.asarray(gap_ratio, dtype=float)
+    ta2 = ta * becker_kaye_geometric_factor(1.0, 1.0 + g) * 2.0 / (2.0 + g)
+    nu = np.maximum(2.0, 0.21 * np.power(ta2 * Pr * g, 0.25))
+    return _scalar(np.where(ta < TAYLOR_ONSET, 2.0, nu))
+
+
+class Correlation(NamedTuple):
+    """
+    One published law of a registry such as ``AIRGAP_NUSSELT``.
+
+    :ivar function: the law, a function of this file.
+    :ivar source: its authors, year and journal.
+    :ivar validity: the range it was fitted to, as text.
+
+    """
+
+    function: object
+    source: str
+    validity: str
+
+
+#: The wall-to-wall Nusselt laws of a rotating annulus, selectable by name as
+#: ``motor.airgap_nusselt`` (each called as ``function(Ta_m, Pr, gap_ratio, log)``);
+#: ``becker_kaye`` is the default.
+AIRGAP_NUSSELT = {
+    'becker_kaye': Correlation(
+        taylor_couette_nusselt, 'Becker and Kaye, J. Heat Transfer 84, 1962, 97-105',
+        'Ta_m up to 1e7; narrow gaps'),
+    'tachibana_fukui': Correlation(
+        tachibana_fukui_nusselt,
+        'Tachibana, Fukui and Mitsumura, Bull. JSME 3(9), 1960, 119-123 (via Fenot et al. 2011)',
+        'range of the data not checked; Pr above 1000 flagged'),
+}
+
+
+def laminar_turbulent_nusselt(Re, Pr, nu_laminar, correlation, log):
     """
     Return the laminar value / Gnielinski Nusselt number, blended in 2300-4000.
 
@@ -666,7 +747,8 @@ class AirgapHTC(NamedTuple):
 
 
 def airgap_wall_to_bulk_htc(omega, r_rotor, r_bore, axial_flow_m3_s, rho, mu, k, cp,
-                            log: Optional[ValidityLog] = None) -> AirgapHTC:
+                            log: Optional[ValidityLog] = None,
+                            nusselt: str = 'becker_kaye') -> AirgapHTC:
     """
     Return the wall-to-bulk heat-transfer coefficient of a flooded airgap section.
 
@@ -710,6 +792,8 @@ def airgap_wall_to_bulk_htc(omega, r_rotor, r_bore, axial_flow_m3_s, rho, mu, k,
     :param k: oil conductivity (W/(m K)).
     :param cp: oil specific heat (J/(kg K)).
     :param log: optional validity log.
+    :param nusselt: the rotational law Nu_TC, a name of ``AIRGAP_NUSSELT``
+        (default Becker-Kaye's, as above).
 
     :return: :class:`AirgapHTC` ``(h, Ta_m, Re_axial, Nu)``.
 
@@ -730,10 +814,11 @@ def airgap_wall_to_bulk_htc(omega, r_rotor, r_bore, axial_flow_m3_s, rho, mu, k,
     """
     delta = np.subtract(r_bore, r_rotor)
     ta_m = modified_taylor_number(omega, r_rotor, r_bore, np.divide(mu, rho))
-    nu_tc = taylor_couette_nusselt(ta_m, log)
+    pr = np.multiply(mu, cp) / k
+    nu_tc = AIRGAP_NUSSELT[nusselt].function(ta_m, pr, delta / np.asarray(r_rotor), log=log)
     area = np.pi * (np.square(r_bore) - np.square(r_rotor))
     re_ax = np.multiply(rho, np.abs(axial_flow_m3_s)) * 2.0 * delta / np.multiply(mu, area)
-    nu_ax = annulus_axial_nusselt(re_ax, np.multiply(mu, cp) / k, log)
+    nu_ax = annulus_axial_nusselt(re_ax, pr, log)
     if log is not None:
         check(log, 'airgap axial flow (reference paper correlation)', 'Re_axial',
               _positive_or_nan(re_ax), *REFERENCE_AXIAL_RE,

@@ -193,7 +193,7 @@ class WetMotor(MotorNetworkBuilder):
         gap_h = corr.airgap_wall_to_bulk_htc(
             w, ro.outer_radius_m, st.bore_radius_m, u.oil_flow_m3_s, self.oil.density(T_gap, p),
             self.oil.dynamic_viscosity(T_gap, p), self.oil.conductivity(T_gap),
-            self.oil.specific_heat(T_gap), log=log)
+            self.oil.specific_heat(T_gap), log=log, nusselt=c.airgap_nusselt)
         h = np.broadcast_to(gap_h.h, T_gap.shape)
         net.set_conductances(self.gap_links_stator, h * 2 * np.pi * st.bore_radius_m * self.dz)
         net.set_conductances(self.gap_links_rotor, h * 2 * np.pi * ro.outer_radius_m * self.dz)
