@@ -429,3 +429,27 @@ def test_arrays_and_scalars_agree():
                 scalar = func(float(x[i]), float(y[i]))
                 assert np.ndim(scalar) == 0
                 assert scalar == vec[i]
+
+
+def test_airgap_nusselt_registry():
+    """The configuration offers the registry's names; the default law is Becker-Kaye's."""
+    import dataclasses
+    from wet_eha_thermal.config_model import Motor
+    meta = {f.name: f.metadata for f in dataclasses.fields(Motor)}['airgap_nusselt']
+    assert meta['choices'] == tuple(c.AIRGAP_NUSSELT)
+    assert c.AIRGAP_NUSSELT['becker_kaye'].function is c.taylor_couette_nusselt
+    default = c.airgap_wall_to_bulk_htc(2000.0, R1, R2, 1e-5, RHO, MU, K_OIL, CP)
+    named = c.airgap_wall_to_bulk_htc(2000.0, R1, R2, 1e-5, RHO, MU, K_OIL, CP,
+                                      nusselt='becker_kaye')
+    assert default == named
+
+
+def test_tachibana_fukui_by_hand():
+    """Nu = 0.21 (Ta^2 Pr)^(1/4) (delta/r1)^(1/4), Ta^2 = omega^2 r1 delta^3 / nu^2."""
+    omega, r1, r2, nu, pr = 3000.0, 0.018, 0.0185, 1.0e-5, 150.0
+    delta = r2 - r1
+    ta2 = omega ** 2 * r1 * delta ** 3 / nu ** 2        # 2.025e5 (the paper's Ta^2)
+    expected = 0.21 * (ta2 * pr) ** 0.25 * (delta / r1) ** 0.25
+    ta_m = c.modified_taylor_number(omega, r1, r2, nu)
+    assert c.tachibana_fukui_nusselt(ta_m, pr, delta / r1) == pytest.approx(expected, rel=1e-12)
+    assert expected == pytest.approx(6.365, abs=1e-3)  # 0.21 * 3.04e7^0.25 * 0.4082

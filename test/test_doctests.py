@@ -19,16 +19,20 @@ MODULES = (correlations, oil, mellor, losses, rotor_losses, fluid_power)
 
 #: Public functions and methods of MODULES without an example of their own, and why.
 NO_EXAMPLE = {
-    'correlations.airgap_friction_power': 'compiled kernel of airgap_friction (its examples)',
-    'correlations.laminar_turbulent_nusselt': 'compiled kernel of pipe_internal_nusselt',
+    'correlations.airgap_friction_kernel': 'compiled kernel of airgap_friction (its examples)',
+    'correlations.laminar_turbulent_nusselt': 'the law behind annulus_axial_nusselt and '
+                                              'pipe_internal_nusselt (their examples)',
+    'correlations.laminar_turbulent_nusselt_kernel': 'compiled laminar_turbulent_nusselt',
+    'correlations.bilgen_boulos_regime_kernel': 'regime of bilgen_boulos_torque_coefficient',
     'correlations.airgap_friction_factors': "airgap_friction's geometry constants (its examples)",
     'correlations.check_airgap_friction': 'flags the validity of airgap_friction; no value',
-    'correlations.daily_nece_regime': 'compiled regime choice of daily_nece_moment_coefficient',
+    'correlations.daily_nece_moment_coefficient_kernel': 'compiled regime choice of '
+                                                         'daily_nece_moment_coefficient',
     'correlations.daily_nece_laws': "daily_nece_moment_coefficient's constants at one G",
-    'correlations.check_enclosed_disc': 'flags the validity of enclosed_disc_nusselt; no value',
-    'correlations.disc_nusselt': 'compiled kernel of enclosed_disc_nusselt (its examples)',
-    'correlations.check_flat_plate': 'flags the validity of flat_plate_nusselt; no value',
-    'correlations.plate_nusselt': 'compiled kernel of flat_plate_nusselt (its examples)',
+    'correlations.check_enclosed_disc_nusselt': 'flags the validity of enclosed_disc_nusselt',
+    'correlations.enclosed_disc_nusselt_kernel': 'compiled kernel of enclosed_disc_nusselt',
+    'correlations.check_flat_plate_nusselt': 'flags the validity of flat_plate_nusselt',
+    'correlations.flat_plate_nusselt_kernel': 'compiled kernel of flat_plate_nusselt',
     'correlations.enclosed_disc_friction': 'compiled power of daily_nece_moment_coefficient '
                                            '(its examples; test_end_spaces.py)',
     'oil.density': 'the law of Oil.density without checks (its example)',
@@ -42,11 +46,11 @@ NO_EXAMPLE = {
     'oil.Oil.alpha_p': 'a datum of the grade',
     'oil.secant_bulk_modulus': 'the law of Oil.secant_bulk_modulus without checks',
     'fluid_power.displacement_per_rad': 'a unit conversion',
-    'fluid_power.check_gap_reynolds': 'flags the validity of gap_leakage; no value',
-    'fluid_power.check_line_reynolds': 'flags the validity of line_pressure_drop; no value',
+    'fluid_power.check_gap_leakage': 'flags the validity of gap_leakage; no value',
+    'fluid_power.check_line_pressure_drop': 'flags the validity of line_pressure_drop; no value',
     'fluid_power.pump_friction_torque': 'the lumped friction law of docs/model.md (test_kinetics)',
     'fluid_power.line_pressure_drop': 'Darcy with 64/Re and Blasius (test_kinetics, test_eha)',
-    'fluid_power.line_drop_and_reynolds': 'compiled kernel of line_pressure_drop',
+    'fluid_power.line_pressure_drop_kernel': 'compiled kernel of line_pressure_drop',
     'mellor.add_cylinder': 'wires mellor_resistances into a network (test_mellor.py)',
     'mellor.Cylinder.slices': 'counts node names',
     'rotor_losses.harmonic_losses': 'checked against FE and Bessel solutions (test_rotor_losses)',

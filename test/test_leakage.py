@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from wet_eha_thermal.config import load_config
-from wet_eha_thermal.model.fluid_power import check_gap_reynolds, GAP_LAMINAR_RE, gap_leakage
+from wet_eha_thermal.model.fluid_power import check_gap_leakage, GAP_LAMINAR_RE, gap_leakage
 from wet_eha_thermal.model.kinetics import KineticModel, stage_duty, ThermalFeedback
 from wet_eha_thermal.model.oil import get_oil
 from wet_eha_thermal.model.validity import ValidityLog
@@ -73,11 +73,11 @@ def test_blend_is_continuous_monotonic_and_below_both_laws():
 
 
 def test_gap_reynolds_flagged_beyond_the_laminar_range():
-    """check_gap_reynolds flags Re_gap above 2000 with the extreme seen; below it, nothing."""
+    """check_gap_leakage flags Re_gap above 2000 with the extreme seen; below it, nothing."""
     log = ValidityLog()
-    check_gap_reynolds(log, np.array([10.0, 1999.0]))
+    check_gap_leakage(log, np.array([10.0, 1999.0]))
     assert len(log) == 0
-    check_gap_reynolds(log, np.array([10.0, 2500.0, 4000.0]))
+    check_gap_leakage(log, np.array([10.0, 2500.0, 4000.0]))
     (flag,) = list(log)
     assert flag.quantity == 'Re_gap' and flag.high == GAP_LAMINAR_RE
     assert flag.count == 2 and flag.max_seen == 4000.0

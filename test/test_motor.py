@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from wet_eha_thermal.config import load_config
+from wet_eha_thermal.config import ConfigError, load_config
 from wet_eha_thermal.model.motor import MotorInputs, WetMotor
 from wet_eha_thermal.model.oil import get_oil
 from wet_eha_thermal.offline.maps import compute_maps
@@ -204,3 +204,22 @@ def test_laminar_airgap_flow_is_reported(cfg):
     m.steady_state(inputs())
     flags = {(f.correlation, f.quantity): f for f in m.log}
     assert any('Re' in q for (_, q) in flags), [str(f) for f in m.log]
+
+
+def test_airgap_nusselt_is_chosen_by_name(cfg):
+    """Default and 'becker_kaye' agree bit for bit; another law moves the temperatures."""
+    u = inputs(rpm=12000, amps=20)
+    motors = [make_motor(cfg), make_motor(cfg, airgap_nusselt='becker_kaye'),
+              make_motor(cfg, airgap_nusselt='tachibana_fukui')]
+    for m in motors:
+        m.steady_state(u)
+    default, named, other = (m.outputs() for m in motors)
+    assert named == default
+    assert any(other[key] != value for key, value in default.items())
+
+
+def test_unknown_airgap_nusselt_names_the_key_and_the_choices():
+    """A bad name is refused at load with the key, the value and the allowed names."""
+    with pytest.raises(ConfigError, match=r"motor\.airgap_nusselt = 'gazley': unknown; "
+                                          r'allowed: becker_kaye, tachibana_fukui'):
+        load_config(overrides={'motor.airgap_nusselt': 'gazley'})

@@ -230,6 +230,10 @@ class Motor:
         "stator slots: the tooth pitch, and the slot sides that carry the winding's heat to "
         'the teeth'))
     stack_length_m: float = positive('axial length of the laminated stack (the active length)')
+    airgap_nusselt: str = spec(
+        choices=('becker_kaye', 'tachibana_fukui'), default='becker_kaye',
+        doc='rotational Nusselt law of the oil-filled airgap (correlations.AIRGAP_NUSSELT): '
+            'Becker and Kaye (1962), or Tachibana, Fukui and Mitsumura (1960)')
     torque_constant_Nm_A: float = positive('per A RMS phase current')
     max_continuous_current_A: float = positive(
         "continuous rating, A RMS (datasheet): the estimator's margin-current search starts there")

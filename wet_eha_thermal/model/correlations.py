@@ -13,6 +13,21 @@ Every correlation takes an optional ``log``
 that fall outside the range its source validates; out-of-range inputs are
 still evaluated (the correlation is extrapolated), never rejected.
 
+Naming rule for a law, its kernel and its checker (here and in
+:mod:`.fluid_power`):
+
+- ``name(..., log=None)``: the documented law (source, range, example),
+  range-checked into ``log``; what a reader or a script calls.
+- ``name_kernel(...)``: the same arithmetic compiled by numba for the hot
+  loops; never checks, and may take precomputed factors or return extra
+  diagnostics (a regime, a Reynolds number) that the checks need.
+- ``check_name(log, ...)``: flags the inputs of ``name`` outside its range,
+  for a hot loop that calls ``name_kernel`` and checks apart.
+
+A law with nothing to check, or whose range is checked by ``check_name``
+only, is compiled under its own name (e.g. :func:`colburn_disc_nusselt`,
+:func:`~.fluid_power.gap_leakage`).
+
 Airgap notation: ``r_rotor`` = r1 (outer radius of the rotor, sleeve
 included), ``r_bore`` = r2 (stator bore radius), gap delta = r2 - r1,
 mean radius R_m = (r1 + r2) / 2.
@@ -237,7 +252,7 @@ def bilgen_boulos_torque_coefficient(Re_d, gap_ratio, log: Optional[ValidityLog]
         check(log, 'Bilgen-Boulos airgap friction', 'delta/r1', gap_ratio,
               *BILGEN_BOULOS_GAP_RATIO, 'gap ratio outside the data of Bilgen and Boulos (1973)')
     re = np.asarray(Re_d, dtype=float)
-    k = _bilgen_boulos_regime_index(re)
+    k = bilgen_boulos_regime_kernel(re)
     with np.errstate(divide='ignore'):
         cm = _BB_COEF[k] * np.power(gap_ratio, 0.3) * np.power(re, _BB_NEG_EXPO[k])
     return _scalar(cm), _scalar(k + 1)
@@ -258,7 +273,7 @@ _BB_RE_EDGES = BILGEN_BOULOS_RE_EDGES
 
 
 @jit
-def _bilgen_boulos_regime_index(re):
+def bilgen_boulos_regime_kernel(re):
     """Return the Bilgen-Boulos regime minus one (an index of the tables) at each Re_d."""
     # the count of edges at or below Re_d (NaN counts all three: its C_M is NaN either way)
     return np.searchsorted(_BB_RE_EDGES, re, side='right')
@@ -354,8 +369,8 @@ def airgap_friction(rho, mu, omega, r_rotor, r_bore, L, log: Optional[ValidityLo
     except TypeError:           # array dimensions (not hashable)
         couette_geo, re_geo, gap_ratio, gap_in_data, g03, bb_rho, ta_per_re2 = \
             airgap_friction_factors.__wrapped__(r_rotor, r_bore, L)
-    power, regime, re = airgap_friction_power(rho, mu, w, couette_geo, re_geo, g03, bb_rho,
-                                              ta_per_re2)
+    power, regime, re = airgap_friction_kernel(rho, mu, w, couette_geo, re_geo, g03, bb_rho,
+                                               ta_per_re2)
     check_airgap_friction(log, regime, re, gap_ratio, gap_in_data)
     return _scalar(power), _scalar(regime)
 
@@ -378,7 +393,7 @@ def check_airgap_friction(log: Optional[ValidityLog], regime, re, gap_ratio,
 
 
 @jit
-def airgap_friction_power(rho, mu, w, couette_geo, re_geo, g03, bb_rho, ta_per_re2):
+def airgap_friction_kernel(rho, mu, w, couette_geo, re_geo, g03, bb_rho, ta_per_re2):
     """
     Return the ``(power W, regime, Re_d)`` of :func:`airgap_friction`; no checks.
 
@@ -389,7 +404,7 @@ def airgap_friction_power(rho, mu, w, couette_geo, re_geo, g03, bb_rho, ta_per_r
     # Re_d = w * re_per_w; write w^3 Re^-n = w^(3-n) re_per_w^-n (no 0 ** negative).
     re_per_w = rho * re_geo / mu
     re = w * re_per_w
-    k = _bilgen_boulos_regime_index(re)
+    k = bilgen_boulos_regime_kernel(re)
     p_bb = (np.take(_BB_POWER_COEF, k) * g03 * np.power(re_per_w, np.take(_BB_NEG_EXPO, k))
             * np.power(w, np.take(_BB_W_EXPO, k)) * (rho * bb_rho))
     blend = np.minimum(np.maximum((ta_per_re2 * (re * re) / TAYLOR_ONSET - 1.0)
@@ -481,9 +496,9 @@ def modified_taylor_number(omega, r_rotor, r_bore, nu):
                    / becker_kaye_geometric_factor(r_rotor, r_bore))
 
 
-def taylor_couette_nusselt(Ta_m, log: Optional[ValidityLog] = None):
+def taylor_couette_nusselt(Ta_m, Pr=None, gap_ratio=None, log: Optional[ValidityLog] = None):
     """
-    Return the wall-to-wall Nusselt number of a rotating annulus.
+    Return the wall-to-wall Nusselt number of a rotating annulus (Becker-Kaye).
 
     Source: Becker and Kaye (1962), Nu = h 2 delta / k, h the coefficient
     between the two walls (rotor and stator) of the annulus:
@@ -498,6 +513,9 @@ def taylor_couette_nusselt(Ta_m, log: Optional[ValidityLog] = None):
     Validity flagged: Ta_m > 1e7.
 
     :param Ta_m: modified Taylor number (:func:`modified_taylor_number`).
+    :param Pr: not used (the law depends on Ta_m alone); in the signature
+        every law of ``AIRGAP_NUSSELT`` shares.
+    :param gap_ratio: not used, as ``Pr``.
     :param log: optional validity log.
 
     Examples
@@ -519,7 +537,85 @@ def taylor_couette_nusselt(Ta_m, log: Optional[ValidityLog] = None):
     return _scalar(np.where(ta < 1700.0, 2.0, nu))
 
 
-def _laminar_turbulent_nusselt(Re, Pr, nu_laminar, correlation, log):
+def tachibana_fukui_nusselt(Ta_m, Pr, gap_ratio, log: Optional[ValidityLog] = None):
+    """
+    Return the wall-to-wall Nusselt number of a rotating annulus (Tachibana et al.).
+
+    Source: F. Tachibana, S. Fukui and H. Mitsumura, "Heat transfer in an
+    annulus with an inner rotating cylinder", Bull. JSME 3(9), 1960, 119-123,
+    as quoted by the review of M. Fenot, Y. Bertin, E. Dorignac and G.
+    Lalizel, Int. J. Thermal Sci. 50, 2011, 1138-1155:
+    Nu = 0.21 (Ta^2 Pr)^(1/4) (delta/r1)^(1/4), Nu = h 2 delta / k, with their
+    Taylor number Ta = (omega r1 delta / nu) (delta / r1)^(1/2), so that
+    Ta^2 = omega^2 r1 delta^3 / nu^2 = Ta_m F_g r1 / R_m (F_g of
+    :func:`becker_kaye_geometric_factor`, r1 / R_m = 2 / (2 + delta/r1)).
+    Unlike Becker-Kaye's it grows with the Prandtl number, which for oil
+    (Pr 100-1000) gives several times Becker-Kaye's value. Below the vortex
+    onset (Ta_m < ``TAYLOR_ONSET``) and wherever the law falls below it, the
+    conduction value 2 is used, as in :func:`taylor_couette_nusselt`.
+
+    Not checked: the coefficients and the definition of Ta are the review's
+    as recalled here; the paper itself (and the range of Ta, Pr and gap of
+    its data, air and water) could not be read. Validity flagged: Pr above
+    1000 (an assumption, not the paper's range). Use it as the alternative
+    it is, to see the spread between published laws.
+
+    :param Ta_m: modified Taylor number (:func:`modified_taylor_number`).
+    :param Pr: Prandtl number of the oil.
+    :param gap_ratio: delta / r1.
+    :param log: optional validity log.
+
+    Examples
+    --------
+    Hand-checked at Ta_m = 1e4, Pr = 1 and delta/r1 = 0.5/18 (F_g = 1.0281,
+    r1 / R_m = 0.98630): Ta^2 = 1e4 * 1.0281 * 0.98630 = 10 140,
+    Nu = 0.21 (10 140)^0.25 (0.027778)^0.25 = 0.21 * 10.035 * 0.40825 = 0.860,
+    below conduction, so 2; at Pr = 200: 0.86034 * 200^0.25 = 3.235.
+
+    >>> [round(float(tachibana_fukui_nusselt(1.0e4, pr, 0.5 / 18)), 2) for pr in (1.0, 200.0)]
+    [2.0, 3.24]
+
+    """
+    if log is not None:
+        check(log, 'Tachibana-Fukui Taylor-Couette Nusselt', 'Pr', Pr, 0.0, 1000.0,
+              'Prandtl number above the assumed range of Tachibana et al.; extrapolated')
+    ta = np.asarray(Ta_m, dtype=float)
+    g = np.asarray(gap_ratio, dtype=float)
+    ta2 = ta * becker_kaye_geometric_factor(1.0, 1.0 + g) * 2.0 / (2.0 + g)
+    nu = np.maximum(2.0, 0.21 * np.power(ta2 * Pr * g, 0.25))
+    return _scalar(np.where(ta < TAYLOR_ONSET, 2.0, nu))
+
+
+class Correlation(NamedTuple):
+    """
+    One published law of a registry such as ``AIRGAP_NUSSELT``.
+
+    :ivar function: the law, a function of this file.
+    :ivar source: its authors, year and journal.
+    :ivar validity: the range it was fitted to, as text.
+
+    """
+
+    function: object
+    source: str
+    validity: str
+
+
+#: The wall-to-wall Nusselt laws of a rotating annulus, selectable by name as
+#: ``motor.airgap_nusselt`` (each called as ``function(Ta_m, Pr, gap_ratio, log)``);
+#: ``becker_kaye`` is the default.
+AIRGAP_NUSSELT = {
+    'becker_kaye': Correlation(
+        taylor_couette_nusselt, 'Becker and Kaye, J. Heat Transfer 84, 1962, 97-105',
+        'Ta_m up to 1e7; narrow gaps'),
+    'tachibana_fukui': Correlation(
+        tachibana_fukui_nusselt,
+        'Tachibana, Fukui and Mitsumura, Bull. JSME 3(9), 1960, 119-123 (via Fenot et al. 2011)',
+        'range of the data not checked; Pr above 1000 flagged'),
+}
+
+
+def laminar_turbulent_nusselt(Re, Pr, nu_laminar, correlation, log):
     """
     Return the laminar value / Gnielinski Nusselt number, blended in 2300-4000.
 
@@ -539,13 +635,13 @@ def _laminar_turbulent_nusselt(Re, Pr, nu_laminar, correlation, log):
         check(log, correlation, 'Pr', np.where(re > PIPE_RE_LAMINAR, Pr, np.nan), 0.5, 2000.0,
               'Prandtl number outside the Gnielinski range; extrapolated')
     re_b, pr_b = np.broadcast_arrays(re, np.asarray(Pr, dtype=float))
-    nu = laminar_turbulent_nusselt(re_b.ravel(), pr_b.ravel(), float(nu_laminar))
+    nu = laminar_turbulent_nusselt_kernel(re_b.ravel(), pr_b.ravel(), float(nu_laminar))
     return _scalar(nu.reshape(re_b.shape))
 
 
 @jit
-def laminar_turbulent_nusselt(re, pr, nu_laminar):
-    """Return the Nusselt number of :func:`_laminar_turbulent_nusselt` (1-D arrays, no checks)."""
+def laminar_turbulent_nusselt_kernel(re, pr, nu_laminar):
+    """Return the Nusselt number of :func:`laminar_turbulent_nusselt` (1-D arrays, no checks)."""
     if (re <= PIPE_RE_LAMINAR).all() and ((pr >= 0.0) & (pr < 1e300)).all():
         # laminar throughout, the usual case: the blend weight is zero, and the blend
         # below gives exactly the laminar value (for any physical Prandtl number)
@@ -586,8 +682,8 @@ def annulus_axial_nusselt(Re, Pr, log: Optional[ValidityLog] = None):
     29.8
 
     """
-    return _laminar_turbulent_nusselt(Re, Pr, NU_PARALLEL_PLATES_T,
-                                      'annulus axial flow (plates / Gnielinski)', log)
+    return laminar_turbulent_nusselt(Re, Pr, NU_PARALLEL_PLATES_T,
+                                     'annulus axial flow (plates / Gnielinski)', log)
 
 
 def pipe_internal_nusselt(Re, Pr, thermal_bc='T', log: Optional[ValidityLog] = None):
@@ -629,7 +725,7 @@ def pipe_internal_nusselt(Re, Pr, thermal_bc='T', log: Optional[ValidityLog] = N
         nu_lam = NU_PIPE_Q
     else:
         raise ValueError(f"thermal_bc must be 'T' or 'q', not {thermal_bc!r}")
-    return _laminar_turbulent_nusselt(Re, Pr, nu_lam, 'pipe flow (laminar / Gnielinski)', log)
+    return laminar_turbulent_nusselt(Re, Pr, nu_lam, 'pipe flow (laminar / Gnielinski)', log)
 
 
 class AirgapHTC(NamedTuple):
@@ -651,7 +747,8 @@ class AirgapHTC(NamedTuple):
 
 
 def airgap_wall_to_bulk_htc(omega, r_rotor, r_bore, axial_flow_m3_s, rho, mu, k, cp,
-                            log: Optional[ValidityLog] = None) -> AirgapHTC:
+                            log: Optional[ValidityLog] = None,
+                            nusselt: str = 'becker_kaye') -> AirgapHTC:
     """
     Return the wall-to-bulk heat-transfer coefficient of a flooded airgap section.
 
@@ -695,6 +792,8 @@ def airgap_wall_to_bulk_htc(omega, r_rotor, r_bore, axial_flow_m3_s, rho, mu, k,
     :param k: oil conductivity (W/(m K)).
     :param cp: oil specific heat (J/(kg K)).
     :param log: optional validity log.
+    :param nusselt: the rotational law Nu_TC, a name of ``AIRGAP_NUSSELT``
+        (default Becker-Kaye's, as above).
 
     :return: :class:`AirgapHTC` ``(h, Ta_m, Re_axial, Nu)``.
 
@@ -715,10 +814,11 @@ def airgap_wall_to_bulk_htc(omega, r_rotor, r_bore, axial_flow_m3_s, rho, mu, k,
     """
     delta = np.subtract(r_bore, r_rotor)
     ta_m = modified_taylor_number(omega, r_rotor, r_bore, np.divide(mu, rho))
-    nu_tc = taylor_couette_nusselt(ta_m, log)
+    pr = np.multiply(mu, cp) / k
+    nu_tc = AIRGAP_NUSSELT[nusselt].function(ta_m, pr, delta / np.asarray(r_rotor), log=log)
     area = np.pi * (np.square(r_bore) - np.square(r_rotor))
     re_ax = np.multiply(rho, np.abs(axial_flow_m3_s)) * 2.0 * delta / np.multiply(mu, area)
-    nu_ax = annulus_axial_nusselt(re_ax, np.multiply(mu, cp) / k, log)
+    nu_ax = annulus_axial_nusselt(re_ax, pr, log)
     if log is not None:
         check(log, 'airgap axial flow (reference paper correlation)', 'Re_axial',
               _positive_or_nan(re_ax), *REFERENCE_AXIAL_RE,
@@ -999,7 +1099,7 @@ def daily_nece_laws(gap_ratio: float) -> np.ndarray:
 
 
 @jit
-def daily_nece_regime(log_re, laws):
+def daily_nece_moment_coefficient_kernel(log_re, laws):
     """
     Return the regime (1-4) of :func:`daily_nece_moment_coefficient` and its C_M.
 
@@ -1066,7 +1166,8 @@ def daily_nece_moment_coefficient(Re, gap_ratio, log: Optional[ValidityLog] = No
         check(log, 'Daily-Nece enclosed disc', 's/a', gap_ratio, *DAILY_NECE_GAP_RATIO,
               'clearance ratio outside the data of Daily and Nece (1960); extrapolated')
     re, g = np.broadcast_arrays(np.asarray(Re, dtype=float), np.asarray(gap_ratio, dtype=float))
-    out = [daily_nece_regime(np.log(r), daily_nece_laws(s)) for r, s in zip(re.ravel(), g.ravel())]
+    out = [daily_nece_moment_coefficient_kernel(np.log(r), daily_nece_laws(s))
+           for r, s in zip(re.ravel(), g.ravel())]
     regime = np.array([k for k, _ in out], dtype=int).reshape(re.shape)
     cm = np.array([c for _, c in out]).reshape(re.shape)
     return _scalar(cm), _scalar(regime)
@@ -1087,7 +1188,7 @@ def enclosed_disc_friction(rho, mu, w, radius_m, laws):
     re = rho * w * a2 / mu
     if re <= 0.0:
         return 0.0, 1, 0.0
-    regime, cm = daily_nece_regime(np.log(re), laws)
+    regime, cm = daily_nece_moment_coefficient_kernel(np.log(re), laws)
     return 0.25 * cm * rho * w * w * w * a2 * a2 * radius_m, regime, re
 
 
@@ -1162,16 +1263,16 @@ def enclosed_disc_nusselt(Re, Pr, gap_ratio, log: Optional[ValidityLog] = None):
     [444.9, 9.0]
 
     """
-    check_enclosed_disc(log, Re, gap_ratio)
+    check_enclosed_disc_nusselt(log, Re, gap_ratio)
     re, g, pr = np.broadcast_arrays(np.asarray(Re, dtype=float),
                                     np.asarray(gap_ratio, dtype=float),
                                     np.asarray(Pr, dtype=float))
-    nu = np.array([disc_nusselt(r, p, daily_nece_laws(x), x)
+    nu = np.array([enclosed_disc_nusselt_kernel(r, p, daily_nece_laws(x), x)
                    for r, p, x in zip(re.ravel(), pr.ravel(), g.ravel())])
     return _scalar(nu.reshape(re.shape))
 
 
-def check_enclosed_disc(log: Optional[ValidityLog], Re, gap_ratio) -> None:
+def check_enclosed_disc_nusselt(log: Optional[ValidityLog], Re, gap_ratio) -> None:
     """Flag in ``log`` the Re and G outside the data of Daily and Nece (Re = 0 never)."""
     if log is not None:
         check(log, 'Daily-Nece enclosed disc', 'Re', _positive_or_nan(Re), *DAILY_NECE_RE,
@@ -1181,7 +1282,7 @@ def check_enclosed_disc(log: Optional[ValidityLog], Re, gap_ratio) -> None:
 
 
 @jit
-def disc_nusselt(re, pr, laws, gap_ratio):
+def enclosed_disc_nusselt_kernel(re, pr, laws, gap_ratio):
     """
     Return :func:`enclosed_disc_nusselt` at one point (floats); compiled, no checks.
 
@@ -1222,12 +1323,12 @@ def flat_plate_nusselt(Re_L, Pr, log: Optional[ValidityLog] = None):
 
     """
     re = np.asarray(Re_L, dtype=float)
-    check_flat_plate(log, re, Pr)
+    check_flat_plate_nusselt(log, re, Pr)
     re_b, pr_b = np.broadcast_arrays(re, np.asarray(Pr, dtype=float))
-    return _scalar(plate_nusselt(re_b.ravel(), pr_b.ravel()).reshape(re_b.shape))
+    return _scalar(flat_plate_nusselt_kernel(re_b.ravel(), pr_b.ravel()).reshape(re_b.shape))
 
 
-def check_flat_plate(log: Optional[ValidityLog], Re_L, Pr) -> None:
+def check_flat_plate_nusselt(log: Optional[ValidityLog], Re_L, Pr) -> None:
     """Flag in ``log`` what :func:`flat_plate_nusselt` evaluates outside its laws' ranges."""
     if log is not None:
         check(log, 'flat plate', 'Re_L', Re_L, 0.0, 1.0e8,
@@ -1237,7 +1338,7 @@ def check_flat_plate(log: Optional[ValidityLog], Re_L, Pr) -> None:
 
 
 @jit
-def plate_nusselt(re, pr):
+def flat_plate_nusselt_kernel(re, pr):
     """Return :func:`flat_plate_nusselt` for 1-D arrays; compiled, no checks."""
     laminar = 0.664 * np.sqrt(re)
     mixed = 0.037 * np.power(re, 0.8) - 871.0

@@ -263,7 +263,7 @@ class EHAModel:
         ln = self.cfg.hydraulics.lines
         P, re = node_pressures(sensed, flow_m3_s, 0.5 * (self.T_hyd[LINE_A] + self.T_hyd[LINE_B]),
                                ln.length_m, ln.bore_m, self.oil.laws)
-        fp.check_line_reynolds(self.log, re)
+        fp.check_line_pressure_drop(self.log, re)
         return P
 
     def step_flows(self, b: SampleBlock):
@@ -285,9 +285,9 @@ class EHAModel:
             self._last, (b.t_s, b.position_m, b.p_a_Pa, b.p_b_Pa, b.p_acc_Pa, b.speed_rad_s,
                          b.current_A), 0.5 * (self.T_hyd[LINE_A] + self.T_hyd[LINE_B]),
             float(self.T_hyd[CASE]), self._flow_constants, self.oil_substep_s)
-        fp.check_line_reynolds(self.log, re)
+        fp.check_line_pressure_drop(self.log, re)
         if not within(re_gap, 0.0, fp.GAP_LAMINAR_RE):   # laminar, the usual case: no flag
-            fp.check_gap_reynolds(self.log, re_gap)
+            fp.check_gap_leakage(self.log, re_gap)
         act = h.actuator
         chambers = (act.dead_volume_m3 + self.area * (act.half_stroke_m + x_mean),
                     act.dead_volume_m3 + self.area * (act.half_stroke_m - x_mean))

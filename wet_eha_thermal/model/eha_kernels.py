@@ -112,7 +112,7 @@ def node_pressures(sensed, flow_m3_s, T_line_K, length_m, bore_m, laws):
     p_l = pacc[-1]
     rho = oil_density(T_line_K, p_l, laws)
     mu = oil_nu(T_line_K, p_l, laws) * rho     # the dynamic viscosity
-    dp, re = fp.line_drop_and_reynolds(flow_m3_s, length_m, bore_m, rho, mu)
+    dp, re = fp.line_pressure_drop_kernel(flow_m3_s, length_m, bore_m, rho, mu)
     half = 0.5 * dp
     P = np.empty((N_OIL, pa.size))
     P[PORT_A] = pa + dp

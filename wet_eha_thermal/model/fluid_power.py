@@ -50,7 +50,7 @@ def gap_leakage(coeff_m3, dp_Pa, mu_Pa_s, rho, height_m, length_m, discharge_coe
     Re_gap = 2 rho |Q| / (mu b), is rho h^3 |dp| / (6 l mu^2) while laminar,
     and (Q_L / Q_T)^2 = Re_L / Re_x with Re_x = 48 C_d^2 l / h, where the two
     laws cross: neither depends on C. Valid (laminar law) for Re_gap below
-    about 2000 (GAP_LAMINAR_RE; :func:`check_gap_reynolds` flags the rest);
+    about 2000 (GAP_LAMINAR_RE; :func:`check_gap_leakage` flags the rest);
     the orifice law's C_d is an estimate for a gap.
 
     :param coeff_m3: laminar coefficient C (m^3).
@@ -91,7 +91,7 @@ def gap_leakage(coeff_m3, dp_Pa, mu_Pa_s, rho, height_m, length_m, discharge_coe
     return coeff_m3 * dp_Pa / mu_Pa_s * blend, re_lam * blend
 
 
-def check_gap_reynolds(log: Optional[ValidityLog], re) -> None:
+def check_gap_leakage(log: Optional[ValidityLog], re) -> None:
     """Flag gap Reynolds numbers where :func:`gap_leakage` leaves the laminar gap law."""
     check(log, 'pump leakage gap (laminar gap law)', 'Re_gap', re, 0.0, GAP_LAMINAR_RE,
           'beyond laminar: blended toward the orifice law Q = C_d A sqrt(2 dp / rho) (C_d est.)')
@@ -121,19 +121,19 @@ def line_pressure_drop(flow_m3_s, length_m: float, bore_m: float, rho, mu,
     BLASIUS_RE_MAX, 1e5), linear blend between. Fittings and bends are not included.
     """
     q = np.asarray(flow_m3_s, dtype=float)
-    dp, re = line_drop_and_reynolds(q.reshape(-1), length_m, bore_m, rho, mu)
-    check_line_reynolds(log, re)
+    dp, re = line_pressure_drop_kernel(q.reshape(-1), length_m, bore_m, rho, mu)
+    check_line_pressure_drop(log, re)
     return dp.reshape(q.shape)
 
 
-def check_line_reynolds(log: Optional[ValidityLog], re) -> None:
+def check_line_pressure_drop(log: Optional[ValidityLog], re) -> None:
     """Flag line Reynolds numbers outside the validity of :func:`line_pressure_drop`."""
     check(log, 'line friction (Blasius)', 'Re', re, 0.0, BLASIUS_RE_MAX,
           'above the smooth-tube range')
 
 
 @jit
-def line_drop_and_reynolds(flow_m3_s, length_m, bore_m, rho, mu):
+def line_pressure_drop_kernel(flow_m3_s, length_m, bore_m, rho, mu):
     """Return the (dp Pa, Re) of :func:`line_pressure_drop` for a 1-D array of flows; no checks."""
     area = 0.25 * np.pi * bore_m ** 2
     v = np.abs(flow_m3_s) / area

@@ -451,7 +451,7 @@ def line_conductances(T_K, p_Pa, rho, cp, flows, line, laws):
     q[0] = flows[LINE_A_PUMP_END] + flows[LINE_A_PUMP_END_BACK]
     q[1] = flows[LINE_B_ACTUATOR_END] + flows[LINE_B_ACTUATOR_END_BACK]
     re = rho * q / flow_area * bore / mu
-    nu = corr.laminar_turbulent_nusselt(re, mu * cp / k, corr.NU_PIPE_T)
+    nu = corr.laminar_turbulent_nusselt_kernel(re, mu * cp / k, corr.NU_PIPE_T)
     return nu * k / bore * inner_area
 
 

@@ -26,7 +26,7 @@ from typing import Callable, Dict, List, Optional, Tuple, Union
 import numpy as np
 
 from .eha import SampleBlock
-from .fluid_power import (check_gap_reynolds, displacement_per_rad, gap_leakage,
+from .fluid_power import (check_gap_leakage, displacement_per_rad, gap_leakage,
                           line_pressure_drop, pump_friction_torque)
 from .losses import copper_resistance
 from .oil import Oil
@@ -565,8 +565,8 @@ class KineticModel:
         q_int, re_int = gap_leakage(self._c_int, dpp, mu_ports, rho[:n], *self._gap)
         q_ext, re_ext = gap_leakage(self._c_ext, p_high - self.p_case, mu[n:], rho[n:],
                                     *self._gap)
-        check_gap_reynolds(self.log, re_int)
-        check_gap_reynolds(self.log, re_ext)
+        check_gap_leakage(self.log, re_int)
+        check_gap_leakage(self.log, re_ext)
         np.maximum(q_ext, 0.0, out=q_ext)
         # D w = Q + Q_int + s Q_ext, s = +1 when port A is the high port (docstring)
         w = q + q_int

@@ -193,7 +193,7 @@ class WetMotor(MotorNetworkBuilder):
         gap_h = corr.airgap_wall_to_bulk_htc(
             w, ro.outer_radius_m, st.bore_radius_m, u.oil_flow_m3_s, self.oil.density(T_gap, p),
             self.oil.dynamic_viscosity(T_gap, p), self.oil.conductivity(T_gap),
-            self.oil.specific_heat(T_gap), log=log)
+            self.oil.specific_heat(T_gap), log=log, nusselt=c.airgap_nusselt)
         h = np.broadcast_to(gap_h.h, T_gap.shape)
         net.set_conductances(self.gap_links_stator, h * 2 * np.pi * st.bore_radius_m * self.dz)
         net.set_conductances(self.gap_links_rotor, h * 2 * np.pi * ro.outer_radius_m * self.dz)
@@ -237,8 +237,8 @@ class WetMotor(MotorNetworkBuilder):
         """
         h, re_disc, re_plate, pr = end_space_htc(T, tuple(self.end_surfaces), w, p_Pa,
                                                  tuple(self._end_geometry), self.oil.laws)
-        corr.check_enclosed_disc(self.log, re_disc, self._end_geometry.gap_ratio)
-        corr.check_flat_plate(self.log, re_plate, pr)
+        corr.check_enclosed_disc_nusselt(self.log, re_disc, self._end_geometry.gap_ratio)
+        corr.check_flat_plate_nusselt(self.log, re_plate, pr)
         return self.cfg.end_spaces.htc_multiplier * h
 
     def _to_ambient_htc(self, Ts_K, T_amb_K, natural_convection) -> np.ndarray:

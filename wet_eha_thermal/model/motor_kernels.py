@@ -50,7 +50,7 @@ class IronLaw(NamedTuple):
 
 class GapFriction(NamedTuple):
     """
-    One airgap section's factors of :func:`~.correlations.airgap_friction_power`.
+    One airgap section's factors of :func:`~.correlations.airgap_friction_kernel`.
 
     As :func:`~.correlations.airgap_friction_factors` forms them: the Couette
     power is 4 pi mu w^2 ``couette_m3``; Re_d = ``re_per_rho_w_m2`` rho w / mu;
@@ -163,13 +163,13 @@ def gap_friction(speed_abs_rad_s, T_gap_K, p_Pa, gap, laws):
 
     The oil at the sections' temperatures ``T_gap_K`` (K) and ``p_Pa``;
     ``gap``: the :class:`GapFriction` of one section; ``laws``: the oil's.
-    Returns (power W, regime, Re_d) as :func:`~.correlations.airgap_friction_power`.
+    Returns (power W, regime, Re_d) as :func:`~.correlations.airgap_friction_kernel`.
     """
     rho = oil_density(T_gap_K, p_Pa, laws)
     mu = oil_nu(T_gap_K, p_Pa, laws) * rho     # the dynamic viscosity
-    return corr.airgap_friction_power(rho, mu, speed_abs_rad_s.reshape(-1, 1), gap.couette_m3,
-                                      gap.re_per_rho_w_m2, gap.g03, gap.bb_rho_m5,
-                                      gap.ta_per_re2)
+    return corr.airgap_friction_kernel(rho, mu, speed_abs_rad_s.reshape(-1, 1), gap.couette_m3,
+                                       gap.re_per_rho_w_m2, gap.g03, gap.bb_rho_m5,
+                                       gap.ta_per_re2)
 
 
 @jit
@@ -181,8 +181,8 @@ def end_space_htc(T_K, surfaces, w, p_Pa, geometry, laws):
     (rad/s); oil properties at the film temperature and ``p_Pa``;
     ``geometry`` the :class:`EndGeometry` (as plain tuples, see the module
     docstring). The rotor's end face, and the cap where it faces it:
-    :func:`~.correlations.disc_nusselt`; the stator surfaces and the shaft
-    end: :func:`~.correlations.plate_nusselt` in the swirl of
+    :func:`~.correlations.enclosed_disc_nusselt_kernel`; the stator surfaces and the shaft
+    end: :func:`~.correlations.flat_plate_nusselt_kernel` in the swirl of
     :func:`~.correlations.end_space_swirl_speed` (relative to the shaft for
     the shaft), never below conduction through half the end space's depth.
     """
@@ -198,12 +198,12 @@ def end_space_htc(T_K, surfaces, w, p_Pa, geometry, laws):
     v = corr.end_space_swirl_speed(w, a, radius_m, corr.CORE_SWIRL_RATIO)
     v = np.where(kind == END_SHAFT, w * radius_m - v, v)
     re_plate = v * length_m / nu
-    h = np.maximum(corr.plate_nusselt(re_plate, pr) * k / length_m, 2.0 * k / depth)
+    h = np.maximum(corr.flat_plate_nusselt_kernel(re_plate, pr) * k / length_m, 2.0 * k / depth)
     re_disc = np.zeros(kind.size)
     for i in range(kind.size):
         if kind[i] <= END_CAP:
             re_disc[i] = w * a * a / nu[i]
-            h_disc = corr.disc_nusselt(re_disc[i], pr[i], disc_laws, g) * k[i] / a
+            h_disc = corr.enclosed_disc_nusselt_kernel(re_disc[i], pr[i], disc_laws, g) * k[i] / a
             if kind[i] == END_ROTOR_FACE:
                 h[i] = h_disc
             else:

@@ -506,18 +506,29 @@ def harmonic_losses(geo: RotorGeometry, order, omega_rotor_rad_s, sleeve_reactio
     """
     nu = np.atleast_1d(np.asarray(order, float))
     w = np.broadcast_to(np.asarray(omega_rotor_rad_s, float), nu.shape).copy()
-    radii, mu = geo.radii, geo.mu_r
-    r0 = radii[0]
-    sig_m = 1.0 / geo.magnet_resistivity_ohm_m
+    gamma, beta0 = _core_surface(geo, nu, w)
+    a, b = _layer_solve(nu, geo.radii, geo.mu_r, beta0, [(4, MU0), (2, MU0)])
+    a_tot, b_tot, reaction = _with_sleeve_reaction(geo, nu, w, a, b, sleeve_reaction)
+    magnet, xi = _magnet_loss(geo, nu, w, a_tot, b_tot)
+    core, core_dk = _core_loss(geo, nu, w, a_tot, b_tot, gamma)
+    return {'magnet': np.real(magnet), 'sleeve': np.real(_sleeve_loss(geo, nu, w, a_tot, b_tot)),
+            'core': np.real(core),
+            'xi_magnet': xi, 'sleeve_reaction': np.abs(reaction), 'core_delta_k': core_dk}
+
+
+def _core_surface(geo: RotorGeometry, nu, w):
+    """Return the solid core's gamma and its surface condition (gamma / mu_core); 0 laminated."""
+    if not geo.solid_core:
+        return None, np.zeros(nu.shape, complex)
+    sig_c = 1.0 / geo.core_resistivity_ohm_m
+    gamma = np.sqrt((nu / geo.radii[0]) ** 2 - 1j * w * MU0 * geo.core_mu_r * sig_c + 0j)
+    return gamma, gamma / geo.core_mu_r
+
+
+def _with_sleeve_reaction(geo: RotorGeometry, nu, w, a, b, sleeve_reaction: bool):
+    """Return the field coefficients with the sleeve sheet's own field added, and |..| of it."""
+    radii = geo.radii
     sig_s = 1.0 / geo.sleeve_resistivity_ohm_m
-    if geo.solid_core:
-        sig_c = 1.0 / geo.core_resistivity_ohm_m
-        gamma = np.sqrt((nu / r0) ** 2 - 1j * w * MU0 * geo.core_mu_r * sig_c + 0j)
-        beta0 = gamma / geo.core_mu_r
-    else:
-        gamma = None
-        beta0 = np.zeros(nu.shape, complex)
-    a, b = _layer_solve(nu, radii, mu, beta0, [(4, MU0), (2, MU0)])
     t = radii[3] - radii[1]
     # applied field at the sleeve's middle, and the sleeve sheet's own field there
     a_app = _layer_value(a[..., 0], b[..., 0], nu, radii, 1, radii[2])
@@ -527,9 +538,13 @@ def harmonic_losses(geo: RotorGeometry, order, omega_rotor_rad_s, sleeve_reactio
         k_e = 1j * w * sig_s * t * a_app / (1.0 - 1j * reaction)
     else:
         k_e = np.zeros_like(a_app)
-    a_tot = a[..., 0] + k_e[:, None] * a[..., 1]
-    b_tot = b[..., 0] + k_e[:, None] * b[..., 1]
-    # magnets
+    return a[..., 0] + k_e[:, None] * a[..., 1], b[..., 0] + k_e[:, None] * b[..., 1], reaction
+
+
+def _magnet_loss(geo: RotorGeometry, nu, w, a_tot, b_tot):
+    """Return the magnets' loss (W, complex dtype) and their width over the skin depth."""
+    radii = geo.radii
+    sig_m = 1.0 / geo.magnet_resistivity_ohm_m
     sq_m, lin_m = _layer_integrals(a_tot, b_tot, nu, radii, 0)
     area_m = (radii[1] ** 2 - radii[0] ** 2) / 2.0
     beta = geo.piece_angle_rad
@@ -543,24 +558,31 @@ def harmonic_losses(geo: RotorGeometry, order, omega_rotor_rad_s, sleeve_reactio
                                  geo.magnet_mu_r)
               * piece_end_factor(nu, beta, geo.piece_width_m,
                                  geo.length_m / geo.pieces_axial))
-    # sleeve
+    return magnet, xi
+
+
+def _sleeve_loss(geo: RotorGeometry, nu, w, a_tot, b_tot):
+    """Return the sleeve's loss (W): its two layers' integrals of |A|^2, end factor."""
+    radii = geo.radii
+    sig_s = 1.0 / geo.sleeve_resistivity_ohm_m
     sq_s = _layer_integrals(a_tot, b_tot, nu, radii, 1)[0] \
         + _layer_integrals(a_tot, b_tot, nu, radii, 2)[0]
-    sleeve = (sig_s * w ** 2 * np.pi * sq_s * geo.length_m
-              * sheet_end_factor(nu / radii[2], geo.length_m))
-    # core
-    if geo.solid_core:
-        a_r0 = a_tot[:, 0] * (r0 / radii[1]) ** nu + b_tot[:, 0]
-        core = (2.0 * np.pi * r0 * geo.length_m / geo.core_resistivity_ohm_m * w ** 2
-                * np.abs(a_r0) ** 2 / (4.0 * np.real(gamma)))
-        delta_c = np.sqrt(2.0 * geo.core_resistivity_ohm_m
-                          / (np.maximum(w, 1e-300) * MU0 * geo.core_mu_r))
-        core_dk = delta_c * nu / r0
-    else:
-        core = np.zeros(nu.shape)
-        core_dk = np.zeros(nu.shape)
-    return {'magnet': np.real(magnet), 'sleeve': np.real(sleeve), 'core': np.real(core),
-            'xi_magnet': xi, 'sleeve_reaction': np.abs(reaction), 'core_delta_k': core_dk}
+    return (sig_s * w ** 2 * np.pi * sq_s * geo.length_m
+            * sheet_end_factor(nu / radii[2], geo.length_m))
+
+
+def _core_loss(geo: RotorGeometry, nu, w, a_tot, b_tot, gamma):
+    """Return the solid core's surface loss (W) and its skin depth x wave number (0 laminated)."""
+    if not geo.solid_core:
+        return np.zeros(nu.shape), np.zeros(nu.shape)
+    radii = geo.radii
+    r0 = radii[0]
+    a_r0 = a_tot[:, 0] * (r0 / radii[1]) ** nu + b_tot[:, 0]
+    core = (2.0 * np.pi * r0 * geo.length_m / geo.core_resistivity_ohm_m * w ** 2
+            * np.abs(a_r0) ** 2 / (4.0 * np.real(gamma)))
+    delta_c = np.sqrt(2.0 * geo.core_resistivity_ohm_m
+                      / (np.maximum(w, 1e-300) * MU0 * geo.core_mu_r))
+    return core, delta_c * nu / r0
 
 
 # --------------------------------------------------------------- PWM
