@@ -13,9 +13,10 @@ import inspect
 import io
 
 import pytest
-from wet_eha_thermal.model import correlations, fluid_power, losses, mellor, oil, rotor_losses
+from wet_eha_thermal.model import (correlations, fluid_power, losses, mellor, oil, rotor_losses,
+                                   stator_harmonics)
 
-MODULES = (correlations, oil, mellor, losses, rotor_losses, fluid_power)
+MODULES = (correlations, oil, mellor, losses, rotor_losses, stator_harmonics, fluid_power)
 
 #: Public functions and methods of MODULES without an example of their own, and why.
 NO_EXAMPLE = {
@@ -57,8 +58,8 @@ NO_EXAMPLE = {
     'rotor_losses.magnet_fundamental_field_T': 'through implied_turns_per_phase (its test)',
     'rotor_losses.fundamental_sheet_per_amp': 'through implied_turns_per_phase (its test)',
     'rotor_losses.implied_turns_per_phase': 'test_rotor_losses: about 36 turns on the rig',
-    'rotor_losses.pwm_current_harmonics': 'pwm_ripple_current_rms_A sums it (its example)',
-    'rotor_losses.pwm_ripple_ac_factor': 'copper_ac_factor over pwm_current_harmonics',
+    'stator_harmonics.pwm_current_harmonics': 'pwm_ripple_current_rms_A sums it (its example)',
+    'stator_harmonics.pwm_ripple_ac_factor': 'copper_ac_factor over pwm_current_harmonics',
     'rotor_losses.rotor_eddy_loss_breakdown': 'harmonic_losses per wave (test_rotor_losses)',
     'rotor_losses.rotor_eddy_loss_table': 'the breakdown tabulated (test_rotor_losses)',
     'rotor_losses.RotorGeometry.radii': 'a datum of the geometry',

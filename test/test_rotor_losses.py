@@ -21,7 +21,7 @@ from scipy import integrate, signal, special
 import skfem as fem
 from skfem.helpers import dot, grad
 from wet_eha_thermal.config import load_config, with_values
-from wet_eha_thermal.model import rotor_losses as rl
+from wet_eha_thermal.model import rotor_losses as rl, stator_harmonics as sh
 from wet_eha_thermal.model.losses import copper_ac_factor
 from wet_eha_thermal.model.validity import ValidityLog
 
@@ -290,7 +290,7 @@ def test_pwm_ripple_matches_a_switched_simulation(motor, rpm, current):
     speed = rpm * 2.0 * np.pi / 60.0
     ripple, fund = simulate_inverter(motor, speed, current)
     assert fund == pytest.approx(current, rel=0.01)     # the modulation index is right
-    assert float(rl.pwm_ripple_current_rms_A(motor, speed, current)) == pytest.approx(
+    assert float(sh.pwm_ripple_current_rms_A(motor, speed, current)) == pytest.approx(
         ripple, rel=0.02)
 
 
@@ -343,7 +343,7 @@ def test_table_matches_the_direct_sum(motor):
             assert tab[key + '_W'][i, j] == pytest.approx(direct[key].sum(), rel=5e-3,
                                                           abs=1e-9), key
         assert tab['ripple_rms_A'][i, j] == pytest.approx(
-            float(rl.pwm_ripple_current_rms_A(motor, speeds[i], currents[j])), rel=1e-9)
+            float(sh.pwm_ripple_current_rms_A(motor, speeds[i], currents[j])), rel=1e-9)
     assert np.all(tab['core_W'] >= 0.0)
 
 
@@ -371,6 +371,6 @@ def test_flags_at_the_reference_points(motor):
     names = {(f.correlation, f.quantity) for f in log}
     assert ('rotor eddy loss (sleeve)', 'reaction omega sigma t |Z|') in names
     log = ValidityLog()
-    rl.pwm_ripple_current_rms_A(motor, 20000 * np.pi / 30.0, 45.0, log)
+    sh.pwm_ripple_current_rms_A(motor, 20000 * np.pi / 30.0, 45.0, log)
     assert ('sine-PWM ripple', 'modulation index') in {(f.correlation, f.quantity)
                                                        for f in log}
