@@ -23,6 +23,7 @@ every step, and no oil takes a path the rig does not have.
 """
 
 from dataclasses import dataclass
+import functools
 from typing import Dict, NamedTuple, Optional, Tuple
 
 import numpy as np
@@ -210,6 +211,14 @@ class EHAModel:
         """Return the actuator position (m) of the last sample the model took."""
         return self._last[1]
 
+    @functools.cached_property
+    def _motor_input_names(self) -> Tuple[str, ...]:
+        """The motor transition's inputs: boundary temperatures, then each source (fixed)."""
+        mo = self.motor
+        sources = [f'{group}_{k}' for group, idx in mo.sources.items()
+                   for k in range(idx.stop - idx.start)]
+        return tuple(mo.net.boundary_names) + tuple(sources)
+
     def linearize(self) -> Linearisation:
         """
         Return the last step as linear maps (:class:`Linearisation`), as a filter predicts with.
@@ -222,11 +231,9 @@ class EHAModel:
         if mo.extra_power_W is not None:          # a learned heat does not follow R(T)
             p_cu = p_cu - mo.extra_power_W[mo.src_copper]
         Phi, g_acc, g_case, C = self.circuit.last_transition()
-        sources = [f'{group}_{k}' for group, idx in mo.sources.items()
-                   for k in range(idx.stop - idx.start)]
         return Linearisation(
-            state_names=tuple(self.quantities.state_names),
-            motor_input_names=tuple(net.boundary_names) + tuple(sources),
+            state_names=self.quantities.state_names,
+            motor_input_names=self._motor_input_names,
             motor=MotorTransition(disc.Ad, disc.Bd, disc.Mx, disc.Mw, mo.last_substeps),
             circuit=CircuitTransition(Phi, g_acc, g_case),
             motor_capacity_J_K=net.coefficients_in_use()[2][net.dynamic],
