@@ -213,7 +213,7 @@ class EHAModel:
 
     @functools.cached_property
     def _motor_input_names(self) -> Tuple[str, ...]:
-        """The motor transition's inputs: boundary temperatures, then each source (fixed)."""
+        """Return the motor transition's inputs: boundary temperatures, then each source."""
         mo = self.motor
         sources = [f'{group}_{k}' for group, idx in mo.sources.items()
                    for k in range(idx.stop - idx.start)]
