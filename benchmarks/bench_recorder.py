@@ -38,7 +38,8 @@ import numpy as np
 from procfs import cpu_seconds
 import rclpy
 from std_msgs.msg import Float64
-from wet_eha_thermal.bag.reader import FLOAT64, read_columns
+from wet_eha_thermal.bag.reader import read_columns
+from wet_eha_thermal.interface import FLOAT64
 from wet_eha_thermal.ros.live_monitor import domain_from_env, open_domain
 
 #: Longest wait for the recorder to match every topic (s).

@@ -40,9 +40,9 @@ import numpy as np
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import FluidPressure
 from std_msgs.msg import Float64
-from wet_eha_thermal.bag.reader import FLOAT64, FLUID_PRESSURE, iter_column_blocks, read_columns
+from wet_eha_thermal.bag.reader import iter_column_blocks, read_columns
 from wet_eha_thermal.bag.writer import BagWriter, qos_profiles
-from wet_eha_thermal.interface import INPUT_TOPICS
+from wet_eha_thermal.interface import FLOAT64, FLUID_PRESSURE, INPUT_TOPICS
 from wet_eha_thermal.ros.topics import input_qos
 
 RATE_HZ = 1000

@@ -28,10 +28,10 @@ from rosbags.rosbag2 import Reader
 from rosbags.typesys import get_types_from_msg, get_typestore, Stores
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64, String
-from wet_eha_thermal.bag.reader import (BagError, FLOAT64, FLUID_PRESSURE, iter_column_blocks,
-                                        iter_raw, open_bag, read_columns, ROSBAG2_METADATA,
-                                        TEMPERATURE)
+from wet_eha_thermal.bag.reader import (BagError, iter_column_blocks, iter_raw, open_bag,
+                                        read_columns, ROSBAG2_METADATA)
 from wet_eha_thermal.bag.writer import BagWriter, message_definition, offered_qos, qos_profiles
+from wet_eha_thermal.interface import FLOAT64, FLUID_PRESSURE, TEMPERATURE
 from wet_eha_thermal.ros import topics
 import yaml
 

@@ -26,8 +26,9 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64, String
 from wet_eha_thermal import interface
-from wet_eha_thermal.bag.reader import FLOAT64, FLUID_PRESSURE, iter_raw, open_bag
+from wet_eha_thermal.bag.reader import iter_raw, open_bag
 from wet_eha_thermal.bag.writer import BagWriter, qos_profiles
+from wet_eha_thermal.interface import FLOAT64, FLUID_PRESSURE
 from wet_eha_thermal.ros import topics
 from wet_eha_thermal.ros.estimator_node import EstimatorNode
 from wet_eha_thermal.ros.player import (LOOP_GAP_NS, main, PlayerNode, recorded_qos,

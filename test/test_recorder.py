@@ -35,9 +35,10 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension, String
 from wet_eha_thermal import interface
-from wet_eha_thermal.bag.reader import (bag_files, FLOAT64, open_bag, read_columns,
+from wet_eha_thermal.bag.reader import (bag_files, open_bag, read_columns,
                                         ROSBAG2_METADATA)
 from wet_eha_thermal.config import default_config_path
+from wet_eha_thermal.interface import FLOAT64
 from wet_eha_thermal.ros import recorder_node, topics
 from wet_eha_thermal.ros.recorder_node import RecorderNode
 import yaml

@@ -24,7 +24,7 @@ import numpy as np
 
 # the reader's public names, wherever they live: the tools and the tests import them from here
 from .columns import (COLUMN_FIELDS, ColumnBlocks, ColumnData, Columns,  # noqa: F401
-                      FLOAT64, FLUID_PRESSURE, iter_column_blocks, read_columns, TEMPERATURE)
+                      iter_column_blocks, read_columns)
 from .files import bag_files, is_bag, join_problems, one_split_series, scans  # noqa: F401
 from .records import (BagError, DATA_AT, HEAD_BYTES, LENGTH_AT, LOG_TIME_AT,  # noqa: F401
                       MAGIC, Scanner, take)
