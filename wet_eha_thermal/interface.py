@@ -50,6 +50,7 @@ TEMPERATURE = 'sensor_msgs/msg/Temperature'
 FLOAT64_ARRAY = 'std_msgs/msg/Float64MultiArray'
 STRING = 'std_msgs/msg/String'
 DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
+JOINT_STATE = 'sensor_msgs/msg/JointState'
 #: Metadata records of a bag the twin writes (the recorder's, a replay's, the simulated
 #: rig's): the estimator's configuration, as {CONFIG_METADATA_KEY: its YAML text, ...},
 #: the estimator node's parameters file and the recorder's settings
@@ -92,6 +93,13 @@ READY_TOPIC = f'{PREFIX}/ready'
 #: (free space over the write rate; null while nothing is written), "errors",
 #: "last_error", "file" (being written; null while suspended), "files"}
 RECORDER_HEALTH_TOPIC = f'{PREFIX}/recorder/health'
+#: The thermal current limits for the drive (docs/live.md#current-limits-for-the-drive):
+#: sensor_msgs/JointState stamped with the sample time they belong to, one entry per horizon
+#: (effort: A RMS; position: the horizon, s; +inf for the continuous limit;
+#: header.frame_id: "ok" or "fallback: <why>"), and the binding limit alone (the
+#: shortest horizon's, or the fallback) as a std_msgs/Float64 for the simplest drive
+CURRENT_LIMITS_TOPIC = f'{PREFIX}/current_limits'
+CURRENT_LIMIT_TOPIC = f'{PREFIX}/current_limit'
 DIAGNOSTICS_TOPIC = '/diagnostics'
 #: Splits of ``live``'s recording (``--max-bag-duration``, ``--max-bag-size``): a new file
 #: every 10 minutes or 1 GiB, whichever comes first. A file is strictly readable (the mcap
