@@ -77,10 +77,10 @@ def run():
     """
     Return ``[(estimate, measured, summary or None)]``: 4 s of a real estimator.
 
-    The forecast and the margin are completed after 3 s, so the later
-    estimates carry a time to limit and a margin current.
+    The forecast and the margin of the first tick (0.5 s) are completed after
+    3 s, so the later estimates carry a time to limit and a margin current.
     """
-    est = Estimator(load_config(overrides=ALERTS))
+    est = Estimator(load_config(overrides=ALERTS), outlook='background')
     items = []
     t = _feed(est, 0.0, 3.0, items)
     deadline = time.monotonic() + 60.0

@@ -36,7 +36,7 @@ def signatures():
 cfg = load_config()
 compile_estimator(cfg)
 before = signatures()
-est = Estimator(cfg)
+est = Estimator(cfg, outlook='background')
 rng = np.random.default_rng(7)
 kin = KineticModel(cfg, get_oil(cfg.fluid.grade))
 for stage, (t0, t1) in ((6, (0.0, 30.0)), (3, (400.0, 430.0))):
@@ -52,7 +52,6 @@ for stage, (t0, t1) in ((6, (0.0, 30.0)), (3, (400.0, 430.0))):
             est.take(n, tk, sig[n][k], now_s=tk, budget_s=0.002)
     while est.outlook.busy:
         est.background(0.05)
-    est.margin_current()
     est.advance_all(t1 + 360.0 if stage == 6 else t1)
 after = signatures()
 json.dump({k: sorted(v - before.get(k, set())) for k, v in after.items()

@@ -183,6 +183,42 @@ class Correction:
 
 
 @dataclass(frozen=True, kw_only=True)
+class CurrentLimitSettings:
+    """
+    The thermal current limits the drive reads (``estimator/limits.py``, docs/live.md).
+
+    Every key has a default: a configuration without this section gets them.
+    """
+
+    period_s: float = spec(0.02, 60.0, default=0.5, doc=(
+        'limits are computed at every multiple of this in sample time (a whole number of '
+        'model steps), from the state there, and published'))
+    horizons_s: Tuple[float, ...] = spec(0.02, 86400.0, default=(10.0, 60.0, 600.0), doc=(
+        'each limit keeps every limited quantity below its limit for this long; the '
+        'shortest is the binding limit, the one number a simple drive applies'))
+    k_sigma: float = spec(0.0, 10.0, default=2.0, doc=(
+        'the limits hold at the estimate plus this many times its 1-sigma uncertainty'))
+    max_sigma_K: float = spec(0.0, 100.0, low_open=True, default=10.0, doc=(
+        'a limited quantity more uncertain than this (1 sigma, K) at a tick: fallback'))
+    fallback_current_A: float = spec(0.0, 1000.0, default=10.0, doc=(
+        'the conservative limit (A RMS) published when the twin cannot be trusted: '
+        'inputs stale, uncertainty above max_sigma_K, or the estimator behind'))
+    max_age_s: float = spec(0.0, 60.0, low_open=True, default=1.5, doc=(
+        'a tick whose limits are not computed this long (model time) after it is '
+        'published as the fallback (the estimator is behind)'))
+
+    def check(self, key: str) -> None:
+        """Check the horizons increase and are whole periods."""
+        h = self.horizons_s
+        if not h or any(b <= a for a, b in zip(h, h[1:])):
+            raise ConfigError(f'{key}.horizons_s = {list(h)!r}: give one or more, increasing')
+        for v in h:
+            if abs(v / self.period_s - round(v / self.period_s)) > 1e-9 or v < self.period_s:
+                raise ConfigError(f'{key}.horizons_s: {v!r} is not a whole number of '
+                                  f'period_s = {self.period_s!r}')
+
+
+@dataclass(frozen=True, kw_only=True)
 class EstimatorSettings:
     """The live estimator: model step, averaging, fallbacks, forecast, uncertainty, alerts."""
 
@@ -227,6 +263,8 @@ class EstimatorSettings:
     alerts: Alerts = spec(doc='warn and critical thresholds of the estimated temperatures')
     correction: Correction = spec(default_factory=Correction, doc=(
         "the rig's thermocouples correct the model; without it, open loop"))
+    limits: CurrentLimitSettings = spec(default_factory=CurrentLimitSettings, doc=(
+        'the thermal current limits for the drive'))
 
 
 @dataclass(frozen=True, kw_only=True)

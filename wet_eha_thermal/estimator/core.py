@@ -45,6 +45,7 @@ import numpy as np
 from .alerts import AlertEvent, AlertManager, rules_from_config
 from .correction import ThermalCorrection
 from .intake import ChannelHealth, DataGaps, DIFFERENTIAL_INPUTS, INPUTS, Intake
+from .limits import CurrentLimits
 from .outlook import Outlook
 from ..config import Config
 from ..model import quantity_table
@@ -52,6 +53,8 @@ from ..model.compiled import jit
 from ..model.eha import EHAModel, SampleBlock
 from ..units import C_TO_K
 
+#: how the estimator works on its outlook (its ``outlook`` argument)
+OUTLOOK_MODES = ('off', 'background', 'inline')
 #: A stretch of at least this many steps without a sample of any input is crossed in held
 #: blocks; shorter ones step by step (the live twin's 50 Hz steps on fallbacks).
 HOLD_AFTER_STEPS = 50
@@ -75,7 +78,7 @@ class Estimate:
     limits_C: Dict[str, float]
     time_to_limit_s: Dict[str, Optional[float]]   # None: not within the forecast horizon
     forecast_stamp_s: Optional[float]              # when that forecast started (sample time)
-    margin_current_A: Optional[float]
+    margin_current_A: Optional[float]              # the latest continuous current limit (A)
     alert_level: int
     alert_events: List[AlertEvent]
     stale: List[str]
@@ -89,6 +92,8 @@ class Estimate:
     # root of the mean square per grid interval; one value for a held block): arrays the
     # estimator never writes again, so a display can average them on another thread
     inputs: Dict[str, np.ndarray] = field(default_factory=dict)
+    # the latest current limits for the drive (any tick's; None before the first)
+    current_limits: Optional[CurrentLimits] = None
 
 
 class StepFailed(RuntimeError):
@@ -98,7 +103,10 @@ class StepFailed(RuntimeError):
 class Estimator:
     """Turn timestamped samples into temperature estimates, alerts and forecasts."""
 
-    def __init__(self, cfg: Config, model: Optional[EHAModel] = None) -> None:
+    def __init__(self, cfg: Config, model: Optional[EHAModel] = None,
+                 outlook: str = 'off') -> None:
+        if outlook not in OUTLOOK_MODES:
+            raise ValueError(f'outlook {outlook!r}: expected one of {OUTLOOK_MODES}')
         self.cfg = cfg
         s = cfg.estimator
         self.settings = s
@@ -122,7 +130,10 @@ class Estimator:
         self.correction = ThermalCorrection(cfg, self.model) if s.correction.enabled else None
         self.alerts = AlertManager(rules_from_config(s.alerts))
         self.limits_C = quantity_table.limits_C(cfg)
-        self.outlook = Outlook(cfg, self.model, self.limits_C)
+        #: the limits and the forecast (:mod:`.outlook`): 'off', worked on in the
+        #: 'background' (a live node), or 'inline' at each tick (offline)
+        self.outlook_mode = outlook
+        self.outlook = Outlook(cfg, self.model, self.limits_C, inline=outlook == 'inline')
         self._t_origin = 0.0
         self.t_model: Optional[float] = None
         #: sample time at which the next step ends (-inf before the start): a sample
@@ -493,6 +504,9 @@ class Estimator:
             uncertainty = self._filtered_uncertainty(on_fallback, sigma)
         else:
             uncertainty = {k: sigma for k in temps}
+        if self.outlook_mode != 'off':
+            self.outlook.tick(self.steps - m, self.steps, t1, self.ambient_K, temps,
+                              uncertainty, stale)
         notices, self.intake.notices = self.intake.notices, []
         est = Estimate(
             stamp_s=t1, temperatures_C=temps, uncertainty_K=uncertainty,
@@ -501,7 +515,7 @@ class Estimator:
             margin_current_A=self.outlook.margin_A, alert_level=int(self.alerts.worst()),
             alert_events=events, stale=list(stale), implausible=implausible, step=self.steps,
             correction=self.correction.summary() if self.correction is not None else None,
-            notices=notices, inputs=sensors)
+            notices=notices, inputs=sensors, current_limits=self.outlook.limits)
         self.latest = est
         return est
 
@@ -591,15 +605,8 @@ class Estimator:
 
     # ----------------------------------------------------------- background
     def background(self, budget_s: float = 0.005) -> None:
-        """Do forecast and margin work (:class:`~.outlook.Outlook`) for about ``budget_s``."""
-        if self.t_model is None:
-            return
-        self.outlook.background(self.t_model, self.ambient_K, self.latest.temperatures_C
-                                if self.latest is not None else {}, budget_s)
-
-    def margin_current(self) -> Optional[float]:
-        """Return the largest continuous current (A RMS) now (:meth:`.Outlook.margin_current`)."""
-        return self.outlook.margin_current(self.ambient_K)
+        """Work on the limits and the forecast (:class:`~.outlook.Outlook`) for ``budget_s``."""
+        self.outlook.background(budget_s)
 
 
 #: how ``grid_rows`` treats each input: interval means, the root of the mean square

@@ -160,6 +160,22 @@ class _Guard:
     status_before_stale: str = 'waiting'
 
 
+def filter_layout(model: EHAModel, i_case_d: int = -1, i_wind_d: int = -1) -> FilterLayout:
+    """
+    Return where the couplings of :func:`~.kalman.coupled_transition` sit in ``model``.
+
+    ``i_case_d``, ``i_wind_d``: the filter states of the learned case and
+    winding heats (-1: none; the transition of the model's state alone).
+    """
+    q, net = model.quantities, model.motor.net
+    return FilterLayout(
+        s_copper=q.state_indices('winding_mean'),
+        col_copper=net.nb + np.array(model.motor.src_copper),
+        col_inlet=net.boundary_index('oil_inlet'), w_copper=q.weights('winding_mean'),
+        s_outlet=int(q.state_indices('motor_oil_outlet')[0]),
+        i_case=model.circuit.index('case'), i_case_d=i_case_d, i_wind_d=i_wind_d)
+
+
 class ThermalCorrection:
     """Kalman filter on the coupled model, fed by timestamped thermocouple readings."""
 
@@ -206,12 +222,8 @@ class ThermalCorrection:
             self._H_mean[k, q.state_indices(name)] = q.weights(name)
         self._mean_of_output = np.array([self._mean_row.get(name, -1) for name in q.names])
         self._output_position = {name: k for k, name in enumerate(q.names)}
-        self._layout = FilterLayout(
-            s_copper=self._s_copper, col_copper=net.nb + self._src_copper,
-            col_inlet=net.boundary_index('oil_inlet'), w_copper=self._w_copper,
-            s_outlet=self._s_outlet, i_case=model.circuit.index('case'),
-            i_case_d=-1 if self._i_case_d is None else self._i_case_d,
-            i_wind_d=-1 if self._i_wind_d is None else self._i_wind_d)
+        self._layout = filter_layout(model, -1 if self._i_case_d is None else self._i_case_d,
+                                     -1 if self._i_wind_d is None else self._i_wind_d)
         wd = cfg.motor.winding
         self._alpha_cu = wd.copper_tempco_1_K
         self.P: Optional[np.ndarray] = None

@@ -80,21 +80,30 @@ def coupled_transition(motor, circuit, copper_gain, layout, n):
 
 
 @jit
+def copper_gain(T_copper, p_copper, alpha_copper):
+    """
+    Return dP/dT (W/K) of each copper source: its loss ``p_copper`` (W) scales with R(T).
+
+    R(T) is 1 + ``alpha_copper`` (T - 20 degC), ``T_copper`` in K.
+    """
+    return p_copper * alpha_copper / (1.0 + alpha_copper * (T_copper - (C_TO_K + 20.0)))
+
+
+@jit
 def predict_covariance(P, motor, circuit, T_copper, p_copper, alpha_copper, layout, C_motor,
                        C_hyd, heat_var, walk_var, prior):
     """
     Return the covariance after a step of the coupled model, from the step's matrices.
 
-    The copper losses are linear in their temperatures ``T_copper`` (K):
-    ``p_copper`` (W) scales with R(T), 1 + ``alpha_copper`` (T - 20 degC),
-    so dP/dT = p alpha / (1 + alpha (T - 20 degC)). The transition is
+    The copper losses are linear in their temperatures ``T_copper`` (K)
+    (:func:`copper_gain`). The transition is
     :func:`coupled_transition`'s. Process noise, added at the start of the
     step: ``heat_var`` (W^2 s, the heat-rate noise q^2 times the step) over
     the square of each state's heat capacity (``C_motor``, ``C_hyd``, J/K),
     and ``walk_var`` for the disturbances (:func:`propagate_covariance`).
     """
-    gain = p_copper * alpha_copper / (1.0 + alpha_copper * (T_copper - (C_TO_K + 20.0)))
-    Phi = coupled_transition(motor, circuit, gain, layout, P.shape[0])
+    Phi = coupled_transition(motor, circuit, copper_gain(T_copper, p_copper, alpha_copper),
+                             layout, P.shape[0])
     cap = np.concatenate((C_motor, C_hyd))
     noise = np.concatenate((heat_var / (cap * cap), walk_var))
     P = propagate_covariance(P, Phi, noise, prior)

@@ -1,24 +1,37 @@
 """
-The estimator's outlook: when each limit would be reached, and the thermal margin.
+The estimator's outlook: the drive's current limits, when each limit would be reached.
 
-Slow work, done in slices that fit a budget between estimates
-(:meth:`Outlook.background`): a forecast that repeats the last
-``forecast_window_s`` of duty on a copy of the model to find when the
-winding, the magnets and the oil reach their limits, and the thermal margin
-(the largest continuous current at the present oil temperature). It reads
-the model through its public API only.
+Everything here is computed at defined sample times from the state at those
+times, so a replay reproduces it bit for bit; only *when* it is done depends
+on the CPU. At every limit tick (each ``estimator.limits.period_s`` of
+sample time, :meth:`Outlook.tick`) the outlook saves the model (pickled) and
+the recent duty, and queues a job; at every forecast tick (each
+``forecast_period_s``, which falls on a limit tick, and the run's first
+tick) that job also computes
+the continuous limit (the steady margin: the largest current whose steady
+winding hot-spot, with the present oil, reaches its limit less k sigma), and
+a forecast job repeats the last ``forecast_window_s`` of duty on a copy of
+the model to find when the winding, the magnets and the oil reach their
+limits. A live node works the jobs in slices that fit a budget between
+estimates (:meth:`Outlook.background`); offline (``inline``) each is done
+at once. The limits (:mod:`.limits`) drop to the configured conservative
+value, saying why, at a tick with a stale input or too uncertain an
+estimate, and for a tick not computed within ``max_age_s`` (behind). It
+reads the model through its public API only.
 """
 
 from collections import deque
-import copy
 from dataclasses import dataclass, field
 import itertools
 import math
+import pickle
 import time
-from typing import Deque, Dict, Optional
+from typing import Deque, Dict, Generator, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from .limits import (current_limits, CurrentLimits, fallback_limits, HeldDuty, limit_steps,
+                     RATING, step_statistics)
 from ..config import Config
 from ..model.eha import EHAModel, SampleBlock
 from ..model.motor import MotorInputs, WetMotor
@@ -27,6 +40,14 @@ from ..units import C_TO_K
 #: A forecast step doubles (from ``forecast_step_s`` to one pass of the repeated duty)
 #: while the state moves less than this in one.
 FORECAST_TOL_K = 0.5
+#: Limit jobs waiting at most; a new tick beyond drops the oldest that is not a forecast
+#: tick (its limits are published as the fallback, behind)
+MAX_LIMIT_JOBS = 2
+
+
+def copy_model(saved: bytes) -> EHAModel:
+    """Return a model from its pickled bytes (a copy twice as fast as ``deepcopy``)."""
+    return pickle.loads(saved)
 
 
 @dataclass
@@ -35,89 +56,225 @@ class _Forecast:
     start_s: float
     duty: Dict[str, np.ndarray]   # the recent samples; 'dx_m' position increments, drift-free
     ambient_K: float
+    now_C: Dict[str, float]       # the estimate at the start (a quantity past its limit)
     t_s: float = 0.0
     k: int = 0
     crossed: Dict[str, Optional[float]] = field(default_factory=dict)
     n: int = 1                    # model steps per forecast step (it grows, see FORECAST_TOL_K)
 
 
-class Outlook:
-    """The recent duty, the forecast to the limits and the margin current, worked on in slices."""
+@dataclass
+class _LimitJob:
+    stamp_s: float
+    steps: Generator
+    margin: bool                  # a forecast tick: the continuous limit is computed here too
 
-    def __init__(self, cfg: Config, model: EHAModel, limits_C: Dict[str, float]) -> None:
+
+class Outlook:
+    """The recent duty, and the limits and the forecast of each tick, worked on in jobs."""
+
+    def __init__(self, cfg: Config, model: EHAModel, limits_C: Dict[str, float],
+                 inline: bool = False) -> None:
         s = cfg.estimator
         self.cfg = cfg
         self.settings = s
+        self.lim = s.limits
         self.model = model
         self.limits_C = limits_C
+        #: compute each tick's work at once (offline), not in background slices
+        self.inline = inline
         #: the recent steps' inputs, one block per step (the duty a forecast repeats)
         self.window: Deque[SampleBlock] = deque(maxlen=max(1, int(round(
             s.forecast_window_s / s.step_s))))
+        self._stats = np.zeros((self.window.maxlen, 4))
+        self._stat_next = self._stat_count = 0
+        self.tick_steps = max(1, int(round(self.lim.period_s / s.step_s)))
+        self.forecast_ticks = max(1, int(round(s.forecast_period_s
+                                               / (self.tick_steps * s.step_s))))
         self.forecast: Optional[_Forecast] = None
         #: the last finished forecast: time (s) from its start to each limit (None: beyond)
         self.result: Dict[str, Optional[float]] = {}
         #: when that forecast started (sample time s)
         self.stamp_s: Optional[float] = None
+        #: the continuous limit of the last forecast tick (A RMS), and what binds it
         self.margin_A: Optional[float] = None
+        self.margin_binds = 'pending'
+        #: the latest limits (any tick's, fallback or not); those not yet taken
+        self.limits: Optional[CurrentLimits] = None
+        self._new: List[CurrentLimits] = []
+        self._jobs: Deque[_LimitJob] = deque()
         self.failures = 0
-        self._next_forecast_s: Optional[float] = None
+        self.limits_behind = 0         # ticks whose limits were not computed (fallback)
+        self.forecasts_skipped = 0     # forecast ticks while a forecast was under way
         self._margin_motor = WetMotor(cfg.motor, model.oil)
-        self._next_margin_s: Optional[float] = None
-        self._margin_job = None
+        self._ticked = False
 
     @property
     def busy(self) -> bool:
-        """Tell whether a forecast or a margin is under way."""
-        return self.forecast is not None or self._margin_job is not None
+        """Tell whether a forecast or limits are under way."""
+        return self.forecast is not None or bool(self._jobs)
 
     def record(self, block: SampleBlock, steps: int = 1) -> None:
         """Add a step's inputs to the recent duty, ``steps`` times (a held block's)."""
+        n = min(steps, self.window.maxlen)
         if steps == 1:
             self.window.append(block)
         else:
-            self.window.extend(itertools.repeat(block, min(steps, self.window.maxlen)))
+            self.window.extend(itertools.repeat(block, n))
+        # the limits' held duty: each step's statistics in a ring, averaged at a tick
+        rows = (self._stat_next + np.arange(n)) % self._stats.shape[0]
+        self._stats[rows] = step_statistics(block)
+        self._stat_next = int(rows[-1] + 1) % self._stats.shape[0]
+        self._stat_count = min(self._stat_count + n, self._stats.shape[0])
+
+    def held_duty(self) -> HeldDuty:
+        """Return the recent duty as the limits hold it (:class:`~.limits.HeldDuty`)."""
+        return HeldDuty.from_statistics(self._stats[:self._stat_count],
+                                        float(self.window[-1].position_m[-1]))
 
     def shift_time(self, delta_s: float) -> None:
         """Move the stored sample times by ``delta_s`` (a jump of the receiving clock)."""
-        for attr in ('_next_forecast_s', '_next_margin_s', 'stamp_s'):
-            if getattr(self, attr) is not None:
-                setattr(self, attr, getattr(self, attr) + delta_s)
+        if self.stamp_s is not None:
+            self.stamp_s += delta_s
         if self.forecast is not None:
             self.forecast.start_s += delta_s
+        for job in self._jobs:
+            job.stamp_s += delta_s
 
-    def background(self, t_model: float, ambient_K: float, now_C: Dict[str, float],
-                   budget_s: float) -> None:
+    # ---------------------------------------------------------------- ticks
+    def tick(self, steps_before: int, steps_after: int, stamp_s: float, ambient_K: float,
+             now_C: Dict[str, float], sigma_K: Dict[str, float], stale: Sequence[str]) -> None:
         """
-        Do forecast and margin work for at most about ``budget_s`` of wall time.
+        Start the work of a tick if the step from ``steps_before`` to ``steps_after`` made one.
 
-        ``t_model`` the model's sample time (s), ``ambient_K`` the ambient for
-        a new forecast or margin, ``now_C`` the latest estimate's temperatures
-        (a quantity already past its limit has no time left).
+        ``stamp_s`` the step's end (sample time), ``now_C`` and ``sigma_K``
+        its estimate and 1-sigma uncertainty, ``stale`` its stale inputs.
+        Call it after the model's step and its correction: the tick's state
+        is the model's as it stands.
         """
-        if not self.window:
+        p = self.tick_steps
+        if steps_after // p == steps_before // p or not self.window:
             return
-        deadline = time.perf_counter() + budget_s
-        s = self.settings
-        # the margin takes one steady solve (~7 ms) per call, between forecast slices
-        if self._margin_job is None and (self._next_margin_s is None
-                                         or t_model >= self._next_margin_s):
-            self._margin_job = self._margin_steps(ambient_K)
-            self._next_margin_s = t_model + s.forecast_period_s
-        if self._margin_job is not None:
-            try:
-                next(self._margin_job)
-            except StopIteration as done:
-                self.margin_A = done.value
-                self._margin_job = None
-        if self.forecast is None and (self._next_forecast_s is None
-                                      or t_model >= self._next_forecast_s):
-            self._start_forecast(t_model, ambient_K)
-            self._next_forecast_s = t_model + s.forecast_period_s
-        while self.forecast is not None and time.perf_counter() < deadline:
-            self._forecast_step(now_C)
+        tick = steps_after // p
+        # the forecast and the continuous limit at every forecast tick and at the first
+        # tick of the run
+        margin = tick % self.forecast_ticks == 0 or not self._ticked
+        self._ticked = True
+        saved = pickle.dumps(self.model, pickle.HIGHEST_PROTOCOL)
+        if margin:
+            self._start_forecast(saved, stamp_s, ambient_K, now_C)
+        why = self._distrust(sigma_K, stale)
+        if why:
+            self._finish(fallback_limits(stamp_s, self.lim.horizons_s,
+                                         self.lim.fallback_current_A, why))
+            return
+        held = self.held_duty()
+        steps = limit_steps(copy_model(saved), held, ambient_K, sigma_K, self.limits_C,
+                            self.lim.k_sigma, self.lim.horizons_s, self.lim.period_s,
+                            self.cfg.motor.peak_current_A)
+        if margin:
+            steps = self._with_margin(steps, copy_model(saved), held, ambient_K, sigma_K)
+        self._jobs.append(_LimitJob(stamp_s, steps, margin))
+        while len(self._jobs) > MAX_LIMIT_JOBS:
+            drop = next((j for j in self._jobs if not j.margin), self._jobs[0])
+            self._jobs.remove(drop)
+            self._behind(drop.stamp_s)
+        if self.inline:
+            self.run(math.inf)
 
-    def _start_forecast(self, t_model: float, ambient_K: float) -> None:
-        """Copy the model and take the recent duty to repeat."""
+    def _distrust(self, sigma_K: Dict[str, float], stale: Sequence[str]) -> str:
+        """Return why a tick's limits cannot be trusted ('' if they can)."""
+        if stale:
+            return 'stale inputs: ' + ', '.join(stale)
+        worst = max(self.limits_C, key=lambda q: sigma_K.get(q, 0.0))
+        if sigma_K.get(worst, 0.0) > self.lim.max_sigma_K:
+            return (f'uncertain: {worst} 1 sigma {sigma_K[worst]:.1f} K > '
+                    f'{self.lim.max_sigma_K:g} K')
+        return ''
+
+    def _behind(self, stamp_s: float) -> None:
+        """Publish a tick's limits as the fallback: they were not computed in time."""
+        self.limits_behind += 1
+        self._finish(fallback_limits(stamp_s, self.lim.horizons_s, self.lim.fallback_current_A,
+                                     'behind: the estimator had no time to compute them'))
+
+    def _finish(self, limits: CurrentLimits) -> None:
+        """Make ``limits`` the latest and queue them for publishing."""
+        self.limits = limits
+        self._new.append(limits)
+
+    def take_limits(self, model_time_s: Optional[float] = None) -> List[CurrentLimits]:
+        """
+        Return the limits finished since the last call, oldest first.
+
+        With ``model_time_s``, a waiting tick older than ``max_age_s`` is
+        given up: its limits are the fallback (behind).
+        """
+        if model_time_s is not None:
+            while self._jobs and model_time_s - self._jobs[0].stamp_s > self.lim.max_age_s:
+                self._behind(self._jobs.popleft().stamp_s)
+        out, self._new = self._new, []
+        return out
+
+    def _with_margin(self, steps: Generator, model: EHAModel, held: HeldDuty,
+                     ambient_K: float, sigma_K: Dict[str, float]) -> Generator:
+        """Run the continuous limit's steady solves, then ``steps``; return the limits."""
+        target = (self.limits_C['winding_hotspot'] - self.lim.k_sigma
+                  * sigma_K['winding_hotspot'] + C_TO_K)
+        amps = yield from self._margin_steps(model, held.speed_rad_s, ambient_K, target)
+        self.margin_A = min(amps, self.cfg.motor.peak_current_A)
+        self.margin_binds = 'winding_hotspot' if amps < self.cfg.motor.peak_current_A \
+            else RATING
+        return (yield from steps)
+
+    # ----------------------------------------------------------- background
+    def background(self, budget_s: float) -> None:
+        """Work the waiting jobs (the limits first, then the forecast) for about ``budget_s``."""
+        self.run(time.perf_counter() + budget_s)
+
+    def run(self, deadline: float) -> None:
+        """Work the jobs until the wall clock (``time.perf_counter``) passes ``deadline``."""
+        while self._jobs and time.perf_counter() < deadline:
+            job = self._jobs[0]
+            try:
+                next(job.steps)
+            except StopIteration as done:
+                self._jobs.popleft()
+                self._finish(self._completed(job.stamp_s, done.value))
+            except (ArithmeticError, ValueError, RuntimeError, np.linalg.LinAlgError):
+                # advice must never stop the estimator: this tick falls back
+                self.failures += 1
+                self._jobs.popleft()
+                self._finish(fallback_limits(job.stamp_s, self.lim.horizons_s,
+                                             self.lim.fallback_current_A,
+                                             'failed: the limits could not be computed'))
+        while self.forecast is not None and time.perf_counter() < deadline:
+            self._forecast_step()
+
+    def _completed(self, stamp_s: float, per_horizon: List[Tuple[float, str]]
+                   ) -> CurrentLimits:
+        """
+        Return a tick's limits: its horizons' and the continuous of the latest forecast tick.
+
+        The continuous is never above the longest horizon's: the steady
+        margin holds the oil where it is, and a current that cannot be held
+        that long cannot be held for ever.
+        """
+        longest = per_horizon[-1]
+        if self.margin_A is None:
+            continuous = (self.lim.fallback_current_A, 'pending')
+        elif longest[0] < self.margin_A:
+            continuous = longest
+        else:
+            continuous = (self.margin_A, self.margin_binds)
+        return current_limits(stamp_s, self.lim.horizons_s, continuous, per_horizon)
+
+    def _start_forecast(self, saved: bytes, t_model: float, ambient_K: float,
+                        now_C: Dict[str, float]) -> None:
+        """Take the saved model and the recent duty to repeat (skipped while one runs)."""
+        if self.forecast is not None:
+            self.forecasts_skipped += 1
+            return
         blocks = list(self.window)
         # one sample per model step (the step's means; I^2 for the current): a forecast
         # step of seconds then costs about a millisecond
@@ -129,25 +286,28 @@ class Outlook:
         # removed, so the repeated duty is periodic and stays inside the stroke
         dx = np.diff(x, prepend=x[0])
         duty['dx_m'] = dx - dx.mean()
-        model = copy.deepcopy(self.model)
+        model = copy_model(saved)
         model.defer_refresh = False       # forecast steps are seconds long: no lag there
         model.circuit.keep_transition = False     # no filter follows the forecast
         model.oil_substep_s = self.settings.forecast_substep_s
         self.forecast = _Forecast(model=model, start_s=t_model, duty=duty, ambient_K=ambient_K,
-                                  crossed=dict.fromkeys(self.limits_C),
+                                  now_C=dict(now_C), crossed=dict.fromkeys(self.limits_C),
                                   n=max(1, int(round(self.settings.forecast_step_s
                                                      / self.settings.step_s))))
+        if self.inline:
+            while self.forecast is not None:
+                self._forecast_step()
 
-    def _forecast_step(self, now_C: Dict[str, float]) -> None:
+    def _forecast_step(self) -> None:
         """Advance the forecast by one ``forecast_step_s`` of repeated duty."""
         try:
-            self._forecast_step_unguarded(now_C)
+            self._forecast_step_unguarded()
         except (ArithmeticError, ValueError, RuntimeError):
             # a forecast is advice: give up on this one, never on the estimator
             self.failures += 1
             self.forecast = None
 
-    def _forecast_step_unguarded(self, now_C: Dict[str, float]) -> None:
+    def _forecast_step_unguarded(self) -> None:
         """Step the forecast's model; note the limits crossed; finish at the horizon."""
         f = self.forecast
         s = self.settings
@@ -172,62 +332,51 @@ class Outlook:
                 f.crossed[q] = f.t_s
         if f.t_s >= s.forecast_horizon_s or all(v is not None for v in f.crossed.values()):
             # a quantity already past its limit now has zero time left
-            self.result = {q: (0.0 if now_C.get(q, -1e9) >= self.limits_C[q] else v)
+            self.result = {q: (0.0 if f.now_C.get(q, -1e9) >= self.limits_C[q] else v)
                            for q, v in f.crossed.items()}
             self.stamp_s = f.start_s
             self.forecast = None
 
-    def margin_current(self, ambient_K: float) -> Optional[float]:
+    def _margin_steps(self, model: EHAModel, speed_rad_s: float, ambient_K: float,
+                      target_K: float):
         """
-        Return the largest continuous current (A RMS) at the present oil temperature and duty.
+        Return the largest continuous current (A RMS) at the oil and flow of ``model``.
 
-        The motor alone in steady state with its present cooling oil (the pump
-        case temperature and the motor's flow) and the recent mean speed: the
-        current whose steady winding hot-spot reaches the insulation limit,
-        by secant iterations on I^2 (the rise is nearly linear in I^2), at
-        ``ambient_K``; None before any step.
+        The motor alone in steady state with the cooling oil of ``model`` (the
+        pump case temperature and the motor's flow) at ``speed_rad_s``: the
+        current whose steady winding hot-spot reaches ``target_K``, by secant
+        iterations on I^2 (the rise is nearly linear in I^2), at ``ambient_K``.
+        A generator: it yields once per fixed-point iteration of a steady solve, each
+        solve from the same start, so the result depends on the inputs alone.
         """
-        job = self._margin_steps(ambient_K)
-        while True:
-            try:
-                next(job)
-            except StopIteration as done:
-                return done.value
-
-    def _margin_steps(self, ambient_K: float):
-        """Compute :meth:`margin_current` one steady solve per iteration (a generator)."""
-        if not self.window:
-            return None
-        m, mot = self.model, self._margin_motor
-        speeds = np.concatenate([b.speed_rad_s for b in self.window])
-        u = MotorInputs(current_sq_mean_A2=0.0, speed_rad_s=np.abs(speeds).mean(),
-                        oil_inlet_K=float(m.T_hyd[m.circuit.index('case')]),
-                        oil_flow_m3_s=m.motor.coefficient_flow_m3_s,
+        mot = self._margin_motor
+        u = MotorInputs(current_sq_mean_A2=0.0, speed_rad_s=speed_rad_s,
+                        oil_inlet_K=float(model.T_hyd[model.circuit.index('case')]),
+                        oil_flow_m3_s=model.motor.coefficient_flow_m3_s,
                         ambient_K=ambient_K)
-        target = self.limits_C['winding_hotspot'] + C_TO_K
 
         def hot(i_sq: float):
             """Yield per fixed-point iteration; return the steady hot-spot (K), inf if none."""
             u.current_sq_mean_A2 = i_sq
+            mot.T = None
             try:
                 yield from mot.steady_state_steps(u, tol_K=1e-4, max_iter=60)
             except RuntimeError:      # no steady state: far past any limit
-                mot.T = None          # do not start the next solve from a runaway
                 return math.inf
             return mot.outputs()['winding_hotspot']
 
         a = 0.0
         fa = yield from hot(a)
-        if fa >= target:
+        if fa >= target_K:
             return 0.0
         b = (self.cfg.motor.max_continuous_current_A) ** 2
         fb = yield from hot(b)
         for _ in range(12):
-            if abs(fb - target) < 0.05:
+            if abs(fb - target_K) < 0.05:
                 break
             if not math.isfinite(fb):         # runaway: halve the step back
                 b = 0.5 * (a + b)
             else:
-                a, fa, b = b, fb, max(b + (target - fb) * (b - a) / (fb - fa), 0.0)
+                a, fa, b = b, fb, max(b + (target_K - fb) * (b - a) / (fb - fa), 0.0)
             fb = yield from hot(b)
         return float(math.sqrt(b))

@@ -21,8 +21,9 @@ from ..model.kinetics import KineticModel, stage_duty, ThermalFeedback
 from ..model.oil import get_oil
 from ..model.warmup import compile_model
 
-#: Length of the synthetic stage-6 record fed to the estimator (s) and its rate (Hz).
-WARM_SECONDS, WARM_RATE_HZ = 0.3, 1000.0
+#: Length of the synthetic stage-6 record fed to the estimator (s) and its rate (Hz):
+#: past the first tick of the current limits (0.5 s), which then are worked out
+WARM_SECONDS, WARM_RATE_HZ = 0.6, 1000.0
 #: Silence after it (s): the inputs go stale, then held blocks cross the rest.
 WARM_SILENCE_S = 10.0
 
@@ -38,7 +39,7 @@ def compile_estimator(cfg: Config) -> float:
     """
     start = time.perf_counter()
     compile_model(cfg)
-    est = Estimator(cfg)
+    est = Estimator(cfg, outlook='background')
     kin = KineticModel(cfg, get_oil(cfg.fluid.grade))
     t = np.arange(1, int(WARM_SECONDS * WARM_RATE_HZ) + 1) / WARM_RATE_HZ
     samples = kin.sample(stage_duty(cfg, 6), t, ThermalFeedback.uniform())
@@ -50,7 +51,8 @@ def compile_estimator(cfg: Config) -> float:
                 est.add_measured(tc, float(tk), cfg.estimator.ambient_C)
         for name in est.inputs:
             est.take(name, float(tk), float(signals[name][k]), now_s=float(tk), budget_s=0.0)
-    est.background(0.05)
+    while est.outlook.busy:         # the limits' and the forecast's jobs, to their end
+        est.background(0.05)
     # a silence: inputs go stale, the model steps on held values and in held blocks
     est.advance_all(float(t[-1]) + WARM_SILENCE_S)
     if est.correction is not None:

@@ -142,6 +142,7 @@ class WetMotor(MotorNetworkBuilder):
             self._copper_law, self.yoke_mass, self.teeth_mass, self._iron, self._iron_split,
             self._gap_factors, self._ends, lt.values, lt.grid, lt.from_map, self.oil.laws))
         self._em_checked = set()    # (speed, current) bins whose rotor-loss validity is logged
+        self.check_rotor_validity = True
         # the books' links to ambient (the frame's, then the end caps'), ends in [T; T_b]
         self._ambient_ledger = tuple(AmbientLedger(
             self._to_ambient_ids, self.net.link_ends(self._to_ambient_ids),
@@ -218,9 +219,10 @@ class WetMotor(MotorNetworkBuilder):
 
         The table holds values, not their validity: the harmonic sum is run
         with the log once per bin of 2000 r/min and 10 A that the model visits
-        (about 30 ms each).
+        (about 30 ms each). A copy that gives advice (the estimator's
+        limits) sets ``check_rotor_validity`` false: its log is thrown away.
         """
-        if self.loss_table.from_map:
+        if self.loss_table.from_map or not self.check_rotor_validity:
             return
         current = float(np.sqrt(max(i_sq, 0.0)))
         key = (int(w * 30.0 / np.pi // 2000.0), int(current // 10.0))

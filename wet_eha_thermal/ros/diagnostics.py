@@ -14,6 +14,7 @@ from typing import List, Mapping, Optional, Sequence, Tuple
 import numpy as np
 from wet_eha_thermal import interface
 from wet_eha_thermal.estimator.core import Estimator
+from wet_eha_thermal.estimator.limits import CurrentLimits
 from wet_eha_thermal.model.quantity_table import LIMITED
 
 # the levels of diagnostic_msgs/DiagnosticStatus
@@ -101,6 +102,7 @@ def estimate_status(est: Estimator, node: NodeCounters) -> Status:
         values.append((f'time_to_limit {q} [s]', text))
         values.append((f'limit {q} [degC]', fmt(latest.limits_C.get(q), '.1f')))
     values.append(('forecast started at [s]', fmt(latest.forecast_stamp_s, '.3f')))
+    values += limit_values(latest.current_limits)
     if node.latency_ms:
         lat = np.percentile(node.latency_ms, [50, 99])
         values.append(('step latency p50/p99/max [ms]',
@@ -127,12 +129,27 @@ def estimate_status(est: Estimator, node: NodeCounters) -> Status:
                ('inputs on fallback', ', '.join(stale) or 'none'),
                ('estimates published', node.published),
                ('model errors', node.model_errors),
-               ('forecast failures', est.outlook.failures),
+               ('forecast and limit failures', est.outlook.failures),
+               ('limit ticks behind (fallback)', est.outlook.limits_behind),
+               ('forecasts skipped (one under way)', est.outlook.forecasts_skipped),
                ('background errors', node.background_errors),
                ('callback errors', sum(node.callback_errors.values())),
                ('samples before the clock', node.waiting_for_clock),
                ('foxglove view', node.view)]
     return Status('estimate', level, message, values)
+
+
+def limit_values(limits: Optional[CurrentLimits]) -> List[Tuple[str, object]]:
+    """Return the estimate status's key-values of the latest current limits."""
+    if limits is None:
+        return [('current limit [A RMS]', 'pending')]
+    status = 'ok' if limits.status == 'ok' else f'fallback: {limits.reason}'
+    out = [('current limit [A RMS]', f'{limits.binding_A:.1f}'),
+           ('current limits status', status),
+           ('current limits stamp [s]', f'{limits.stamp_s:.3f}')]
+    for name, value, binds in zip(limits.names, limits.limits_A, limits.binds):
+        out.append((f'current limit {name} [A RMS]', f'{value:.1f} ({binds})'))
+    return out
 
 
 def correction_values(est: Estimator) -> List[Tuple[str, object]]:

@@ -65,12 +65,13 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 from rclpy.serialization import deserialize_message
-from sensor_msgs.msg import FluidPressure, Temperature
+from sensor_msgs.msg import FluidPressure, JointState, Temperature
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension, String
 from wet_eha_thermal import interface
 from wet_eha_thermal.bag import cdr
 from wet_eha_thermal.config import ConfigError, load_config
 from wet_eha_thermal.estimator.core import Estimate, Estimator, StepFailed
+from wet_eha_thermal.estimator.limits import CurrentLimits
 from wet_eha_thermal.live_view import app_url, LiveView, parse_address
 from wet_eha_thermal.model.quantity_table import LIMITED
 from wet_eha_thermal.ros import diagnostics, topics
@@ -144,7 +145,7 @@ class EstimatorNode(Node):
         super().__init__(NODE_NAME, **kwargs)
         p, view_at = self._read_parameters()
         self.cfg = load_config(p['config_file'] or None)
-        self.est = Estimator(self.cfg)
+        self.est = Estimator(self.cfg, outlook='background')
         # before any subscription or publisher: a first step that compiled would keep
         # samples waiting for a minute or more
         prepare_model_step(self, self.cfg, estimator=True)
@@ -264,6 +265,12 @@ class EstimatorNode(Node):
                                                topics.latched_qos())
         self.diag_pub = self.create_publisher(DiagnosticArray, interface.DIAGNOSTICS_TOPIC,
                                               QoSProfile(depth=10))
+        # the drive's limits: reliable, a few deep (a drive reads every one it can)
+        self.limits_pub = self.create_publisher(
+            JointState, self._topic(interface.CURRENT_LIMITS_TOPIC), QoSProfile(depth=10))
+        self.limit_pub = self.create_publisher(
+            Float64, self._topic(interface.CURRENT_LIMIT_TOPIC), QoSProfile(depth=10))
+        self._limits_msg = JointState()
 
     # ------------------------------------------------------------- helpers
     def _topic(self, name: str) -> str:
@@ -466,6 +473,8 @@ class EstimatorNode(Node):
             if not handed:
                 raise
             self._background_failed(exc)
+        if handed:
+            self._publish_limits()
 
     def _model_failed(self, exc: BaseException) -> None:
         self.model_errors += 1
@@ -503,6 +512,37 @@ class EstimatorNode(Node):
                 self.est.background(self.budget_s)
         except Exception as exc:  # noqa: B902 - the next step redoes it
             self._background_failed(exc)
+        self._publish_limits()
+
+    def _publish_limits(self) -> None:
+        """
+        Publish the current limits finished since the last call, oldest first.
+
+        A tick waiting longer than ``estimator.limits.max_age_s`` of model
+        time is given up (its fallback goes out instead); while the model
+        itself is behind its inputs, a finished tick's limits are for a state
+        already past, and go out as the fallback too.
+        """
+        try:
+            lim = self.cfg.estimator.limits
+            for limits in self.est.outlook.take_limits(self.est.t_model):
+                if self.est.behind and limits.status == 'ok':
+                    limits = limits.fallback(lim.fallback_current_A,
+                                             'behind: the model is catching up with its inputs')
+                self._send_limits(limits)
+        except Exception as exc:  # noqa: B902
+            self._failed('publish', exc)
+
+    def _send_limits(self, limits: CurrentLimits) -> None:
+        """Publish ``limits`` as the JointState of every horizon and the binding Float64."""
+        msg = self._limits_msg
+        msg.header.stamp = _stamp_msg(int(round(limits.stamp_s * 1e9)))
+        msg.header.frame_id = 'ok' if limits.status == 'ok' else f'fallback: {limits.reason}'
+        msg.name = list(limits.names)
+        msg.position = list(limits.horizons_s)
+        msg.effort = list(limits.limits_A)
+        self.limits_pub.publish(msg)
+        self.limit_pub.publish(Float64(data=float(limits.binding_A)))
 
     def _published(self, estimates: List[Estimate], now: Optional[float],
                    t_rx: Optional[float], jumps: int) -> None:

@@ -1,0 +1,291 @@
+"""
+Thermal current limits for the drive: the largest RMS phase current, now and for a while.
+
+At each limit tick (every ``estimator.limits.period_s`` of sample time) the
+outlook copies the model; from that copy :func:`limit_steps` finds, for each
+horizon H of ``horizons_s`` and for the steady state (``continuous``), the
+largest constant RMS current I that keeps every limited quantity q (winding
+hot-spot, magnet, oil) at or below its limit over (0, H], at its estimate plus
+``k_sigma`` times its present uncertainty, with the recent speed and pressure
+duty held. The search stops at the motor's peak rating
+(``motor.peak_current_A``): a limit there means no temperature binds.
+
+How: over one probe step of dt = ``period_s`` the coupled model is affine in
+its state and, through the copper's R(T), bilinear in I^2:
+
+    x' = (A + I^2 K) x + c0 + I^2 c1
+
+Two steps of copies of the model from the tick's state, at I = 0 and at the
+peak rating, give the four terms: A and K from the model's own linearisation
+(:meth:`~..model.eha.EHAModel.linearize`, composed by the filter's
+:func:`~.kalman.coupled_transition`), c0 and c1 from where the copies
+ended. The state at every power of two of dt and at H follows from powers of
+the augmented matrix [[A + I^2 K, c0 + I^2 c1], [0, 1]] by squaring (a
+dozen 71 x 71 products for 600 s), the steady state from one linear solve,
+and scipy's ``brentq`` finds the I^2 where the worst quantity meets its limit.
+
+What it leaves out (``benchmarks/limits_check.py`` measures it against the
+model itself): the coefficients that move with temperature (convection,
+viscosities, friction) stay as they are at the tick; the held duty has the
+recent root-mean-square speed and the pressures (the high side as its RMS)
+but no motion, so no flow work; the uncertainty stays as it is at the tick;
+a peak between two checked times of a horizon is not seen.
+"""
+
+from dataclasses import dataclass
+import math
+import pickle
+from typing import Dict, Generator, List, Optional, Sequence, Tuple
+
+import numpy as np
+from scipy.optimize import brentq
+
+from .correction import filter_layout
+from .kalman import copper_gain, coupled_transition
+from ..model.eha import EHAModel, SampleBlock
+from ..units import C_TO_K
+
+#: names of the limits, as in the drive's message: the steady one, then each horizon
+CONTINUOUS = 'continuous'
+#: what a limit at the search's top (the motor's peak rating) is bound by
+RATING = 'rating'
+#: what a limit capped at the conservative value is bound by
+FALLBACK = 'fallback'
+#: held steps before the probes (see :func:`limit_steps`)
+SETTLE_STEPS = 2
+#: I^2 tolerance of the search (A^2): 0.01 A at 25 A
+TOL_A2 = 0.5
+
+
+def horizon_name(horizon_s: float) -> str:
+    """Return the name of a horizon's limit: ``'10s'`` for 10 s."""
+    return f'{horizon_s:g}s'
+
+
+def step_statistics(block: SampleBlock) -> np.ndarray:
+    """Return a step's mean squared speed, squared high-side pressure, low side, accumulator."""
+    high = np.maximum(block.p_a_Pa, block.p_b_Pa)
+    return np.array([np.mean(block.speed_rad_s ** 2), np.mean(high ** 2),
+                     np.mean(np.minimum(block.p_a_Pa, block.p_b_Pa)), np.mean(block.p_acc_Pa)])
+
+
+@dataclass(frozen=True)
+class HeldDuty:
+    """The recent duty as the limits hold it: RMS speed (rad/s), pressures (Pa), position (m)."""
+
+    speed_rad_s: float
+    p_a_Pa: float
+    p_b_Pa: float
+    p_acc_Pa: float
+    position_m: float
+
+    @classmethod
+    def from_statistics(cls, rows: np.ndarray, position_m: float) -> 'HeldDuty':
+        """
+        Hold the recent duty: its steps' :func:`step_statistics` (one row each), averaged.
+
+        The pump's leakage and friction heat grow with the speed and the
+        pressure difference (the leakage's throttling as its square): root
+        mean squares keep them where plain means of an alternating load
+        would cancel them. The high side goes to port A.
+        """
+        speed_sq, high_sq, low, acc = rows.mean(axis=0)
+        return cls(speed_rad_s=math.sqrt(speed_sq), p_a_Pa=math.sqrt(high_sq), p_b_Pa=low,
+                   p_acc_Pa=acc, position_m=position_m)
+
+    def block(self, t_s: float, current_A: float) -> SampleBlock:
+        """Return one held sample at ``t_s`` (model time) with ``current_A``."""
+        return SampleBlock(*(np.array([v]) for v in (
+            t_s, current_A, self.speed_rad_s, self.p_a_Pa, self.p_b_Pa, self.p_acc_Pa,
+            self.position_m)))
+
+
+@dataclass(frozen=True)
+class CurrentLimits:
+    """
+    The limits of one tick, what the drive reads (docs/live.md#current-limits-for-the-drive).
+
+    ``names``: ``continuous`` then each horizon (``'10s'``...); ``horizons_s``
+    the same, +inf for the continuous one; ``limits_A`` the largest RMS phase
+    current (A) for each; ``binds`` the quantity that sets each (``rating``:
+    none, the motor's peak rating). ``binding_A`` is the one a drive with a
+    single number applies: the shortest horizon's, refreshed every period.
+    ``status`` is ``ok`` or ``fallback`` (then every limit is at most the
+    configured conservative value and ``reason`` says why).
+    """
+
+    stamp_s: float
+    names: Tuple[str, ...]
+    horizons_s: Tuple[float, ...]
+    limits_A: Tuple[float, ...]
+    binds: Tuple[str, ...]
+    status: str = 'ok'
+    reason: str = ''
+
+    @property
+    def binding_A(self) -> float:
+        """Return the shortest horizon's limit (A RMS): the one a simple drive applies."""
+        return self.limits_A[int(np.argmin(self.horizons_s))]
+
+    def fallback(self, current_A: float, reason: str, stamp_s: Optional[float] = None
+                 ) -> 'CurrentLimits':
+        """Return these limits capped at the conservative ``current_A``, saying why."""
+        return CurrentLimits(
+            stamp_s=self.stamp_s if stamp_s is None else stamp_s, names=self.names,
+            horizons_s=self.horizons_s,
+            limits_A=tuple(min(v, current_A) for v in self.limits_A),
+            binds=tuple(FALLBACK if v > current_A else b
+                        for v, b in zip(self.limits_A, self.binds)),
+            status='fallback', reason=reason)
+
+
+def current_limits(stamp_s: float, horizons_s: Sequence[float], continuous: Tuple[float, str],
+                   per_horizon: Sequence[Tuple[float, str]], status: str = 'ok',
+                   reason: str = '') -> CurrentLimits:
+    """Return a tick's :class:`CurrentLimits`: the continuous (A, binds), then each horizon's."""
+    both = [continuous] + list(per_horizon)
+    return CurrentLimits(stamp_s=stamp_s,
+                         names=(CONTINUOUS,) + tuple(horizon_name(h) for h in horizons_s),
+                         horizons_s=(math.inf,) + tuple(float(h) for h in horizons_s),
+                         limits_A=tuple(float(v) for v, _ in both),
+                         binds=tuple(b for _, b in both), status=status, reason=reason)
+
+
+def fallback_limits(stamp_s: float, horizons_s: Sequence[float], current_A: float,
+                    reason: str) -> CurrentLimits:
+    """Return the conservative limits for a tick with nothing better (``reason``: why)."""
+    return current_limits(stamp_s, horizons_s, (current_A, FALLBACK),
+                          [(current_A, FALLBACK)] * len(horizons_s), 'fallback', reason)
+
+
+class LimitProblem:
+    """
+    The tick's affine-bilinear model and the search for each limit on it.
+
+    ``A``, ``K``, ``c0``, ``c1``: the probe step's terms (module docstring);
+    ``x0`` the tick's state (K); ``rows``: the states each limited quantity is
+    the hottest of; ``ceiling_K`` each quantity's limit minus k sigma (K).
+    """
+
+    def __init__(self, A, K, c0, c1, x0, rows: Dict[str, np.ndarray],
+                 ceiling_K: Dict[str, float]) -> None:
+        self.A, self.K, self.c0, self.c1, self.x0 = A, K, c0, c1, x0
+        self.rows, self.ceiling_K = rows, ceiling_K
+        self.n = x0.size
+
+    def _excess(self, X: np.ndarray) -> Tuple[float, str]:
+        """Return the largest excess over its ceiling (K) among states ``X`` (n x k), and whose."""
+        worst = {q: float(np.max(X[idx])) - c for q, (idx, c) in
+                 ((q, (self.rows[q], self.ceiling_K[q])) for q in self.rows)}
+        q = max(worst, key=worst.get)
+        return worst[q], q
+
+    def trajectory(self, i_sq: float, steps: int) -> np.ndarray:
+        """Return the states (n x k) after 1, 2, 4, ... probe steps and after ``steps``."""
+        n = self.n
+        M = np.zeros((n + 1, n + 1))
+        M[:n, :n] = self.A + i_sq * self.K
+        M[:n, n] = self.c0 + i_sq * self.c1
+        M[n, n] = 1.0
+        v = np.append(self.x0, 1.0)
+        out, at = [], v
+        power, k = M, steps
+        while k:
+            if k & 1:
+                at = power @ at
+            k >>= 1
+            out.append(power @ v)
+            if k:
+                power = power @ power
+        out.append(at)
+        ks = [2 ** j for j in range(len(out) - 1)] + [steps]
+        keep = [j for j, s in enumerate(ks) if s <= steps]
+        return np.array(out)[keep, :n].T
+
+    def horizon_excess(self, i_sq: float, steps: int) -> Tuple[float, str]:
+        """Return the worst excess (K) over (0, ``steps`` dt] at ``i_sq`` (A^2), and whose."""
+        X = self.trajectory(i_sq, steps)
+        if not np.isfinite(X).all():
+            return math.inf, ''
+        return self._excess(X)
+
+    def solve(self, excess, top_A: float) -> Tuple[float, str]:
+        """
+        Return the largest current (A) in [0, ``top_A``] whose ``excess`` is <= 0, and what binds.
+
+        ``excess(i_sq)`` -> (K, quantity) grows with I^2. 0 A when even no
+        current is too much, ``top_A`` (bound by the rating) when it is not.
+        """
+        e0, q0 = excess(0.0)
+        if e0 >= 0.0:
+            return 0.0, q0
+        top = top_A ** 2
+        e1, q1 = excess(top)
+        if e1 <= 0.0:
+            return top_A, RATING
+        # brentq needs finite values: a runaway is far past every limit
+        root = brentq(lambda s: min(excess(s)[0], 1e6), 0.0, top, xtol=TOL_A2)
+        return math.sqrt(root), excess(root)[1]
+
+
+def probe(model: EHAModel, held: HeldDuty, current_A: float, dt_s: float, ambient_K: float,
+          layout, alpha_copper: float) -> Tuple[np.ndarray, np.ndarray]:
+    """
+    Step ``model`` (a copy: it is changed) by ``dt_s`` on the held duty; return (Phi, state).
+
+    Phi is the step's transition with the copper's R(T) feedback at
+    ``current_A`` (:func:`~.kalman.coupled_transition`), the state the one at
+    the step's end (K).
+    """
+    model.defer_refresh = False
+    model.circuit.keep_transition = True
+    model.motor.check_rotor_validity = False     # the peak current's bins: a copy's log
+    model.step(held.block(model.time_s + dt_s, current_A), ambient_K, max_substep_s=dt_s)
+    lin = model.linearize()
+    n = model.state.size
+    Phi = coupled_transition(lin.motor, lin.circuit,
+                             copper_gain(lin.copper_K, lin.copper_power_W, alpha_copper),
+                             layout, n)
+    return Phi, model.state
+
+
+def limit_steps(snapshot: EHAModel, held: HeldDuty, ambient_K: float,
+                sigma_K: Dict[str, float], limits_C: Dict[str, float], k_sigma: float,
+                horizons_s: Sequence[float], dt_s: float, peak_A: float
+                ) -> Generator[None, None, List[Tuple[float, str]]]:
+    """
+    Compute a tick's limit for each horizon from ``snapshot`` (a copy, used up), in slices.
+
+    A generator: it yields between the probes and between the horizons, and
+    returns (limit A RMS, what binds it) for each of ``horizons_s``.
+    ``sigma_K`` the tick's 1-sigma uncertainty of each limited quantity (K),
+    ``limits_C`` their limits (degC), ``dt_s`` the probe step (s; each
+    horizon a whole number of them), ``peak_A`` the search's top.
+    """
+    layout = filter_layout(snapshot)
+    alpha = snapshot.cfg.motor.winding.copper_tempco_1_K
+    x0 = snapshot.state
+    # two steps take the oil to the held pressures: their compression heat is a
+    # transient of that jump (the pressure work of a step takes its start's and end's
+    # pressures), which the affine terms must not repeat at every step
+    for _ in range(SETTLE_STEPS):
+        probe(snapshot, held, 0.0, dt_s, ambient_K, layout, alpha)
+    x_settled = snapshot.state
+    cold = pickle.loads(pickle.dumps(snapshot, pickle.HIGHEST_PROTOCOL))
+    A, x_cold = probe(cold, held, 0.0, dt_s, ambient_K, layout, alpha)
+    yield
+    Phi, x_hot = probe(snapshot, held, peak_A, dt_s, ambient_K, layout, alpha)
+    i2 = peak_A ** 2
+    K = (Phi - A) / i2
+    c0 = x_cold - A @ x_settled
+    c1 = (x_hot - Phi @ x_settled - c0) / i2
+    q = snapshot.quantities
+    rows = {name: q.state_indices(name) for name in limits_C}
+    ceiling = {name: lim + C_TO_K - k_sigma * sigma_K[name] for name, lim in limits_C.items()}
+    problem = LimitProblem(A, K, c0, c1, x0, rows, ceiling)
+    out = []
+    for h in horizons_s:
+        yield
+        steps = max(1, int(round(h / dt_s)))
+        out.append(problem.solve(lambda s, n=steps: problem.horizon_excess(s, n), peak_A))
+    return out
