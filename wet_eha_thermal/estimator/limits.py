@@ -24,9 +24,10 @@ the augmented matrix [[A + I^2 K, c0 + I^2 c1], [0, 1]] by squaring (a
 dozen 71 x 71 products for 600 s), the steady state from one linear solve,
 and scipy's ``brentq`` finds the I^2 where the worst quantity meets its limit.
 
-What it leaves out (``benchmarks/limits_check.py`` measures it against the
-model itself): the coefficients that move with temperature (convection,
-viscosities, friction) stay as they are at the tick; the held duty has the
+What it leaves out (``test/test_limits.py`` measures it against the model
+itself): the coefficients that move with temperature (convection,
+viscosities, friction) stay as they are at the tick, or for a horizon of
+minutes as they are half-way along it; the held duty has the
 recent root-mean-square speed and the pressures (the high side as its RMS)
 but no motion, so no flow work; the uncertainty stays as it is at the tick;
 a peak between two checked times of a horizon is not seen.
@@ -51,10 +52,14 @@ CONTINUOUS = 'continuous'
 RATING = 'rating'
 #: what a limit capped at the conservative value is bound by
 FALLBACK = 'fallback'
-#: held steps before the probes (see :func:`limit_steps`)
+#: held steps before the probes (see :func:`linearise`)
 SETTLE_STEPS = 2
+#: a longer horizon is solved again, linearised at the middle of its path (s)
+RELINEARISE_AFTER_S = 120.0
 #: I^2 tolerance of the search (A^2): 0.01 A at 25 A
 TOL_A2 = 0.5
+#: half-width of a search started near a guess (A)
+NEAR_A = 2.0
 
 
 def horizon_name(horizon_s: float) -> str:
@@ -209,22 +214,35 @@ class LimitProblem:
             return math.inf, ''
         return self._excess(X)
 
-    def solve(self, excess, top_A: float) -> Tuple[float, str]:
+    def solve(self, excess, top_A: float, near_A: Optional[float] = None) -> Tuple[float, str]:
         """
         Return the largest current (A) in [0, ``top_A``] whose ``excess`` is <= 0, and what binds.
 
         ``excess(i_sq)`` -> (K, quantity) grows with I^2. 0 A when even no
         current is too much, ``top_A`` (bound by the rating) when it is not.
+        ``near_A``: a guess; the search starts within ``NEAR_A`` of it.
         """
-        e0, q0 = excess(0.0)
+        def f(i_sq: float) -> float:
+            return min(excess(i_sq)[0], 1e6)    # brentq needs finite values: a runaway
+
+        lo, hi = 0.0, top_A ** 2
+        if near_A is not None:
+            a, b = max(near_A - NEAR_A, 0.0) ** 2, min(near_A + NEAR_A, top_A) ** 2
+            fa, fb = f(a), f(b)
+            if fa < 0.0 < fb:
+                return self._root(excess, f, a, b)
+            lo, hi = (b, hi) if fb <= 0.0 else (lo, a)
+        e0, q0 = excess(lo)
         if e0 >= 0.0:
-            return 0.0, q0
-        top = top_A ** 2
-        e1, q1 = excess(top)
-        if e1 <= 0.0:
-            return top_A, RATING
-        # brentq needs finite values: a runaway is far past every limit
-        root = brentq(lambda s: min(excess(s)[0], 1e6), 0.0, top, xtol=TOL_A2)
+            return math.sqrt(lo), q0
+        if f(hi) <= 0.0:
+            return math.sqrt(hi), RATING if hi == top_A ** 2 else excess(hi)[1]
+        return self._root(excess, f, lo, hi)
+
+    @staticmethod
+    def _root(excess, f, lo: float, hi: float) -> Tuple[float, str]:
+        """Return the root of ``f`` in [lo, hi] (A) and what binds there."""
+        root = brentq(f, lo, hi, xtol=TOL_A2)
         return math.sqrt(root), excess(root)[1]
 
 
@@ -249,43 +267,80 @@ def probe(model: EHAModel, held: HeldDuty, current_A: float, dt_s: float, ambien
     return Phi, model.state
 
 
-def limit_steps(snapshot: EHAModel, held: HeldDuty, ambient_K: float,
+def settle(model: EHAModel, held: HeldDuty, dt_s: float, ambient_K: float, layout,
+           alpha_copper: float) -> bytes:
+    """
+    Step ``model`` onto the held duty; return it pickled, the start of every probe.
+
+    Two steps take the oil to the held pressures: their compression heat is a
+    transient of that jump (the pressure work of a step takes its start's and
+    end's pressures), which the affine terms must not repeat at every step.
+    """
+    for _ in range(SETTLE_STEPS):
+        probe(model, held, 0.0, dt_s, ambient_K, layout, alpha_copper)
+    return pickle.dumps(model, pickle.HIGHEST_PROTOCOL)
+
+
+def linearise(settled: bytes, shift_K: Optional[np.ndarray], held: HeldDuty, dt_s: float,
+              ambient_K: float, peak_A: float, layout, alpha_copper: float
+              ) -> Tuple[np.ndarray, ...]:
+    """
+    Return (A, K, c0, c1) of one probe step from the ``settled`` model.
+
+    Its state moved first by ``shift_K`` (K; None: as it is), a step at no
+    current and one at ``peak_A`` (module docstring).
+    """
+    cold, hot = pickle.loads(settled), pickle.loads(settled)
+    if shift_K is not None:
+        cold.correct(shift_K)
+        hot.correct(shift_K)
+    x_settled = cold.state
+    A, x_cold = probe(cold, held, 0.0, dt_s, ambient_K, layout, alpha_copper)
+    Phi, x_hot = probe(hot, held, peak_A, dt_s, ambient_K, layout, alpha_copper)
+    i2 = peak_A ** 2
+    c0 = x_cold - A @ x_settled
+    return A, (Phi - A) / i2, c0, (x_hot - Phi @ x_settled - c0) / i2
+
+
+def limit_steps(saved: bytes, held: HeldDuty, ambient_K: float,
                 sigma_K: Dict[str, float], limits_C: Dict[str, float], k_sigma: float,
                 horizons_s: Sequence[float], dt_s: float, peak_A: float
                 ) -> Generator[None, None, List[Tuple[float, str]]]:
     """
-    Compute a tick's limit for each horizon from ``snapshot`` (a copy, used up), in slices.
+    Compute a tick's limit for each horizon from the pickled model ``saved``, in slices.
 
-    A generator: it yields between the probes and between the horizons, and
-    returns (limit A RMS, what binds it) for each of ``horizons_s``.
-    ``sigma_K`` the tick's 1-sigma uncertainty of each limited quantity (K),
-    ``limits_C`` their limits (degC), ``dt_s`` the probe step (s; each
-    horizon a whole number of them), ``peak_A`` the search's top.
+    A generator: it yields between the linearisations and between the
+    horizons, and returns (limit A RMS, what binds it) for each of
+    ``horizons_s``. ``sigma_K`` the tick's 1-sigma uncertainty of each
+    limited quantity (K), ``limits_C`` their limits (degC), ``dt_s`` the
+    probe step (s; each horizon a whole number of them), ``peak_A`` the
+    search's top. A horizon longer than ``RELINEARISE_AFTER_S`` is solved
+    again on the linearisation at the middle of the first solution's path:
+    over minutes the oil's viscosity, and with it the friction and the
+    leakage heat, move far from the tick's.
     """
+    snapshot = pickle.loads(saved)
     layout = filter_layout(snapshot)
     alpha = snapshot.cfg.motor.winding.copper_tempco_1_K
     x0 = snapshot.state
-    # two steps take the oil to the held pressures: their compression heat is a
-    # transient of that jump (the pressure work of a step takes its start's and end's
-    # pressures), which the affine terms must not repeat at every step
-    for _ in range(SETTLE_STEPS):
-        probe(snapshot, held, 0.0, dt_s, ambient_K, layout, alpha)
-    x_settled = snapshot.state
-    cold = pickle.loads(pickle.dumps(snapshot, pickle.HIGHEST_PROTOCOL))
-    A, x_cold = probe(cold, held, 0.0, dt_s, ambient_K, layout, alpha)
-    yield
-    Phi, x_hot = probe(snapshot, held, peak_A, dt_s, ambient_K, layout, alpha)
-    i2 = peak_A ** 2
-    K = (Phi - A) / i2
-    c0 = x_cold - A @ x_settled
-    c1 = (x_hot - Phi @ x_settled - c0) / i2
     q = snapshot.quantities
     rows = {name: q.state_indices(name) for name in limits_C}
     ceiling = {name: lim + C_TO_K - k_sigma * sigma_K[name] for name, lim in limits_C.items()}
-    problem = LimitProblem(A, K, c0, c1, x0, rows, ceiling)
+    settled = settle(snapshot, held, dt_s, ambient_K, layout, alpha)
+    x_settled = snapshot.state
+    problem = LimitProblem(*linearise(settled, None, held, dt_s, ambient_K, peak_A, layout,
+                                      alpha), x0, rows, ceiling)
     out = []
     for h in horizons_s:
         yield
         steps = max(1, int(round(h / dt_s)))
-        out.append(problem.solve(lambda s, n=steps: problem.horizon_excess(s, n), peak_A))
+        amps, binds = problem.solve(lambda s, n=steps: problem.horizon_excess(s, n), peak_A)
+        if h > RELINEARISE_AFTER_S:
+            yield
+            half_way = problem.trajectory(amps ** 2, steps // 2)[:, -1]
+            again = LimitProblem(*linearise(settled, half_way - x_settled, held, dt_s, ambient_K,
+                                            peak_A, layout, alpha), x0, rows, ceiling)
+            amps, binds = again.solve(lambda s, n=steps: again.horizon_excess(s, n), peak_A,
+                                      near_A=amps)
+        out.append((amps, binds))
     return out

@@ -40,8 +40,9 @@ from ..units import C_TO_K
 #: A forecast step doubles (from ``forecast_step_s`` to one pass of the repeated duty)
 #: while the state moves less than this in one.
 FORECAST_TOL_K = 0.5
-#: Limit jobs waiting at most; a new tick beyond drops the oldest that is not a forecast
-#: tick (its limits are published as the fallback, behind)
+#: Limit jobs waiting at most; a new tick beyond drops the oldest (its limits are published
+#: as the fallback, behind; a dropped forecast tick's continuous limit is not computed, so
+#: the next ticks keep the one before, where a replay, never behind, has the new one)
 MAX_LIMIT_JOBS = 2
 
 
@@ -67,7 +68,6 @@ class _Forecast:
 class _LimitJob:
     stamp_s: float
     steps: Generator
-    margin: bool                  # a forecast tick: the continuous limit is computed here too
 
 
 class Outlook:
@@ -169,16 +169,14 @@ class Outlook:
                                          self.lim.fallback_current_A, why))
             return
         held = self.held_duty()
-        steps = limit_steps(copy_model(saved), held, ambient_K, sigma_K, self.limits_C,
+        steps = limit_steps(saved, held, ambient_K, sigma_K, self.limits_C,
                             self.lim.k_sigma, self.lim.horizons_s, self.lim.period_s,
                             self.cfg.motor.peak_current_A)
         if margin:
             steps = self._with_margin(steps, copy_model(saved), held, ambient_K, sigma_K)
-        self._jobs.append(_LimitJob(stamp_s, steps, margin))
+        self._jobs.append(_LimitJob(stamp_s, steps))
         while len(self._jobs) > MAX_LIMIT_JOBS:
-            drop = next((j for j in self._jobs if not j.margin), self._jobs[0])
-            self._jobs.remove(drop)
-            self._behind(drop.stamp_s)
+            self._behind(self._jobs.popleft().stamp_s)
         if self.inline:
             self.run(math.inf)
 

@@ -306,7 +306,7 @@ class EHAModel:
 
     # ------------------------------------------------------------------ step
     def step(self, b: SampleBlock, ambient_K: float,
-             max_substep_s: Optional[float] = None) -> None:
+             max_substep_s: Optional[float] = None, exact_coefficients: bool = False) -> None:
         """
         Advance the coupled model over one block of samples.
 
@@ -315,7 +315,8 @@ class EHAModel:
         forecast) is then one exact motor step. A block longer than the case
         buffer's time constant refreshes the motor's coefficients exactly: the
         1 % tolerance on the motor's flow, integrated over minutes, would
-        drain or flood the 40 mL of case oil.
+        drain or flood the 40 mL of case oil; ``exact_coefficients`` does it
+        for any block (a probe of the present state, past the filters).
         """
         if self._last is None:
             raise RuntimeError('initialise the model with a first sample before stepping')
@@ -338,7 +339,7 @@ class EHAModel:
                         oil_flow_m3_s=q_drive, ambient_K=ambient_K, case_pressure_Pa=p_case,
                         current_A=b.current_A)
         self.motor.step(dt, u, max_substep_s=max_substep_s,
-                        exact_coefficients=dt > self.buffer_time_s)
+                        exact_coefficients=exact_coefficients or dt > self.buffer_time_s)
         m = self.motor
         # the enthalpy flow the motor network used decides the flow through the motor;
         # the rest of the leakage bypasses it, so the loop's mass balance is exact
