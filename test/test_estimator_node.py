@@ -513,3 +513,35 @@ def test_whatif_is_answered_while_the_estimates_go_on(rig):
           f'worker); estimates {rate_before:.1f}/s before, {rate_during:.1f}/s during, longest '
           f'gap {gaps.max() * 1e3:.0f} ms')
     assert rate_during > 0.8 * rate_before and gaps.max() < 0.5
+
+
+def test_whatif_command_asks_the_running_estimator(rig, tmp_path, capsys):
+    """``wet-eha-thermal whatif`` without --bag gets its answer from the node over ROS."""
+    from wet_eha_thermal import cli
+
+    assert rig.feed(10.0, until=lambda: len(rig.estimates['oil']) > 20)
+    done = []
+    worker = threading.Thread(target=lambda: done.append(cli.main([
+        'whatif', '--stage', '3', '--duration', '120', '--timeout', '60',
+        '--out', str(tmp_path)])))
+    worker.start()
+    assert rig.feed(60.0, until=lambda: done)
+    worker.join(timeout=5.0)
+    assert done == [0]
+    text = capsys.readouterr().out
+    assert 'What-if from live estimator (its state at sample time ' in text
+    assert '): stage 3' in text and 'not within the run' in text
+    stamp = float(text.split('sample time ')[1].split(' s)')[0])
+    first = np.genfromtxt(tmp_path / 'whatif.csv', delimiter=',', names=True)[0]
+    assert first['time_s'] == 0.0
+    # it starts from the estimate the node published for that sample time
+    at = next(m for m in rig.estimates['oil'] if abs(_stamps([m])[0] - stamp) < 1e-5)
+    assert first['oil_C'] == pytest.approx(at.temperature, abs=1e-4)
+
+
+def test_whatif_command_says_when_no_estimator_answers(tmp_path, capsys):
+    from wet_eha_thermal import cli
+
+    assert cli.main(['whatif', '--stage', '6', '--topic-prefix', '/nobody_here',
+                     '--out', str(tmp_path)]) == 2
+    assert 'no estimator subscribes to /nobody_here/whatif/request' in capsys.readouterr().err

@@ -22,6 +22,7 @@ import copy
 from dataclasses import dataclass, field
 import json
 import math
+from pathlib import Path
 import time
 from typing import Any, Dict, Mapping, Optional, Sequence, Tuple, Union
 
@@ -37,6 +38,7 @@ from ..model import quantity_table
 from ..model.eha import EHAModel
 from ..model.kinetics import Duty, DutyError, L_MIN, MPA, stage_duty, STAGES, TableDuty
 from ..model.oil import OIL_GRADES
+from ..output_files import atomic, save_figure
 from ..units import C_TO_K
 
 #: The longest what-if (s): a day of model time costs minutes of a core.
@@ -380,3 +382,57 @@ def what_if(cfg: Config, request: WhatIfRequest, model: Optional[EHAModel] = Non
 def model_outputs(cfg: Config) -> Tuple[str, ...]:
     """Return the names of the model's outputs: the quantities a what-if may ask for."""
     return EHAModel(cfg).quantities.names
+
+
+# ------------------------------------------------------------------ outputs
+def format_answer(answer: Mapping[str, Any]) -> str:
+    """Return an answer's peaks and times to the limits as a fixed-width table."""
+    if not answer['ok']:
+        return f'what-if {answer["id"]!r} not run: {answer["error"]}'
+    head = f'{"quantity":<20} {"peak":>7} {"at":>8} {"limit":>6}  limit reached'
+    stamp = answer['start_stamp_s']
+    state = '' if stamp is None else f' (its state at sample time {stamp:.6f} s)'
+    lines = [f'What-if from {answer["source"]}{state}: {answer["duty"]}, '
+             f'{answer["duration_s"]:g} s at ambient {answer["ambient_C"]:g} degC '
+             f'({answer["wall_s"]:.1f} s to compute)',
+             head, f'{"":<20} {"degC":>7} {"s":>8} {"degC":>6}', '-' * len(head)]
+    for q, peak in answer['peaks_C'].items():
+        limit = answer['limits_C'].get(q)
+        reached = answer['time_to_limit_s'].get(q)
+        when = '' if limit is None else ('not within the run' if reached is None
+                                         else f'at {reached:.0f} s')
+        lines.append(f'{quantity_table.label(q):<20} {peak:7.2f} {answer["peak_time_s"][q]:8.0f} '
+                     f'{"" if limit is None else f"{limit:6.0f}":>6}  {when}')
+    if answer['stopped']:
+        lines.append(f'stopped early: {answer["stopped"]}')
+    return '\n'.join(lines)
+
+
+def write_answer(answer: Mapping[str, Any], out_dir: Path) -> Tuple[Path, Path]:
+    """Write an answer's trajectories as whatif.csv and whatif.png in ``out_dir``; their paths."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    names = list(answer['temperatures_C'])
+    table = np.column_stack([answer['time_s']] + [answer['temperatures_C'][q] for q in names])
+    csv_path, png_path = out_dir / 'whatif.csv', out_dir / 'whatif.png'
+    with atomic(csv_path) as tmp:
+        np.savetxt(tmp, table, fmt=['%.6f'] + ['%.4f'] * len(names), delimiter=',',
+                   header=','.join(['time_s'] + [f'{q}_C' for q in names]), comments='')
+    fig, ax = plt.subplots(figsize=(10, 5.5))
+    minutes = np.asarray(answer['time_s']) / 60.0
+    for k, q in enumerate(names):
+        ax.plot(minutes, answer['temperatures_C'][q], lw=1.2, color=f'C{k % 10}',
+                label=quantity_table.label(q))
+        if q in answer['limits_C']:
+            ax.axhline(answer['limits_C'][q], ls='--', lw=0.8, color=f'C{k % 10}',
+                       label=quantity_table.LIMIT_LABELS[q])
+    ax.set_xlabel('time from the start state [min]')
+    ax.set_ylabel('degC')
+    ax.set_title(f'What-if from {answer["source"]}: {answer["duty"]}', fontsize=9)
+    ax.legend(fontsize=7, ncol=2)
+    ax.grid(alpha=0.3)
+    save_figure(fig, png_path)
+    return csv_path, png_path
