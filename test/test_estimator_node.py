@@ -470,3 +470,78 @@ def test_foxglove_view_shows_the_published_estimates(context):
         if client is not None:
             client.close()
         rig.close()
+
+
+def test_whatif_is_answered_while_the_estimates_go_on(rig):
+    """A what-if of half an hour runs beside the estimator: its estimates keep their rate."""
+    answers, arrivals = [], []
+    rig.probe.create_subscription(String, interface.WHATIF_RESPONSE_TOPIC,
+                                  lambda m: answers.append(json.loads(m.data)),
+                                  QoSProfile(depth=10))
+    rig.probe.create_subscription(Temperature, f'{interface.ESTIMATE_PREFIX}/frame',
+                                  lambda m: arrivals.append(time.monotonic()), 100)
+    pub = rig.probe.create_publisher(String, interface.WHATIF_REQUEST_TOPIC,
+                                     QoSProfile(depth=10))
+    end = time.monotonic() + 10.0
+    while pub.get_subscription_count() == 0 and time.monotonic() < end:
+        rig.spin(0.01)
+    # no sample yet: nothing to start from, said at once
+    pub.publish(String(data='{"id": "early", "stage": 6, "duration_s": 60}'))
+    end = time.monotonic() + 10.0
+    while not answers and time.monotonic() < end:
+        rig.spin(0.01)
+    assert answers and answers[0]['id'] == 'early' and 'no state yet' in answers[0]['error']
+    assert rig.feed(10.0, until=lambda: len(arrivals) > 100)
+    before = len(arrivals)
+    rig.feed(2.0)
+    t0 = time.monotonic()
+    rate_before = (len(arrivals) - before) / 2.0
+    pub.publish(String(data='{"id": "hour", "stage": 6, "duration_s": 1800}'))
+    pub.publish(String(data='{"id": "second", "stage": 6, "duration_s": 60}'))
+    assert rig.feed(120.0, until=lambda: any(a['id'] == 'hour' for a in answers))
+    t1 = time.monotonic()
+    by_id = {a['id']: a for a in answers}
+    assert "busy: what-if 'hour'" in by_id['second']['error']
+    hour = by_id['hour']
+    assert hour['ok'] and hour['time_s'][-1] == 1800.0 and hour['source'] == 'live estimator'
+    assert hour['start_stamp_s'] is not None and set(hour['temperatures_C']) == set(
+        interface.ESTIMATES)
+    during = [t for t in arrivals if t0 <= t <= t1]
+    rate_during = len(during) / (t1 - t0)
+    gaps = np.diff(during)
+    print(f'what-if of 30 min of stage 6: {t1 - t0:.1f} s wall ({hour["wall_s"]:.1f} s in the '
+          f'worker); estimates {rate_before:.1f}/s before, {rate_during:.1f}/s during, longest '
+          f'gap {gaps.max() * 1e3:.0f} ms')
+    assert rate_during > 0.8 * rate_before and gaps.max() < 0.5
+
+
+def test_whatif_command_asks_the_running_estimator(rig, tmp_path, capsys):
+    """``wet-eha-thermal whatif`` without --bag gets its answer from the node over ROS."""
+    from wet_eha_thermal import cli
+
+    assert rig.feed(10.0, until=lambda: len(rig.estimates['oil']) > 20)
+    done = []
+    worker = threading.Thread(target=lambda: done.append(cli.main([
+        'whatif', '--stage', '3', '--duration', '120', '--timeout', '60',
+        '--out', str(tmp_path)])))
+    worker.start()
+    assert rig.feed(60.0, until=lambda: done)
+    worker.join(timeout=5.0)
+    assert done == [0]
+    text = capsys.readouterr().out
+    assert 'What-if from live estimator (its state at sample time ' in text
+    assert '): stage 3' in text and 'not within the run' in text
+    stamp = float(text.split('sample time ')[1].split(' s)')[0])
+    first = np.genfromtxt(tmp_path / 'whatif.csv', delimiter=',', names=True)[0]
+    assert first['time_s'] == 0.0
+    # it starts from the estimate the node published for that sample time
+    at = next(m for m in rig.estimates['oil'] if abs(_stamps([m])[0] - stamp) < 1e-5)
+    assert first['oil_C'] == pytest.approx(at.temperature, abs=1e-4)
+
+
+def test_whatif_command_says_when_no_estimator_answers(tmp_path, capsys):
+    from wet_eha_thermal import cli
+
+    assert cli.main(['whatif', '--stage', '6', '--topic-prefix', '/nobody_here',
+                     '--out', str(tmp_path)]) == 2
+    assert 'no estimator subscribes to /nobody_here/whatif/request' in capsys.readouterr().err

@@ -25,6 +25,8 @@ from wet_eha_thermal.estimator.core import Estimator
 from wet_eha_thermal.live_view import (address_text, app_url, BAND_SIGMAS, CHANNELS, LiveView,
                                        parse_address, PENDING_ESTIMATES, view_topics)
 from wet_eha_thermal.model.quantity_table import LIMITED
+from wet_eha_thermal.offline.whatif import model_outputs, parse_request
+from wet_eha_thermal.offline.whatif_worker import run_request
 from wet_eha_thermal.ros.recorder_node import recorded_topics
 from wet_eha_thermal.ros.topics import message_class
 
@@ -110,7 +112,8 @@ def view():
                  thermocouples=interface.THERMOCOUPLES, inputs_rate_Hz=20.0,
                  parameters={'publish_rate_Hz': 50.0, 'alerts.oil.warn_C': 21.0,
                              'topic_prefix': '/eha'},
-                 settable={'publish_rate_Hz': (1.0, 500.0)})
+                 settable={'publish_rate_Hz': (1.0, 500.0)},
+                 whatif_request_topic=interface.WHATIF_REQUEST_TOPIC)
     yield v
     v.close()
 
@@ -194,7 +197,7 @@ def _conforms(value, schema, where):
     kinds = schema.get('type')
     kinds = kinds if isinstance(kinds, list) else [kinds]
     python = {'object': dict, 'number': (int, float), 'integer': int, 'string': str,
-              'boolean': bool, 'null': type(None)}
+              'boolean': bool, 'null': type(None), 'array': list}
     assert any(isinstance(value, python[k]) and not (k in ('number', 'integer')
                                                      and isinstance(value, bool))
                for k in kinds), f'{where}: {value!r} is not {kinds}'
@@ -204,6 +207,9 @@ def _conforms(value, schema, where):
         assert set(value) == set(schema['properties']), where
         for k, v in value.items():
             _conforms(v, schema['properties'][k], f'{where}.{k}')
+    if isinstance(value, list):
+        for k, v in enumerate(value):
+            _conforms(v, schema['items'], f'{where}[{k}]')
 
 
 def test_address_parsing_and_url():
@@ -226,7 +232,7 @@ def test_taken_port_is_a_clear_error(view):
 def test_channels_and_schemas_are_advertised(view):
     client = _advertised(view)
     try:
-        assert 'parameters' in client.info['capabilities']
+        assert {'parameters', 'clientPublish'} <= set(client.info['capabilities'])
         for name, topic in view_topics().items():
             c = client.channels[topic]
             assert c['encoding'] == 'json' and c['schemaEncoding'] == 'jsonschema'
@@ -256,7 +262,7 @@ def test_messages_match_the_estimates(view, run):
         client.close()
     by_step = {e.step: (e, measured) for e, measured, _ in items}
     for name, topic in names.items():
-        if name == 'recorder':      # only when the recorder reports: its own test
+        if name in ('recorder', 'whatif'):      # only when they report: their own tests
             continue
         got = client.messages(topic)
         assert got, f'nothing on {topic}'
@@ -484,6 +490,12 @@ def test_live_layout_names_only_channels_of_the_view(view):
     assert {'Plot', 'Gauge', 'Indicator', 'Table', 'StateTransitions'} <= panels
     # every channel of the view is shown somewhere
     assert {split_path(p)[0] for p in paths} == set(by_topic)
+    # what-ifs are asked for where the estimator takes them, as a std_msgs/String of a request
+    publish = layout['configById']['Publish!whatif']
+    assert publish['topicName'] == interface.WHATIF_REQUEST_TOPIC
+    assert publish['datatype'] == 'std_msgs/String'
+    assert parse_request(json.loads(publish['value'])['data'], load_config(),
+                         interface.ESTIMATES).stage == 6
 
 
 def test_replay_layout_names_only_recorded_topics():
@@ -530,4 +542,42 @@ def test_the_recorder_health_is_shown_at_once_and_a_fault_is_an_event(view, run)
         assert {k: m[k] for k in sent if k in m} == {k: v for k, v in sent.items() if k in m}
     event = next(m for _, m in client.messages(names['events']) if 'recorder' in m['message'])
     assert event['level'] == 4 and 'disk full' in event['message']
+    assert view.errors == 0, view.last_error
+
+
+def test_a_client_asks_for_a_whatif_and_sees_the_answer(view, run):
+    """A request published by a client reaches the owner; the answer is shown as arrays."""
+    client = _advertised(view)
+    names = view_topics()
+    request = '{"id": "fox", "stage": 6, "duration_s": 60, "quantities": ["oil", "frame"]}'
+    try:
+        client.subscribe([names['whatif']])
+        _wait(lambda: view.watched() == ['whatif'])
+        # as Foxglove's Publish panel sends a std_msgs/String on a JSON channel
+        client.ws.send(json.dumps({'op': 'advertise', 'channels': [{
+            'id': 7, 'topic': interface.WHATIF_REQUEST_TOPIC, 'encoding': 'json',
+            'schemaName': 'std_msgs/String'}]}))
+        taken = []
+        _wait(lambda: taken.extend(view.take_whatif_requests()) or taken
+              or client.ws.send(struct.pack('<BI', 1, 7) + json.dumps({'data': request})
+                                .encode()) or time.sleep(0.1))
+        assert taken[0] == request
+        _offer(view, run[:2])
+        cfg = load_config()
+        answer = run_request(taken[0], cfg, model_outputs(cfg), None, 20.0, 'cold', None)
+        view.offer_whatif(answer)
+        view.offer_whatif('{"id": "x", "ok": false, "error": "busy"}')
+        client.read(lambda: len(client.messages(names['whatif'])) == 2)
+    finally:
+        client.close()
+    (log_time, shown), (_, error) = client.messages(names['whatif'])
+    for m in (shown, error):
+        _conforms(m, view.schemas['whatif'], names['whatif'])
+    assert log_time == round(run[1][0].stamp_s * 1e9)
+    data = json.loads(answer)
+    assert shown['id'] == 'fox' and shown['ok'] and shown['time_min'][-1] == 1.0
+    assert shown['temperatures_C']['oil'] == data['temperatures_C']['oil']
+    assert shown['temperatures_C']['winding_hotspot'] == []      # not asked for
+    assert shown['time_to_limit_s'] == data['time_to_limit_s']
+    assert error['error'] == 'busy' and error['time_min'] == [] and error['peaks_C']['oil'] is None
     assert view.errors == 0, view.last_error

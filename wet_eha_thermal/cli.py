@@ -611,6 +611,144 @@ def _calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_whatif_parser(sub) -> None:
+    """Add the ``whatif`` command: what a duty does from the live state, a bag's, or cold."""
+    p = sub.add_parser('whatif', help='what a duty does from where the actuator is now',
+                       description='Run a duty from the state of a running estimator (asked '
+                                   'over ROS, on this ROS_DOMAIN_ID), from the last state of a '
+                                   'recorded bag (--bag, replayed first) or cold (--cold); print '
+                                   'the peaks and when each limit is reached; write whatif.csv '
+                                   'and whatif.png.')
+    which = p.add_mutually_exclusive_group(required=True)
+    which.add_argument('--stage', type=int, default=None, help='reference stage number (1-6)')
+    which.add_argument('--duty', type=Path, metavar='FILE.csv',
+                       help='duty table: time_s, flow_L_min, load_MPa (repeats periodically)')
+    which.add_argument('--samples', type=Path, metavar='FILE.csv',
+                       help='sensor table: time_s, current_A, speed_rad_s, p_a_Pa, p_b_Pa, '
+                            'p_acc_Pa[, position_m], SI units (repeats periodically)')
+    start = p.add_mutually_exclusive_group()
+    start.add_argument('--bag', type=Path, default=None, metavar='PATH',
+                       help='start from the last state of this bag (an MCAP file or a bag '
+                            'directory), replayed through the estimator')
+    start.add_argument('--cold', action='store_true',
+                       help='start cold: every temperature at the ambient')
+    p.add_argument('--duration', type=float, default=3600.0,
+                   help='time to run the duty, s (default: %(default)g)')
+    p.add_argument('--ambient-C', type=float, default=None,
+                   help="ambient temperature, degC (default: the estimator's; cold: 20)")
+    p.add_argument('--dt', type=float, default=None, help='thermal model step, s (default: 1)')
+    p.add_argument('--config', type=Path, default=None,
+                   help='YAML configuration for --bag and --cold (default: stored in the bag, '
+                        'else the reference rig)')
+    p.add_argument('--topic-prefix', default=interface.PREFIX,
+                   help="the estimator's topic_prefix (default: %(default)s)")
+    p.add_argument('--timeout', type=float, default=300.0,
+                   help="how long to wait for the estimator's answer, s (default: %(default)g)")
+    p.add_argument('--out', default='out/whatif', help='output folder (default: %(default)s)')
+    p.set_defaults(func=_whatif)
+
+
+def _whatif_request(args: argparse.Namespace, cfg) -> dict:
+    """Return the request of the command line (the duty's files read and checked)."""
+    from .model.kinetics import L_MIN, load_duty_csv, MPA
+    from .offline.simulation import SENSORS
+
+    request = {'id': f'cli-{time.time_ns()}', 'duration_s': args.duration}
+    if args.ambient_C is not None:
+        request['ambient_C'] = args.ambient_C
+    if args.dt is not None:
+        request['dt_s'] = args.dt
+    if args.stage is not None:
+        request['stage'] = args.stage
+    elif args.duty is not None:
+        act = cfg.hydraulics.actuator
+        t, q, dp = load_duty_csv(args.duty, act.area_m2, act.half_stroke_m).rows()
+        request['table'] = {'time_s': t.tolist(), 'flow_L_min': (q / L_MIN).tolist(),
+                            'load_MPa': (dp / MPA).tolist()}
+    else:
+        request['samples'] = _read_samples(args.samples, ('time_s',) + SENSORS)
+    return request
+
+
+def _read_samples(path: Path, columns: Tuple[str, ...]) -> dict:
+    """Return the named columns of a CSV of numbers (``position_m`` may be left out)."""
+    import numpy as np
+
+    try:
+        # comment lines dropped first: genfromtxt would take one before the header for it
+        lines = [ln for ln in path.read_text().splitlines()
+                 if ln.strip() and not ln.lstrip().startswith('#')]
+        data = np.genfromtxt(lines, delimiter=',', names=True, ndmin=1)
+    except (OSError, ValueError) as exc:
+        raise BadArgument(f'--samples {path}: cannot read it: {exc}') from None
+    names = data.dtype.names or ()
+    table = {}
+    for name in columns:
+        if name not in names:
+            if name == 'position_m':
+                continue
+            raise BadArgument(f'--samples {path}: missing column {name!r}; the header has '
+                              f'{", ".join(names)}')
+        values = np.atleast_1d(data[name])
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            raise BadArgument(f'--samples {path}: column {name!r}, data row {bad[0] + 1}: not '
+                              'a finite number')
+        table[name] = values.tolist()
+    return table
+
+
+def _whatif(args: argparse.Namespace) -> int:
+    import json
+    import pickle
+
+    from .offline.whatif import format_answer, model_outputs, write_answer
+    from .offline.whatif_worker import run_request
+
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise BadArgument(f'--out {out}: exists and is not a folder')
+    if args.bag is None and not args.cold:
+        cfg = load_config(args.config)
+        request = _whatif_request(args, cfg)
+        from .ros.whatif_client import ask, NoAnswer
+        print(f'asking the estimator on {args.topic_prefix}/whatif/request ...', flush=True)
+        try:
+            text = ask(json.dumps(request), request['id'], args.topic_prefix, args.timeout)
+        except NoAnswer as exc:
+            raise BadArgument(str(exc)) from None
+    elif args.cold:
+        cfg = load_config(args.config)
+        text = run_request(json.dumps(_whatif_request(args, cfg)), cfg, model_outputs(cfg),
+                           None, 20.0, 'cold', None)
+    else:
+        from .estimator.core import Estimator
+        from .offline import replay as rp
+        from .units import C_TO_K
+
+        try:
+            plan = rp.ReplayOptions(config_path=args.config).plan(args.bag)
+            est = Estimator(plan.cfg)
+            print(f'replaying {args.bag} for its last state ...', flush=True)
+            rp.replay(plan, estimator=est)
+        except (rp.ReplayError, rp.BagError) as exc:
+            raise BadArgument(str(exc)) from None
+        text = run_request(json.dumps(_whatif_request(args, plan.cfg)), plan.cfg,
+                           est.model.quantities.names, pickle.dumps(est.model),
+                           est.ambient_K - C_TO_K, f'the last state of {args.bag}', est.t_model)
+    answer = json.loads(text)
+    print(format_answer(answer))
+    if not answer['ok']:
+        return 2
+    try:
+        files = write_answer(answer, out)
+    except OSError as exc:
+        raise BadArgument(f'--out {out}: cannot write the results: {exc.strerror or exc}') \
+            from None
+    print('wrote ' + ', '.join(str(f) for f in files))
+    return 0
+
+
 def _add_play_parser(sub) -> None:
     """Add the ``play`` command: the bag player."""
     # parsed by the player itself (main() hands it everything after 'play')
@@ -626,7 +764,7 @@ def build_parser() -> argparse.ArgumentParser:
         description='Thermal digital twin of a wet electro-hydrostatic actuator.')
     sub = parser.add_subparsers(dest='command', required=True)
     for add in (_add_maps_parser, _add_simulate_parser, _add_live_parser, _add_replay_parser,
-                _add_calibrate_parser, _add_play_parser):
+                _add_calibrate_parser, _add_whatif_parser, _add_play_parser):
         add(sub)
     return parser
 

@@ -100,6 +100,19 @@ RECORDER_HEALTH_TOPIC = f'{PREFIX}/recorder/health'
 #: shortest horizon's, or the fallback) as a std_msgs/Float64 for the simplest drive
 CURRENT_LIMITS_TOPIC = f'{PREFIX}/current_limits'
 CURRENT_LIMIT_TOPIC = f'{PREFIX}/current_limit'
+#: What-if from the live state (docs/live.md#what-if-from-the-live-state), std_msgs/String JSON
+#: both ways, reliable and volatile. The request: {"id": text, one duty of "stage" (1..6),
+#: "table" {"time_s", "flow_L_min", "load_MPa": [...]} or "samples" {"time_s", "current_A",
+#: "speed_rad_s", "p_a_Pa", "p_b_Pa", "p_acc_Pa"[, "position_m"]: [...]} (each repeats with its
+#: last time as the period), "duration_s" (<= 86400), optionally "ambient_C" (default: the
+#: estimator's), "dt_s", "sample_rate_Hz", "record_every_s", "quantities" [names]}. The answer,
+#: with the request's "id": {"id", "ok", "error" (null, or why it did not run), "source",
+#: "start_stamp_s" (sample time of the state it starts from), "duty", "duration_s", "dt_s",
+#: "ambient_C", "stopped" (null, or why it ended early), "wall_s", "time_s": [...] (from the
+#: start; the first point is the start state), "temperatures_C": {name: [...]}, "peaks_C",
+#: "peak_time_s", "limits_C", "time_to_limit_s": {limited quantity: s, or null: not within}}
+WHATIF_REQUEST_TOPIC = f'{PREFIX}/whatif/request'
+WHATIF_RESPONSE_TOPIC = f'{PREFIX}/whatif/response'
 DIAGNOSTICS_TOPIC = '/diagnostics'
 #: Splits of ``live``'s recording (``--max-bag-duration``, ``--max-bag-size``): a new file
 #: every 10 minutes or 1 GiB, whichever comes first. A file is strictly readable (the mcap

@@ -26,7 +26,14 @@ default; see :data:`CHANNELS`):
 - ``recorder``: the recorder's health (its level, state, what it wrote and
   dropped, the write rate, the free space and the time it leaves, the file
   being written, its errors), as the recorder reports it: at 1 Hz and at
-  once on a change; a change of level is also an event.
+  once on a change; a change of level is also an event;
+- ``whatif``: the last what-if answer (:meth:`LiveView.offer_whatif`), its
+  trajectories as arrays over ``time_min`` for a Plot panel, when it comes.
+
+A client may publish what-if requests (Foxglove's Publish panel) on the
+request topic the owner names: the view queues their text for the owner
+(:meth:`LiveView.take_whatif_requests`), which runs them as it runs those of
+ROS, and offers the answer back.
 
 Every message is stamped with the estimate's sample time (``timestamp`` and
 the WebSocket log time), never the wall clock, so all channels share one
@@ -81,7 +88,10 @@ CHANNELS = {
     'input_health': SCHEMA_PREFIX + 'InputHealth',
     'thermocouples': SCHEMA_PREFIX + 'Thermocouples',
     'recorder': SCHEMA_PREFIX + 'Recorder',
+    'whatif': SCHEMA_PREFIX + 'WhatIf',
 }
+#: What-if requests from clients waiting for the owner at most (it runs one at a time).
+PENDING_REQUESTS = 4
 #: Recorder health levels (as diagnostic_msgs has them) and their foxglove.Log levels.
 RECORDER_LEVELS = ('OK', 'WARN', 'ERROR')
 
@@ -200,12 +210,35 @@ def schemas(estimates: Sequence[str], limited: Sequence[str], inputs: Sequence[s
             'last_error': {'type': 'string'},
             'file': {'type': ['string', 'null'], 'description': 'file being written'},
             'files': {'type': 'integer'}}),
+        'whatif': _whatif_schema(estimates, limited),
         'thermocouples': _obj(CHANNELS['thermocouples'], 'thermocouples beside their estimates '
                               '(null: no reading yet)', {
                                   **head, **{t: _group(f'{t} measures {q}', tc,
                                                        nullable=tuple(tc)) for t, q in
                                              thermocouples.items()}}),
     }
+
+
+def _whatif_schema(estimates: Sequence[str], limited: Sequence[str]) -> Dict[str, Any]:
+    """Return the schema of the what-if channel: an answer's trajectories as arrays."""
+    series = {'type': 'array', 'items': _NUMBER}
+    text = {'type': ['string', 'null']}
+    return _obj(CHANNELS['whatif'], 'the last what-if answer (an error: empty arrays)', {
+        'timestamp': _TIME, 'id': {'type': 'string'}, 'ok': {'type': 'boolean'},
+        'error': dict(text, description='why it did not run; null: it ran'),
+        'source': text, 'duty': text,
+        'start_stamp_s': dict(_MAYBE_NUMBER, description='sample time of the start state, s'),
+        'duration_s': _MAYBE_NUMBER, 'ambient_C': _MAYBE_NUMBER,
+        'stopped': dict(text, description='why it ended early; null: it ran to the end'),
+        'time_min': dict(series, description='time from the start state, min'),
+        'temperatures_C': {'type': 'object', 'properties': {
+            n: dict(series, description=f'{n}, degC (empty: not asked for)')
+            for n in estimates}},
+        'peaks_C': _group('peak of each quantity asked for, degC', dict.fromkeys(
+            estimates, 'degC'), nullable=estimates),
+        'limits_C': _group('limits, degC', dict.fromkeys(limited, 'degC'), nullable=limited),
+        'time_to_limit_s': _group('time from the start to the limit, s; null: not within',
+                                  dict.fromkeys(limited, 's'), nullable=limited)})
 
 
 def _num(x: Optional[float]) -> Optional[float]:
@@ -237,6 +270,17 @@ class _Listener(ServerListener):
                           request_id: Optional[str] = None) -> List[Parameter]:
         return self.view._set_requested(parameters)
 
+    def on_client_advertise(self, client, channel) -> None:
+        if channel.topic == self.view.whatif_request_topic:
+            self.view._request_channels.add((client.id, channel.id))
+
+    def on_client_unadvertise(self, client, client_channel_id: int) -> None:
+        self.view._request_channels.discard((client.id, client_channel_id))
+
+    def on_message_data(self, client, client_channel_id: int, data: bytes) -> None:
+        if (client.id, client_channel_id) in self.view._request_channels:
+            self.view._take_request(data)
+
 
 class LiveView:
     """
@@ -249,7 +293,8 @@ class LiveView:
     thermocouple -> the estimate it measures; ``prefix``: replaces ``/eha`` in
     the topics. ``parameters``: read-only values to show; ``settable``:
     name -> ``(low, high)`` of the numbers Foxglove may set (shown with
-    their current values from ``parameters``).
+    their current values from ``parameters``). ``whatif_request_topic``:
+    where clients may publish what-if requests (None: nowhere).
     """
 
     def __init__(self, host: str, port: int, *, estimates: Sequence[str],
@@ -257,6 +302,7 @@ class LiveView:
                  thermocouples: Mapping[str, str], inputs_rate_Hz: float = 20.0,
                  prefix: str = '/eha', parameters: Optional[Mapping[str, Any]] = None,
                  settable: Optional[Mapping[str, Tuple[float, float]]] = None,
+                 whatif_request_topic: Optional[str] = None,
                  name: str = 'wet_eha_thermal live view') -> None:
         self.estimates = tuple(estimates)
         self.limited = tuple(limited)
@@ -269,12 +315,18 @@ class LiveView:
         self._settable = dict(settable or {})
         self._requests: Dict[str, float] = {}
         self._lock = threading.Lock()         # the parameters: the server's thread and ours
+        self.whatif_request_topic = whatif_request_topic
+        self._request_channels: set = set()   # (client, channel) publishing requests
+        self._whatif_requests: Deque[str] = deque(maxlen=PENDING_REQUESTS)
+        capabilities = [Capability.Parameters]
+        if whatif_request_topic is not None:
+            capabilities.append(Capability.ClientPublish)
         # a context of its own: channels of one view never meet another's (tests run several)
         self._context = Context()
         self.server = foxglove.start_server(
             name=name, host=host, port=port, context=self._context,
-            capabilities=[Capability.Parameters], server_listener=_Listener(self),
-            message_backlog_size=BACKLOG_MESSAGES)
+            capabilities=capabilities, server_listener=_Listener(self),
+            supported_encodings=['json'], message_backlog_size=BACKLOG_MESSAGES)
         self.port = self.server.port
         self.host = host
         self._channels = {n: Channel(self.topics[n], schema=self.schemas[n],
@@ -283,6 +335,7 @@ class LiveView:
         self._estimates: Deque[tuple] = deque(maxlen=PENDING_ESTIMATES)
         self._summaries: Deque[dict] = deque(maxlen=PENDING_SUMMARIES)
         self._recorder: Deque[dict] = deque(maxlen=PENDING_SUMMARIES)
+        self._whatif: Deque[str] = deque(maxlen=PENDING_REQUESTS)
         self._recorder_level: Optional[str] = None
         self._health: Optional[Dict[str, Tuple[int, int]]] = None
         self._wake = threading.Event()
@@ -327,6 +380,18 @@ class LiveView:
         """Hand over the recorder's health as it published it (shown at once)."""
         self._recorder.append(dict(health))
         self._wake.set()
+
+    def offer_whatif(self, answer: str) -> None:
+        """Hand over a what-if answer (JSON text) as published; the worker parses it."""
+        self._whatif.append(answer)
+        self._wake.set()
+
+    def take_whatif_requests(self) -> List[str]:
+        """Return the what-if requests (JSON text) clients published since the last call."""
+        taken = []
+        while self._whatif_requests:
+            taken.append(self._whatif_requests.popleft())
+        return taken
 
     def offer_health(self, counts: Mapping[str, Tuple[int, int]]) -> None:
         """Hand over the inputs' ``(received, rejected)`` counts (shown with the next inputs)."""
@@ -384,17 +449,36 @@ class LiveView:
             self.server.publish_status('; '.join(refused), StatusLevel.Warning)
         return self._parameters([p.name for p in parameters])
 
+    def _take_request(self, data: bytes) -> None:
+        """
+        Queue a client's what-if request: a std_msgs/String as JSON, or the request itself.
+
+        Foxglove's Publish panel sends ``{"data": "<request>"}`` for a String;
+        anything else is passed on as it is, for the owner to answer.
+        """
+        text = data.decode('utf-8', errors='replace')
+        try:
+            message = json.loads(text)
+        except ValueError:
+            message = None
+        if isinstance(message, dict) and set(message) == {'data'} \
+                and isinstance(message['data'], str):
+            text = message['data']
+        self._whatif_requests.append(text)
+
     # --------------------------------------------------------- the worker
     def _run(self) -> None:
         while not self._stop:
             self._wake.wait()
             self._wake.clear()
-            while self._summaries or self._recorder or self._estimates:
+            while self._summaries or self._recorder or self._whatif or self._estimates:
                 try:
                     if self._summaries:
                         self._on_summary(self._summaries.popleft())
                     elif self._recorder:
                         self._on_recorder(self._recorder.popleft())
+                    elif self._whatif:
+                        self._on_whatif(json.loads(self._whatif.popleft()))
                     else:
                         self._on_estimate(*self._estimates.popleft())
                         self.shown += 1
@@ -434,6 +518,23 @@ class LiveView:
             self._log('recorder', {'timestamp': _time(stamp),
                                    **{k: health.get(k) for k in fields if k != 'timestamp'}},
                       stamp)
+
+    def _on_whatif(self, answer: dict) -> None:
+        """Show a what-if answer, on the estimates' time line (the last estimate's stamp)."""
+        stamp = self._last_stamp or 0.0
+        series = answer.get('temperatures_C') or {}
+        peaks = answer.get('peaks_C') or {}
+        self._log('whatif', {
+            'timestamp': _time(stamp), 'id': str(answer.get('id', '')),
+            'ok': bool(answer.get('ok')), 'error': answer.get('error'),
+            **{k: answer.get(k) for k in ('source', 'duty', 'start_stamp_s', 'duration_s',
+                                          'ambient_C', 'stopped')},
+            'time_min': [t / 60.0 for t in answer.get('time_s') or []],
+            'temperatures_C': {n: series.get(n, []) for n in self.estimates},
+            'peaks_C': {n: peaks.get(n) for n in self.estimates},
+            'limits_C': {q: (answer.get('limits_C') or {}).get(q) for q in self.limited},
+            'time_to_limit_s': {q: (answer.get('time_to_limit_s') or {}).get(q)
+                                for q in self.limited}}, stamp)
 
     def _on_estimate(self, est, measured: Mapping[str, Tuple[float, float]]) -> None:
         t = est.stamp_s

@@ -220,6 +220,10 @@ class TableDuty(Duty):
         self.peak_position_m = peak
         self._check_stroke(half_stroke_m, f'piston area {self.area_m2 * 1e6:.1f} mm^2')
 
+    def rows(self) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Return copies of the table: ``(time_s, flow_m3_s, load_dp_Pa)`` at its nodes."""
+        return self._t.copy(), self._q.copy(), self._dp.copy()
+
     def _position(self, tm: np.ndarray, idx: np.ndarray) -> np.ndarray:
         tau = tm - self._t[idx]
         vol = self._vol[idx] + tau * (self._q[idx] + 0.5 * self._q_slope[idx] * tau)

@@ -311,7 +311,8 @@ def _correction_summary(est: Estimator) -> Optional[dict]:
 
 def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
            on_progress: Optional[Callable[[float, float, float], None]] = None,
-           plot_interval_s: float = 0.1, prefetch: bool = True) -> ReplayResult:
+           plot_interval_s: float = 0.1, prefetch: bool = True,
+           estimator: Optional[Estimator] = None) -> ReplayResult:
     """
     Run the estimator over the bag of ``plan`` in sample time; return the estimates.
 
@@ -319,9 +320,11 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
     the step rate). ``on_progress(fraction, sample_time_s, wall_s)`` is called
     after each block of about 10 s of log. ``prefetch``: read the bag in a
     forked child on another core (the same numbers either way; see
-    :class:`~.bag.reader.ColumnBlocks`).
+    :class:`~.bag.reader.ColumnBlocks`). ``estimator``: the one to run, new
+    on ``plan.cfg`` (the default), kept by the caller to start from its last
+    state (a what-if from a bag).
     """
-    est = Estimator(plan.cfg)
+    est = estimator if estimator is not None else Estimator(plan.cfg)
     step_s = plan.cfg.estimator.step_s
     every = max(1, int(round(1.0 / (output_rate_Hz * step_s))))
     rows: List[np.ndarray] = []

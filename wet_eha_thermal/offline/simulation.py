@@ -5,17 +5,20 @@ The kinetic model plays the rig: from a duty (a reference stage or a table)
 it makes the sensor signals at ``sample_rate_Hz``, using the thermal model's
 present oil temperatures for viscosity and its airgap friction. The thermal
 model then consumes those samples block by block exactly as the live
-estimator consumes the rig's, so an offline run exercises the same path.
+estimator consumes the rig's, so an offline run exercises the same path. A
+:class:`SensorTable` gives the sensor signals themselves instead of a duty.
 """
 
 from dataclasses import dataclass, field
-from typing import Callable, Dict, List, Optional
+import functools
+import math
+from typing import Callable, Dict, List, Mapping, Optional, Union
 
 import numpy as np
 
 from ..config import Config
-from ..model.eha import EHAModel
-from ..model.kinetics import Duty, KineticModel, ThermalFeedback
+from ..model.eha import EHAModel, SampleBlock
+from ..model.kinetics import Duty, DutyError, KineticModel, ThermalFeedback
 from ..units import C_TO_K
 
 SENSORS = ('current_A', 'speed_rad_s', 'p_a_Pa', 'p_b_Pa', 'p_acc_Pa', 'position_m')
@@ -52,6 +55,53 @@ class SimulationResult:
                 store.setdefault(k, []).append(v)
 
 
+class SensorTable:
+    """
+    A duty given as the sensor signals: time with current, speed, pressures (and position).
+
+    ``columns`` maps each of :data:`SENSORS` to its values at ``time_s`` (SI
+    units; ``position_m`` may be left out: the piston then stands still at
+    mid-stroke). The signals are linear between the rows and repeat with the
+    period ``time_s[-1]``, as a :class:`~.model.kinetics.TableDuty` does; the
+    table's time 0 is the model time ``start_s``. :func:`simulate` feeds them
+    to the thermal model as they are, without the kinetic model, so a run on
+    them has no electrical energy or load work (NaN). Raises
+    :class:`~.model.kinetics.DutyError` for a table it cannot use.
+    """
+
+    def __init__(self, time_s, columns: Mapping[str, object], start_s: float = 0.0,
+                 name: str = 'sensor table') -> None:
+        """Check the table; raise :class:`DutyError` naming the column at fault."""
+        self.name = str(name)
+        t = np.array(time_s, dtype=float)
+        if t.ndim != 1 or t.size < 2 or not np.all(np.isfinite(t)):
+            raise DutyError(f'{self.name}: time_s must hold at least 2 finite times')
+        if t[0] != 0.0 or np.any(np.diff(t) <= 0.0):
+            raise DutyError(f'{self.name}: time_s must start at 0 and increase strictly')
+        unknown = sorted(set(columns) - set(SENSORS))
+        if unknown:
+            raise DutyError(f'{self.name}: unknown column {unknown[0]!r}; the columns are '
+                            f'{", ".join(SENSORS)}')
+        self._values = {}
+        for name in SENSORS:
+            if name not in columns and name != 'position_m':
+                raise DutyError(f'{self.name}: missing column {name}')
+            v = np.array(columns.get(name, np.zeros(t.size)), dtype=float)
+            if v.shape != t.shape or not np.all(np.isfinite(v)):
+                raise DutyError(f'{self.name}: column {name} must hold {t.size} finite numbers, '
+                                'one per time')
+            self._values[name] = v
+        self._t = t
+        self.period_s = float(t[-1])
+        self.start_s = float(start_s)
+
+    def sample(self, t_s: np.ndarray, fb: Optional[ThermalFeedback] = None) -> SampleBlock:
+        """Return the signals at the model times ``t_s`` (``fb``: unused, as the rig's are)."""
+        t = np.asarray(t_s, dtype=float)
+        local = np.mod(t - self.start_s, self.period_s)
+        return SampleBlock(t, *(np.interp(local, self._t, self._values[n]) for n in SENSORS))
+
+
 def feedback(model: EHAModel) -> ThermalFeedback:
     """Return the thermal state the kinetic model needs (viscosity temperatures, losses)."""
     ci, m = model.circuit, model.motor
@@ -77,7 +127,7 @@ def motor_heat(model: EHAModel) -> Dict[str, float]:
     return heat
 
 
-def simulate(cfg: Config, duty: Duty, duration_s: float, dt_s: float = 1.0,
+def simulate(cfg: Config, duty: Union[Duty, SensorTable], duration_s: float, dt_s: float = 1.0,
              sample_rate_Hz: float = 200.0, ambient_C: float = 20.0,
              initial_C: Optional[float] = None, record_every_s: float = 1.0,
              progress: Optional[Callable[[int, int, str], None]] = None,
@@ -88,7 +138,8 @@ def simulate(cfg: Config, duty: Duty, duration_s: float, dt_s: float = 1.0,
     ``dt_s`` is the thermal model step; each step gets ``sample_rate_Hz * dt_s``
     samples. All temperatures start at ``initial_C`` (default: ambient). A
     ``model`` that has already run continues from its state and time (and
-    ``initial_C`` is ignored), so a long run can be split into pieces.
+    ``initial_C`` is ignored), so a long run can be split into pieces. A
+    :class:`SensorTable` is fed to the thermal model as it is.
 
     Raises :class:`ThermalRunaway`, with the run so far, when a temperature
     passes ``RUNAWAY_C``: the leakage loss of a sustained high load grows as
@@ -98,21 +149,27 @@ def simulate(cfg: Config, duty: Duty, duration_s: float, dt_s: float = 1.0,
     steps = int(round(duration_s / dt_s))
     amb_K = ambient_C + C_TO_K
     model = model if model is not None else EHAModel(cfg)
-    kin = KineticModel(cfg, model.oil, model.log)
+    # the sensor signals at given times, from the thermal state: the kinetic model plays the
+    # rig, or a sensor table gives them
+    table = isinstance(duty, SensorTable)
+    sample = duty.sample if table else functools.partial(
+        KineticModel(cfg, model.oil, model.log).sample, duty)
     if model.T_hyd is None:
         start_K = (initial_C if initial_C is not None else ambient_C) + C_TO_K
         model.T_hyd = np.full(model.circuit.n, start_K)
-        first = kin.sample(duty, np.array([0.0]), ThermalFeedback.uniform(start_K))
+        first = sample(np.array([0.0]), ThermalFeedback.uniform(start_K))
         model.initialise(start_K, first)
     t_start = model.time_s
     res = SimulationResult(model=model)
+    if table:
+        res.electrical_J = res.load_work_J = math.nan    # the signals alone do not tell them
     frac = np.arange(1, n_sub + 1) / n_sub
     record_every = max(1, int(round(record_every_s / dt_s)))
     report_every = max(1, steps // 100)
     acc = np.zeros(5)   # integrals over the record interval: I^2, |w|, p_a, p_b, time
     for k in range(steps):
         t = t_start + (k + frac) * dt_s
-        s = kin.sample(duty, t, feedback(model))
+        s = sample(t, feedback(model))
         model.step(s, amb_K)
         out = model.outputs()
         hottest = max(out.items(), key=lambda kv: kv[1])
@@ -121,8 +178,9 @@ def simulate(cfg: Config, duty: Duty, duration_s: float, dt_s: float = 1.0,
             raise ThermalRunaway(f'thermal runaway: {hottest[0]} passed {RUNAWAY_C:.0f} degC at '
                                  f't = {t[-1]:.0f} s; the cooling cannot hold this duty', res)
         w = np.diff(np.concatenate([[t_start + k * dt_s], t]))
-        res.electrical_J += float(np.dot(s.electrical_power_W, w))
-        res.load_work_J += float(np.dot(s.load_power_W, w))
+        if not table:
+            res.electrical_J += float(np.dot(s.electrical_power_W, w))
+            res.load_work_J += float(np.dot(s.load_power_W, w))
         acc += [np.dot(s.current_A ** 2, w), np.dot(np.abs(s.speed_rad_s), w),
                 np.dot(s.p_a_Pa, w), np.dot(s.p_b_Pa, w), w.sum()]
         if (k + 1) % record_every == 0 or k == steps - 1:

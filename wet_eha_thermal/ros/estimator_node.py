@@ -45,6 +45,13 @@ Foxglove may set the publication rates (``FOXGLOVE_SETTABLE``), applied here
 on the node's thread as a ROS parameter change; thresholds and limits are
 shown read-only.
 
+What-ifs (``interface.WHATIF_REQUEST_TOPIC``, from ROS or from the Foxglove
+view): each request takes a snapshot of the model as it arrives and runs in a
+worker process (:class:`~wet_eha_thermal.offline.whatif_worker.WhatIfWorker`),
+one at a time; a steady timer polls for its answer and publishes it on
+``interface.WHATIF_RESPONSE_TOPIC`` (and to the view), so the node's steps
+never wait for a what-if.
+
 Run it with ``wet-eha-thermal-estimator --ros-args --params-file
 config/estimator.params.yaml`` or ``python -m wet_eha_thermal.ros.estimator_node``.
 """
@@ -60,6 +67,7 @@ from typing import Deque, Dict, List, Optional
 from builtin_interfaces.msg import Time as TimeMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import NameValidationException, ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -74,9 +82,11 @@ from wet_eha_thermal.estimator.core import Estimate, Estimator, StepFailed
 from wet_eha_thermal.estimator.limits import CurrentLimits
 from wet_eha_thermal.live_view import app_url, LiveView, parse_address
 from wet_eha_thermal.model.quantity_table import LIMITED
+from wet_eha_thermal.offline.whatif_worker import WhatIfWorker
 from wet_eha_thermal.ros import diagnostics, topics
 from wet_eha_thermal.ros.runtime import (accept_whole_numbers, descriptor, EXECUTORS, FastClock,
                                          prepare_model_step, Readiness, run_node)
+from wet_eha_thermal.units import C_TO_K
 
 NODE_NAME = interface.ESTIMATOR_NODE
 
@@ -113,6 +123,8 @@ PARAMETERS = {
 #: Parameters Foxglove may set: rates of publication only, which change what is shown,
 #: never what is estimated or when an alert is raised (those stay read-only there).
 FOXGLOVE_SETTABLE = ('publish_rate_Hz', 'diagnostics_rate_Hz', 'foxglove_inputs_rate_Hz')
+#: How often the node looks for a what-if's answer (s, steady clock): a what-if takes seconds.
+WHATIF_POLL_S = 0.1
 
 
 def _stamp_msg(ns: int) -> TimeMsg:
@@ -161,6 +173,7 @@ class EstimatorNode(Node):
         self._init_counters()
         input_subs = self._subscribe(in_qos)
         self._advertise(out_qos)
+        self._serve_whatif()
         self.budget_s = p['background_budget_ms'] * 1e-3
         self.publish_timer = self.create_timer(1.0 / p['publish_rate_Hz'], self._on_tick)
         self.diag_timer = self.create_timer(1.0 / p['diagnostics_rate_Hz'], self._on_diagnostics)
@@ -272,6 +285,18 @@ class EstimatorNode(Node):
             Float64, self._topic(interface.CURRENT_LIMIT_TOPIC), QoSProfile(depth=10))
         self._limits_msg = JointState()
 
+    def _serve_whatif(self) -> None:
+        """Start the what-if worker; subscribe to the requests, advertise the answers."""
+        self.whatif = WhatIfWorker(self.cfg, self.est.model.quantities.names)
+        self.whatif.start()
+        self.whatif_pub = self.create_publisher(
+            String, self._topic(interface.WHATIF_RESPONSE_TOPIC), QoSProfile(depth=10))
+        self.create_subscription(String, self._topic(interface.WHATIF_REQUEST_TOPIC),
+                                 self._on_whatif_request, QoSProfile(depth=10))
+        # steady: under sim time a paused /clock must not hold an answer back
+        self.create_timer(WHATIF_POLL_S, self._poll_whatif,
+                          clock=Clock(clock_type=ClockType.STEADY_TIME))
+
     # ------------------------------------------------------------- helpers
     def _topic(self, name: str) -> str:
         """Return ``name`` with the topic prefix in place of interface.PREFIX."""
@@ -304,7 +329,8 @@ class EstimatorNode(Node):
             view = LiveView(host, port, estimates=interface.ESTIMATES, limited=LIMITED,
                             inputs=self.est.inputs, thermocouples=interface.THERMOCOUPLES,
                             inputs_rate_Hz=p['foxglove_inputs_rate_Hz'], prefix=self.prefix,
-                            parameters={**p, **alerts, **limits}, settable=settable)
+                            parameters={**p, **alerts, **limits}, settable=settable,
+                            whatif_request_topic=self._topic(interface.WHATIF_REQUEST_TOPIC))
         except RuntimeError as exc:
             self.view_error = f'{host}:{port}: {exc}'
             self.get_logger().error(f'Foxglove view not started on {self.view_error}; '
@@ -315,9 +341,10 @@ class EstimatorNode(Node):
         return view
 
     def destroy_node(self) -> None:
-        """Stop the Foxglove view, then destroy the node."""
+        """Stop the Foxglove view and the what-if worker, then destroy the node."""
         if self.view is not None:
             self.view.close()
+        self.whatif.close()
         super().destroy_node()
 
     def _failed(self, where: str, exc: BaseException) -> None:
@@ -381,6 +408,43 @@ class EstimatorNode(Node):
                 self.view.offer_recorder(health)
         except Exception as exc:  # noqa: B902
             self._failed('recorder health', exc)
+
+    def _on_whatif_request(self, msg: String) -> None:
+        self._whatif_request(msg.data)
+
+    def _whatif_request(self, text: str) -> None:
+        """Start a what-if from the model as it is now, or answer at once why not."""
+        try:
+            est = self.est
+            refused = self.whatif.submit(text, est.model if est.t_model is not None else None,
+                                         est.ambient_K - C_TO_K, 'live estimator', est.t_model)
+            if refused is not None:
+                self._answer_whatif(refused)
+        except Exception as exc:  # noqa: B902
+            self._failed('whatif', exc)
+
+    def _poll_whatif(self) -> None:
+        """Take the view's what-if requests; publish the answer of one that finished."""
+        try:
+            for text in self.view.take_whatif_requests() if self.view is not None else ():
+                self._whatif_request(text)
+            answer = self.whatif.poll()
+            if answer is not None:
+                self._answer_whatif(answer)
+        except Exception as exc:  # noqa: B902
+            self._failed('whatif', exc)
+
+    def _answer_whatif(self, answer: str) -> None:
+        """Publish a what-if answer (JSON text), log it in a line, show it in the view."""
+        self.whatif_pub.publish(String(data=answer))
+        data = json.loads(answer)
+        outcome = f"error: {data['error']}" if not data['ok'] else (
+            f"{data['duty']}, {data['duration_s']:g} s in {data['wall_s']:.1f} s; time to "
+            'limit: ' + ', '.join(f'{q} {"-" if t is None else f"{t:.0f} s"}'
+                                  for q, t in data['time_to_limit_s'].items()))
+        self.get_logger().info(f"what-if {data['id']!r}: {outcome}")
+        if self.view is not None:
+            self.view.offer_whatif(answer)
 
     def _on_ack(self, msg: String) -> None:
         try:
