@@ -168,7 +168,7 @@ def test_forecast_matches_a_simulated_run_to_the_limit(cfg):
 def test_margin_current_brings_the_hotspot_to_its_limit_less_k_sigma(cfg):
     est = Estimator(cfg, outlook='inline')
     feed(est, 0.0, 2.0, rate_Hz=200.0)
-    amps = est.outlook.margin_A        # the first tick's continuous limit
+    amps = est.outlook._margins[1][0]    # the first tick's continuous limit
     assert 10.0 < amps < 200.0
     # independent check: the motor alone in steady state at that current
     mot = est.outlook._margin_motor

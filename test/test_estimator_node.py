@@ -28,7 +28,7 @@ from rclpy.qos import QoSProfile
 from rclpy.task import Future
 from ros_domains import claim_domain
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import FluidPressure, Temperature
+from sensor_msgs.msg import FluidPressure, JointState, Temperature
 from std_msgs.msg import Float64, Float64MultiArray, String
 from test_foxglove_view import Client
 from wet_eha_thermal import interface
@@ -197,6 +197,37 @@ def test_estimates_diagnostics_stale_speed_and_nan(rig):
     assert rig.feed(2.0, until=lambda: rig.level('input current_A') == WARN)
     assert rig.values('input current_A')['non_finite'] == '1'
     assert rig.feed(2.0, until=lambda: rig.level('input current_A') == OK)
+
+
+def test_current_limits_for_the_drive_every_half_second_and_their_fallback(rig):
+    limits, binding = [], []
+    rig.probe.create_subscription(JointState, interface.CURRENT_LIMITS_TOPIC, limits.append, 50)
+    rig.probe.create_subscription(Float64, interface.CURRENT_LIMIT_TOPIC, binding.append, 50)
+    assert rig.feed(10.0, until=lambda: sum(m.header.frame_id == 'ok' for m in limits) >= 4)
+    ok = [m for m in limits if m.header.frame_id == 'ok']
+    m = ok[-1]
+    assert list(m.name) == ['continuous', '10s', '60s', '600s']
+    assert list(m.position) == [math.inf, 10.0, 60.0, 600.0]
+    assert all(0.0 <= a <= 45.0 for a in m.effort)
+    assert m.effort[1] >= m.effort[2] >= m.effort[3] >= m.effort[0]
+    # stamped with the sample time of the tick: 0.5 s apart, never backwards
+    stamps = _stamps(limits)
+    assert all(b > a for a, b in zip(stamps, stamps[1:]))
+    assert _stamps(ok)[-1] - _stamps(ok)[-2] == pytest.approx(0.5, abs=1e-6)
+    assert _stamps(ok)[-1] == pytest.approx(rig.estimates['oil'][-1].header.stamp.sec
+                                            + 1e-9 * rig.estimates['oil'][-1].header.stamp.nanosec,
+                                            abs=1.0)
+    # the scalar is the shortest horizon's, message for message
+    assert [b.data for b in binding][-len(ok):] == [x.effort[1] for x in limits][-len(ok):]
+    # the speed falls silent: the limits drop to the fallback and say why
+    n = len(limits)
+    assert rig.feed(4.0, skip={'speed_rad_s'},
+                    until=lambda: any('speed_rad_s' in x.header.frame_id for x in limits[n:]))
+    stale = [x for x in limits[n:] if 'speed_rad_s' in x.header.frame_id][-1]
+    assert stale.header.frame_id == 'fallback: stale inputs: speed_rad_s'
+    assert max(stale.effort) <= 10.0
+    assert rig.feed(2.0, skip={'speed_rad_s'}, until=lambda: rig.values('estimate')[
+        'current limits status'].startswith('fallback: stale inputs'))
 
 
 def test_latched_alert_and_acknowledge(context, tmp_path):

@@ -94,14 +94,20 @@ def test_a_limit_takes_the_model_to_its_limit_and_no_further(warm, winding_C, ho
 
 def test_a_cold_motor_is_limited_by_its_rating_over_short_horizons():
     est = Estimator(load_config(), outlook='inline')
-    feed(est, 0.0, 2.0)
+    feed(est, 0.0, 11.0)        # past MARGIN_DELAY_S: the first tick's margin is taken
     limits = est.outlook.limits
     assert limits.status == 'ok'
     assert limits.limits_A[limits.names.index('10s')] == est.cfg.motor.peak_current_A
     assert limits.binds[limits.names.index('10s')] == RATING
     assert limits.binding_A == est.cfg.motor.peak_current_A
     # the continuous limit, the steady margin, is below the rating
-    assert 0.0 < limits.limits_A[limits.names.index('continuous')] < est.cfg.motor.peak_current_A
+    i = limits.names.index('continuous')
+    assert 0.0 < limits.limits_A[i] < est.cfg.motor.peak_current_A
+    assert limits.binds[i] == 'winding_hotspot'
+    # the ticks of the first MARGIN_DELAY_S had none yet: the fallback current, pending
+    first = est.outlook.take_limits()[0]
+    assert (first.limits_A[i], first.binds[i]) == (est.cfg.estimator.limits.fallback_current_A,
+                                                   'pending')
 
 
 def collect(mode, seconds):
@@ -118,8 +124,10 @@ def collect(mode, seconds):
 
 
 def test_limits_are_bit_for_bit_the_same_at_once_and_in_background_slices():
-    inline, background = collect('inline', 6.0), collect('background', 6.0)
-    assert len(inline) == 11               # a tick each 0.5 s from the start at 1 ms
+    # past MARGIN_DELAY_S, so the continuous limit (the margin job's) is compared too
+    inline, background = collect('inline', 12.0), collect('background', 12.0)
+    assert len(inline) == 23               # a tick each 0.5 s from the start at 1 ms
+    assert inline[-1].binds[0] == 'winding_hotspot'   # (at 40 degC)
     assert inline == background            # every field, floats compared exactly
     assert all(lim.status == 'ok' for lim in inline)
     stamps = [lim.stamp_s for lim in inline]

@@ -26,7 +26,9 @@ each element on /eha/state_names (std_msgs/String holding JSON, transient-local:
 the names do not change within a run); /diagnostics
 (diagnostic_msgs/DiagnosticArray, 1 Hz); /eha/alerts (std_msgs/String holding
 JSON, transient-local so a late subscriber gets the last one); acknowledgements
-on /eha/alerts/ack (std_msgs/String: a quantity, or empty for all). The recorder
+on /eha/alerts/ack (std_msgs/String: a quantity, or empty for all); the drive's
+current limits on /eha/current_limits (sensor_msgs/JointState) and
+/eha/current_limit (std_msgs/Float64), below. The recorder
 reports its health on /eha/recorder/health (std_msgs/String holding JSON,
 transient-local) and in /diagnostics.
 

@@ -253,12 +253,15 @@ def probe(model: EHAModel, held: HeldDuty, current_A: float, dt_s: float, ambien
 
     Phi is the step's transition with the copper's R(T) feedback at
     ``current_A`` (:func:`~.kalman.coupled_transition`), the state the one at
-    the step's end (K).
+    the step's end (K). The coefficients are those of the step's start, not
+    the estimator's filtered ones: a probe of a state moved by hand
+    (:meth:`~..model.eha.EHAModel.correct`) takes that state's.
     """
     model.defer_refresh = False
     model.circuit.keep_transition = True
     model.motor.check_rotor_validity = False     # the peak current's bins: a copy's log
-    model.step(held.block(model.time_s + dt_s, current_A), ambient_K, max_substep_s=dt_s)
+    model.step(held.block(model.time_s + dt_s, current_A), ambient_K, max_substep_s=dt_s,
+               exact_coefficients=True)
     lin = model.linearize()
     n = model.state.size
     Phi = coupled_transition(lin.motor, lin.circuit,

@@ -5,19 +5,19 @@ Everything here is computed at defined sample times from the state at those
 times, so a replay reproduces it bit for bit; only *when* it is done depends
 on the CPU. At every limit tick (each ``estimator.limits.period_s`` of
 sample time, :meth:`Outlook.tick`) the outlook saves the model (pickled) and
-the recent duty, and queues a job; at every forecast tick (each
-``forecast_period_s``, which falls on a limit tick, and the run's first
-tick) that job also computes
-the continuous limit (the steady margin: the largest current whose steady
-winding hot-spot, with the present oil, reaches its limit less k sigma), and
-a forecast job repeats the last ``forecast_window_s`` of duty on a copy of
-the model to find when the winding, the magnets and the oil reach their
+the recent duty, and queues a job that works out the drive's current limits
+(:mod:`.limits`). At every forecast tick (each ``forecast_period_s``, which
+falls on a limit tick, and the run's first tick) it queues a margin job, the
+continuous limit (the steady margin: the largest current whose steady winding
+hot-spot, with the tick's oil, reaches its limit less k sigma; some 100 ms of
+steady solves), which every tick at least ``MARGIN_DELAY_S`` later takes, and
+a forecast job that repeats the last ``forecast_window_s`` of duty on a copy
+of the model to find when the winding, the magnets and the oil reach their
 limits. A live node works the jobs in slices that fit a budget between
-estimates (:meth:`Outlook.background`); offline (``inline``) each is done
-at once. The limits (:mod:`.limits`) drop to the configured conservative
-value, saying why, at a tick with a stale input or too uncertain an
-estimate, and for a tick not computed within ``max_age_s`` (behind). It
-reads the model through its public API only.
+estimates (:meth:`Outlook.background`); offline (``inline``) each is done at
+once. The limits drop to the configured conservative value, saying why, at a
+tick with a stale input or too uncertain an estimate, and for a tick not
+computed within ``max_age_s`` (behind). It reads the model through its public API only.
 """
 
 from collections import deque
@@ -40,6 +40,9 @@ from ..units import C_TO_K
 #: A forecast step doubles (from ``forecast_step_s`` to one pass of the repeated duty)
 #: while the state moves less than this in one.
 FORECAST_TOL_K = 0.5
+#: A tick takes the continuous limit of the last forecast tick at least this much before it
+#: (sample time s): the margin's steady solves have that long to finish in the background
+MARGIN_DELAY_S = 10.0
 #: Limit jobs waiting at most; a new tick beyond drops the oldest (its limits are published
 #: as the fallback, behind; a dropped forecast tick's continuous limit is not computed, so
 #: the next ticks keep the one before, where a replay, never behind, has the new one)
@@ -68,6 +71,8 @@ class _Forecast:
 class _LimitJob:
     stamp_s: float
     steps: Generator
+    margin_tick: Optional[int]    # the forecast tick whose continuous limit it takes
+    values: Optional[List[Tuple[float, str]]] = None    # each horizon's, once computed
 
 
 class Outlook:
@@ -96,9 +101,12 @@ class Outlook:
         self.result: Dict[str, Optional[float]] = {}
         #: when that forecast started (sample time s)
         self.stamp_s: Optional[float] = None
-        #: the continuous limit of the last forecast tick (A RMS), and what binds it
+        #: the latest continuous limit (A RMS)
         self.margin_A: Optional[float] = None
-        self.margin_binds = 'pending'
+        #: each forecast tick's continuous limit (A, what binds), by tick number
+        self._margins: Dict[int, Tuple[float, str]] = {}
+        self._margin_jobs: Deque[Tuple[int, Generator]] = deque()
+        self._forecast_tick_numbers: Deque[int] = deque(maxlen=8)
         #: the latest limits (any tick's, fallback or not); those not yet taken
         self.limits: Optional[CurrentLimits] = None
         self._new: List[CurrentLimits] = []
@@ -107,12 +115,11 @@ class Outlook:
         self.limits_behind = 0         # ticks whose limits were not computed (fallback)
         self.forecasts_skipped = 0     # forecast ticks while a forecast was under way
         self._margin_motor = WetMotor(cfg.motor, model.oil)
-        self._ticked = False
 
     @property
     def busy(self) -> bool:
-        """Tell whether a forecast or limits are under way."""
-        return self.forecast is not None or bool(self._jobs)
+        """Tell whether a forecast, a margin or limits are under way."""
+        return self.forecast is not None or bool(self._jobs) or bool(self._margin_jobs)
 
     def record(self, block: SampleBlock, steps: int = 1) -> None:
         """Add a step's inputs to the recent duty, ``steps`` times (a held block's)."""
@@ -156,25 +163,28 @@ class Outlook:
         if steps_after // p == steps_before // p or not self.window:
             return
         tick = steps_after // p
-        # the forecast and the continuous limit at every forecast tick and at the first
-        # tick of the run
-        margin = tick % self.forecast_ticks == 0 or not self._ticked
-        self._ticked = True
         saved = pickle.dumps(self.model, pickle.HIGHEST_PROTOCOL)
-        if margin:
+        held = self.held_duty()
+        if tick % self.forecast_ticks == 0 or not self._forecast_tick_numbers:
+            # at every forecast tick and at the first tick of the run
+            self._forecast_tick_numbers.append(tick)
             self._start_forecast(saved, stamp_s, ambient_K, now_C)
+            target = (self.limits_C['winding_hotspot'] - self.lim.k_sigma
+                      * sigma_K['winding_hotspot'] + C_TO_K)
+            self._margin_jobs.append((tick, self._margin_steps(
+                copy_model(saved), held.speed_rad_s, ambient_K, target)))
         why = self._distrust(sigma_K, stale)
         if why:
             self._finish(fallback_limits(stamp_s, self.lim.horizons_s,
                                          self.lim.fallback_current_A, why))
             return
-        held = self.held_duty()
         steps = limit_steps(saved, held, ambient_K, sigma_K, self.limits_C,
                             self.lim.k_sigma, self.lim.horizons_s, self.lim.period_s,
                             self.cfg.motor.peak_current_A)
-        if margin:
-            steps = self._with_margin(steps, copy_model(saved), held, ambient_K, sigma_K)
-        self._jobs.append(_LimitJob(stamp_s, steps))
+        delay = int(round(MARGIN_DELAY_S / self.lim.period_s))
+        margin_tick = max((f for f in self._forecast_tick_numbers if f <= tick - delay),
+                          default=None)
+        self._jobs.append(_LimitJob(stamp_s, steps, margin_tick))
         while len(self._jobs) > MAX_LIMIT_JOBS:
             self._behind(self._jobs.popleft().stamp_s)
         if self.inline:
@@ -214,58 +224,84 @@ class Outlook:
         out, self._new = self._new, []
         return out
 
-    def _with_margin(self, steps: Generator, model: EHAModel, held: HeldDuty,
-                     ambient_K: float, sigma_K: Dict[str, float]) -> Generator:
-        """Run the continuous limit's steady solves, then ``steps``; return the limits."""
-        target = (self.limits_C['winding_hotspot'] - self.lim.k_sigma
-                  * sigma_K['winding_hotspot'] + C_TO_K)
-        amps = yield from self._margin_steps(model, held.speed_rad_s, ambient_K, target)
-        self.margin_A = min(amps, self.cfg.motor.peak_current_A)
-        self.margin_binds = 'winding_hotspot' if amps < self.cfg.motor.peak_current_A \
-            else RATING
-        return (yield from steps)
-
     # ----------------------------------------------------------- background
     def background(self, budget_s: float) -> None:
         """Work the waiting jobs (the limits first, then the forecast) for about ``budget_s``."""
         self.run(time.perf_counter() + budget_s)
 
     def run(self, deadline: float) -> None:
-        """Work the jobs until the wall clock (``time.perf_counter``) passes ``deadline``."""
-        while self._jobs and time.perf_counter() < deadline:
-            job = self._jobs[0]
-            try:
-                next(job.steps)
-            except StopIteration as done:
+        """
+        Work the jobs until the wall clock (``time.perf_counter``) passes ``deadline``.
+
+        The oldest tick's limits first; when they wait for their continuous
+        limit, its margin job; then the forecast.
+        """
+        while time.perf_counter() < deadline:
+            job = self._jobs[0] if self._jobs else None
+            if job is not None and job.values is None:
+                self._work_on(job)
+            elif job is not None and (job.margin_tick is None
+                                      or job.margin_tick in self._margins):
                 self._jobs.popleft()
-                self._finish(self._completed(job.stamp_s, done.value))
-            except (ArithmeticError, ValueError, RuntimeError, np.linalg.LinAlgError):
-                # advice must never stop the estimator: this tick falls back
-                self.failures += 1
-                self._jobs.popleft()
-                self._finish(fallback_limits(job.stamp_s, self.lim.horizons_s,
-                                             self.lim.fallback_current_A,
-                                             'failed: the limits could not be computed'))
+                self._finish(self._completed(job))
+            elif self._margin_jobs:
+                self._margin_step()
+            else:
+                break
         while self.forecast is not None and time.perf_counter() < deadline:
             self._forecast_step()
 
-    def _completed(self, stamp_s: float, per_horizon: List[Tuple[float, str]]
-                   ) -> CurrentLimits:
+    def _work_on(self, job: _LimitJob) -> None:
+        """Do a slice of a tick's limits; on a failure the tick falls back."""
+        try:
+            next(job.steps)
+        except StopIteration as done:
+            job.values = done.value
+        except (ArithmeticError, ValueError, RuntimeError, np.linalg.LinAlgError):
+            # advice must never stop the estimator
+            self.failures += 1
+            self._jobs.popleft()
+            self._finish(fallback_limits(job.stamp_s, self.lim.horizons_s,
+                                         self.lim.fallback_current_A,
+                                         'failed: the limits could not be computed'))
+
+    def _margin_step(self) -> None:
+        """Do a slice of the oldest margin job; a failure leaves that tick's margin unknown."""
+        tick, steps = self._margin_jobs[0]
+        try:
+            next(steps)
+        except StopIteration as done:
+            self._margin_jobs.popleft()
+            amps = min(done.value, self.cfg.motor.peak_current_A)
+            self._margins[tick] = (amps, 'winding_hotspot' if amps < self.cfg.motor.peak_current_A
+                                   else RATING)
+        except (ArithmeticError, ValueError, RuntimeError, np.linalg.LinAlgError):
+            self.failures += 1
+            self._margin_jobs.popleft()
+            self._margins[tick] = (math.nan, 'failed')
+        while len(self._margins) > self._forecast_tick_numbers.maxlen:
+            self._margins.pop(min(self._margins))
+
+    def _completed(self, job: _LimitJob) -> CurrentLimits:
         """
-        Return a tick's limits: its horizons' and the continuous of the latest forecast tick.
+        Return a tick's limits: its horizons' and the continuous of its forecast tick.
 
         The continuous is never above the longest horizon's: the steady
         margin holds the oil where it is, and a current that cannot be held
-        that long cannot be held for ever.
+        that long cannot be held for ever. Before the first margin, and
+        after a failed one, it is the fallback current.
         """
+        per_horizon = job.values
         longest = per_horizon[-1]
-        if self.margin_A is None:
-            continuous = (self.lim.fallback_current_A, 'pending')
-        elif longest[0] < self.margin_A:
+        margin = self._margins.get(job.margin_tick, (math.nan, 'pending'))
+        if not math.isfinite(margin[0]):
+            continuous = (self.lim.fallback_current_A, margin[1])
+        elif longest[0] < margin[0]:
             continuous = longest
         else:
-            continuous = (self.margin_A, self.margin_binds)
-        return current_limits(stamp_s, self.lim.horizons_s, continuous, per_horizon)
+            continuous = margin
+        self.margin_A = continuous[0]
+        return current_limits(job.stamp_s, self.lim.horizons_s, continuous, per_horizon)
 
     def _start_forecast(self, saved: bytes, t_model: float, ambient_K: float,
                         now_C: Dict[str, float]) -> None:
