@@ -173,6 +173,10 @@ def schemas(estimates: Sequence[str], limited: Sequence[str], inputs: Sequence[s
             **head,
             'margin_current_A': dict(_MAYBE_NUMBER, description='largest continuous current '
                                      'at the present oil and duty, A RMS; null: pending'),
+            'current_limit_A': dict(_MAYBE_NUMBER, description="the drive's binding current "
+                                    'limit (the shortest horizon), A RMS; null: pending'),
+            'current_limits_status': {'type': 'string', 'description': (
+                "ok, fallback: <why>, or pending: the drive's current limits")},
             'forecast_started_s': dict(_MAYBE_NUMBER, description='sample time at which the '
                                        'latest forecast started, s'),
             **{q: _group(q, limit, nullable=('time_to_limit_s',)) for q in limited}}),
@@ -571,8 +575,12 @@ class LiveView:
                 'band_high_C': _num(value + BAND_SIGMAS * sigma)}
 
     def _limits(self, est, head: dict) -> dict:
+        lim = est.current_limits
         out = {**head, 'margin_current_A': _num(est.margin_current_A),
-               'forecast_started_s': _num(est.forecast_stamp_s)}
+               'forecast_started_s': _num(est.forecast_stamp_s),
+               'current_limit_A': _num(lim.binding_A if lim is not None else None),
+               'current_limits_status': 'pending' if lim is None else (
+                   'ok' if lim.status == 'ok' else f'fallback: {lim.reason}')}
         rules = (self._summary or {}).get('quantities', {})
         for q in self.limited:
             value, limit = est.temperatures_C[q], est.limits_C[q]

@@ -220,6 +220,8 @@ class EstimatorNode(Node):
         self.model_failing = False
         self.background_errors = 0
         self.published = 0
+        self.limits_published = 0      # ticks of current limits sent, and those as fallback
+        self.limits_fallback = 0
         # callback start of the sample that closed a step -> its estimate published (ms)
         self.latency_ms: Deque[float] = deque(maxlen=3000)
         self._last_ns: Optional[int] = None          # stamp of the last published estimate
@@ -607,6 +609,8 @@ class EstimatorNode(Node):
         msg.effort = list(limits.limits_A)
         self.limits_pub.publish(msg)
         self.limit_pub.publish(Float64(data=float(limits.binding_A)))
+        self.limits_published += 1
+        self.limits_fallback += limits.status != 'ok'
 
     def _published(self, estimates: List[Estimate], now: Optional[float],
                    t_rx: Optional[float], jumps: int) -> None:
@@ -750,7 +754,9 @@ class EstimatorNode(Node):
             'estimates': self.published, 'steps': self.est.steps, 'data_gaps': g.count,
             'longest_gap_s': g.longest_s, 'clock_jumps': self.est.clock_jumps,
             'callback_errors': sum(self.callback_errors.values()),
-            'model_errors': self.model_errors})
+            'model_errors': self.model_errors, 'limits_published': self.limits_published,
+            'limits_fallback': self.limits_fallback,
+            'limit_ticks_behind': self.est.outlook.limits_behind})
 
     def summary(self) -> str:
         """Return a one-line account of the run for a log: samples per input, gaps, jumps."""
