@@ -134,6 +134,23 @@ def test_limits_are_bit_for_bit_the_same_at_once_and_in_background_slices():
     assert stamps == sorted(stamps)
 
 
+def test_limits_taken_sample_by_sample_with_a_small_budget_are_the_same_as_at_once():
+    # as the live node works: take() per sample, 4 ms of background after each estimate,
+    # the limits given up when older than max_age_s; what it computes is what a replay does
+    inline = {lim.stamp_s: lim for lim in collect('inline', 12.0)}
+    est = Estimator(load_config(overrides=LOW_LIMITS), outlook='background')
+    live = []
+    for k in range(1, 12001):
+        t = k / 1000.0
+        for ch in INPUTS:
+            if est.take(ch, t, DUTY[ch], now_s=t, budget_s=0.004):
+                live += est.outlook.take_limits(est.t_model)
+    computed = [lim for lim in live if lim.status == 'ok']
+    assert len(computed) >= len(inline) // 2, [lim.reason for lim in live]
+    assert all(lim == inline[lim.stamp_s] for lim in computed)
+    assert all(lim.reason.startswith('behind') for lim in live if lim.status != 'ok')
+
+
 def test_a_stale_input_drops_the_limits_to_the_fallback_and_says_why():
     cfg = load_config()
     est = Estimator(cfg, outlook='inline')
