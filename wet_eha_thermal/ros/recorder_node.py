@@ -7,7 +7,8 @@ each estimator input of ``INPUT_TOPICS`` (all of them: three pressures and
 the differential one), the ambient temperature, the thermocouples, the
 estimates, the state, the state's names and the alerts (both transient
 local, so what was published before the recorder started is recorded too),
-the acknowledgements and /diagnostics (its own status included). ``extra_topics``
+the drive's current limits, the acknowledgements and /diagnostics (its own
+status included). ``extra_topics``
 names further topics, subscribed once they appear in the ROS graph, with
 their type and a QoS adapted to their publishers as rosbag2 does (reliable
 and transient local only when every publisher is).
@@ -173,6 +174,8 @@ def recorded_topics(prefix: str = interface.PREFIX) -> Dict[str, Tuple[str, str]
     found[interface.STATE_TOPIC] = (interface.FLOAT64_ARRAY, 'output')
     found[interface.STATE_NAMES_TOPIC] = (interface.STRING, 'latched')
     found[interface.ALERT_TOPIC] = (interface.STRING, 'latched')
+    found[interface.CURRENT_LIMITS_TOPIC] = (interface.JOINT_STATE, 'output')
+    found[interface.CURRENT_LIMIT_TOPIC] = (interface.FLOAT64, 'output')
     found[interface.READY_TOPIC] = (interface.STRING, 'latched')
     found[interface.RECORDER_HEALTH_TOPIC] = (interface.STRING, 'latched')
     found[interface.ACK_TOPIC] = (interface.STRING, 'output')
