@@ -15,15 +15,18 @@ RSS is its own:
   (``read_plain`` of ``bench_replay_read.py``);
 - ``open-loop``: :func:`wet_eha_thermal.offline.replay.replay` of the whole log (read,
   decode, estimator in sample time at its 20 ms step) plus the CSV and MCAP
-  outputs, as ``wet-eha-thermal replay --no-report --open-loop`` does: the
-  work of a rig log: four sensor topics and no thermocouple;
+  outputs, as ``wet-eha-thermal replay --no-report --open-loop --no-outlook``
+  does: the work of a rig log: four sensor topics and no thermocouple;
 - ``replay``: the same with the live correction on (the shipped default for
-  a log with thermocouples, as this one has).
+  a log with thermocouples, as this one has);
+- ``outlook``: the same with the outlook too (the current limits every
+  0.5 s, the forecast every minute: the shipped default of
+  ``wet-eha-thermal replay --no-report``) and its ``limits.csv``.
 
 Printed: messages per second of each, the replays' ratios to the plain loop,
 multiples of real time, and peak RSS (the replay's reading process, which
 decodes the next block on the other core, on its own). With ``--rounds N``
-the three run N times in turn, and the medians close the output: each phase's
+the phases run N times in turn, and the medians close the output: each phase's
 time, and each replay's ratio to the plain loop of its own round (a virtual
 machine whose speed drifts by 10-30 % within minutes makes one round's ratio
 a sample, not a figure).
@@ -63,9 +66,8 @@ def run_phase(phase: str, path: Path) -> None:
         if phase == 'open-loop':
             plan.cfg = with_values(plan.cfg, {'estimator.correction.enabled': False})
         with tempfile.TemporaryDirectory() as out:
-            result = rp.replay(plan)
-            rp.write_csv(result, Path(out) / 'estimates.csv')
-            rp.write_mcap(result, Path(out) / 'estimates.mcap')
+            result = rp.replay(plan, outlook=phase == 'outlook')
+            rp.write_outputs(result, Path(out), report=False)
         messages = result.messages
         extra = {'steps': result.steps, 'sample_time_s': result.sample_time_s}
     seconds = time.perf_counter() - t
@@ -89,7 +91,7 @@ def write_log(path: Path, minutes: float) -> None:
           f'{path.stat().st_size / 1e6:.0f} MB -> {path}')
 
 
-PHASES = ('plain', 'open-loop', 'replay')
+PHASES = ('plain', 'open-loop', 'replay', 'outlook')
 
 
 def ratio(r: dict, phase: str) -> float:
@@ -99,7 +101,7 @@ def ratio(r: dict, phase: str) -> float:
 
 
 def run_round(path: Path) -> dict:
-    """Run the three phases once, each in its own process; print and return their figures."""
+    """Run the phases once, each in its own process; print and return their figures."""
     r = {}
     for phase in PHASES:
         out = subprocess.run([sys.executable, __file__, '--phase', phase, '--bag', str(path)],
@@ -128,7 +130,7 @@ def main() -> None:
     parser.add_argument('--dir', type=Path, help='where to write the log (default: temp dir)')
     parser.add_argument('--keep', action='store_true', help='keep the log written')
     parser.add_argument('--rounds', type=int, default=1,
-                        help='run the three phases this many times in turn; print medians')
+                        help='run the phases this many times in turn; print medians')
     parser.add_argument('--phase', choices=PHASES, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.phase:

@@ -9,7 +9,8 @@ reference stage 6 (seed 1, the reference configuration with a differential
 pressure input, as the tests' rig logs), then replays it through
 ``wet-eha-thermal replay`` twice, with the thermocouples correcting the model
 (``DIR/closed``) and open loop (``DIR/open``), and stores the SHA-256 of the
-bag and of each ``estimates.csv`` and ``estimates.mcap`` in ``DIR/golden.txt``.
+bag and of each ``estimates.csv``, ``estimates.mcap`` and ``limits.csv`` (the
+current limits for the drive, computed by default) in ``DIR/golden.txt``.
 An MCAP's digest is that of its messages in order (topic, schema, log and
 publish time, the serialised bytes, each length-prefixed), not of the file:
 the bag writer closes a chunk after ``flush_interval_s`` of wall time too, so
@@ -40,7 +41,7 @@ from wet_eha_thermal.offline.simulated_rig import SimulatedRig, write_rig_bag
 import yaml
 
 MODES = {'closed': [], 'open': ['--open-loop']}
-OUTPUTS = ('estimates.csv', 'estimates.mcap')
+OUTPUTS = ('estimates.csv', 'estimates.mcap', 'limits.csv')
 
 
 def write_bag(path: Path, seconds: float) -> None:

@@ -10,7 +10,8 @@ import math
 import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
-from sensor_msgs.msg import FluidPressure, Temperature
+from rosbags.typesys import get_typestore, Stores
+from sensor_msgs.msg import FluidPressure, JointState, Temperature
 from std_msgs.msg import Float64, String
 
 from wet_eha_thermal.bag import cdr
@@ -57,3 +58,29 @@ def test_stamped(frame_id, cls, field):
         assert data[first:] == theirs[first:]
         assert deserialize_message(data, cls) == msg
         assert cdr.header_stamp_and_value(data) == (ns, value)
+
+
+@pytest.mark.parametrize('frame_id', ['ok', 'fallback: stale inputs: current_A, speed_rad_s'])
+@pytest.mark.parametrize('names', [[], ['continuous'], ['continuous', '10s', '60s', '600s'],
+                                   ['a', 'abcd', 'abcdefg', '']])
+def test_joint_state(frame_id, names):
+    # a tick's limits as the estimator node publishes them: position the horizons,
+    # effort the limits, velocity empty; names of every length for the string padding
+    position = [math.inf, 10.0, 60.0, 600.0][:len(names)]
+    effort = [25.0 - 1.5 * k for k in range(len(names))]
+    ns = STAMPS_NS[-2]
+    data = cdr.encode_joint_state(ns, frame_id, names, position, [], effort)
+    msg = JointState(name=names, position=position, effort=effort)
+    msg.header.frame_id = frame_id
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(ns, 1_000_000_000)
+    assert deserialize_message(data, JointState) == msg
+    # rclpy's buffer runs 8 bytes past the message when a sequence is empty (its size is
+    # reckoned with the alignment of an empty float64[]) and leaves the padding unset:
+    # rosbags, which zeroes it, is the byte-for-byte reference
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    ours = typestore.deserialize_cdr(data, 'sensor_msgs/msg/JointState')
+    assert bytes(typestore.serialize_cdr(ours, 'sensor_msgs/msg/JointState')) == data
+    assert (ours.header.stamp.sec, ours.header.stamp.nanosec) == divmod(ns, 1_000_000_000)
+    assert ours.header.frame_id == frame_id and ours.name == names
+    assert ours.position.tolist() == position and ours.effort.tolist() == effort
+    assert not ours.velocity.size

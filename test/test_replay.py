@@ -9,6 +9,8 @@ from mcap_ros2.decoder import DecoderFactory
 import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message
+from rosbags.rosbag2 import Reader
+from rosbags.typesys import get_typestore, Stores
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64
 from wet_eha_thermal import interface
@@ -18,6 +20,7 @@ from wet_eha_thermal.cli import main
 from wet_eha_thermal.config import ConfigError, default_config_path, with_values
 from wet_eha_thermal.estimator.core import Estimator
 from wet_eha_thermal.offline import replay as rp
+from wet_eha_thermal.ros.recorder_node import recorded_topics
 
 SECONDS = 20.0
 
@@ -40,8 +43,8 @@ def test_cli_writes_estimates_and_report(bag, tmp_path, capsys):
     assert 'stored in stage6.mcap' in text
     assert 'dp_Pa <- /eha/pressure_diff' in text
     assert 'winding_mean      - winding' in text
-    for name in ('estimates.csv', 'estimates.mcap', 'report.md', 'inputs.png',
-                 'temperatures.png', 'errors.png', 'alerts.png'):
+    for name in ('estimates.csv', 'estimates.mcap', 'limits.csv', 'report.md', 'inputs.png',
+                 'temperatures.png', 'errors.png', 'alerts.png', 'limits.png'):
         assert (out / name).stat().st_size > 0, name
     assert not list(out.glob('*.partial*'))
     table = np.genfromtxt(out / 'estimates.csv', delimiter=',', names=True)
@@ -57,7 +60,9 @@ def test_estimates_mcap_reads_back_with_an_independent_decoder(result, tmp_path)
     with open(path, 'rb') as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
         for schema, channel, message, msg in reader.iter_decoded_messages():
-            assert schema.name == 'sensor_msgs/msg/Temperature' or channel.topic == '/eha/alerts'
+            if channel.topic not in ('/eha/alerts', interface.CURRENT_LIMITS_TOPIC,
+                                     interface.CURRENT_LIMIT_TOPIC):
+                assert schema.name == 'sensor_msgs/msg/Temperature'
             if channel.topic == '/eha/estimate/winding_hotspot':
                 stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
                 got[round(stamp, 6)] = (msg.temperature, msg.variance)
@@ -74,10 +79,10 @@ def test_replay_equals_the_live_estimator_fed_sample_by_sample(bag, result):
     # step; the replay adds 10 s blocks: in sample time both must give the same numbers
     # (the thermocouples too: the live correction uses each reading by its stamp)
     plan = rp.plan_replay(bag)
-    est = Estimator(plan.cfg)
+    est = Estimator(plan.cfg, outlook='inline')
     by_topic = {topic: name for name, topic in plan.inputs.items()}
     by_tc = {topic: tc for tc, topic in plan.thermocouples.items()}
-    live = {}
+    live, margin, limits = {}, {}, []
     for m in iter_raw(bag, list(by_topic) + [plan.ambient] + list(by_tc)):
         if m.topic == plan.ambient or m.topic in by_tc:
             msg = deserialize_message(m.data, Temperature)
@@ -95,15 +100,93 @@ def test_replay_equals_the_live_estimator_fed_sample_by_sample(bag, result):
             t, v = m.log_time_ns * 1e-9, deserialize_message(m.data, Float64).data
         for e in est.take(name, t, v, budget_s=0.0):
             live[e.stamp_s] = e.temperatures_C
+            margin[e.stamp_s] = e.margin_current_A
+        limits += est.outlook.take_limits()
     assert len(live) == len(result.stamp_s) > 900
     assert result.correction['active'] and est.correction.updates > 900
     assert est.correction.updates == result.correction['updates']
     for k, stamp in enumerate(result.stamp_s):
         for name in ('winding_hotspot', 'magnet', 'oil', 'chamber_a'):
             assert live[stamp][name] == result.temperatures_C[name][k], (stamp, name)
+    # the limits, forecast and margin too, at the same ticks: every 0.5 s of sample time
+    assert len(limits) == len(result.current_limits) >= 2 * SECONDS - 2
+    assert limits == result.current_limits
+    assert np.array_equal([math.nan if margin[s] is None else margin[s] for s in result.stamp_s],
+                          result.margin_current_A, equal_nan=True)
+    assert est.outlook.result and est.outlook.result == {
+        q: None if math.isinf(v[-1]) else v[-1] for q, v in result.time_to_limit_s.items()}
     again = rp.replay(rp.plan_replay(bag), output_rate_Hz=50.0)
     for name, values in result.temperatures_C.items():
         assert np.array_equal(again.temperatures_C[name], values), name
+    assert again.current_limits == result.current_limits
+    assert np.array_equal(again.limits_current_A, result.limits_current_A, equal_nan=True)
+    for q, values in result.time_to_limit_s.items():
+        assert np.array_equal(again.time_to_limit_s[q], values, equal_nan=True), q
+
+
+def test_limits_csv_and_mcap_topics_hold_every_tick(result, tmp_path):
+    # the live node's messages, read back with rosbags (an independent reader), and the
+    # CSV at full precision: the numbers of the result, bit for bit
+    mcap = rp.write_mcap(result, tmp_path / 'estimates.mcap')
+    lims = result.current_limits
+    assert len(lims) >= 2 * SECONDS - 2
+    assert all(b - a == pytest.approx(0.5) for a, b in zip(
+        [lim.stamp_s for lim in lims], [lim.stamp_s for lim in lims[1:]]))
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    got = {interface.CURRENT_LIMITS_TOPIC: [], interface.CURRENT_LIMIT_TOPIC: []}
+    with Reader(mcap) as reader:
+        # the topics and types a live recording has (the recorder's), for a comparison
+        for topic in got:
+            assert reader.topics[topic].msgtype == recorded_topics()[topic][0]
+        wanted = [c for c in reader.connections if c.topic in got]
+        for connection, log_ns, data in reader.messages(connections=wanted):
+            got[connection.topic].append(
+                (log_ns, typestore.deserialize_cdr(data, connection.msgtype)))
+    assert len(got[interface.CURRENT_LIMITS_TOPIC]) == len(got[interface.CURRENT_LIMIT_TOPIC]) \
+        == len(lims)
+    for lim, (log_ns, msg), (log_ns1, scalar) in zip(lims, *got.values()):
+        stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        assert log_ns == log_ns1 == stamp_ns == round(lim.stamp_s * 1e9)
+        assert msg.header.frame_id == 'ok' == lim.status
+        assert tuple(msg.name) == lim.names == ('continuous', '10s', '60s', '600s')
+        assert tuple(msg.position.tolist()) == lim.horizons_s
+        assert tuple(msg.effort.tolist()) == lim.limits_A and not msg.velocity.size
+        assert scalar.data == lim.binding_A == lim.limits_A[1]
+    assert min(lim.binding_A for lim in lims) > 0.0
+    path = rp.write_limits_csv(result, tmp_path / 'limits.csv')
+    rows = np.genfromtxt(path, delimiter=',', names=True, dtype=None, encoding='utf-8')
+    assert len(rows) == len(lims)
+    assert rows['stamp_s'].tolist() == [lim.stamp_s for lim in lims]
+    assert rows['binding_A'].tolist() == [lim.binding_A for lim in lims]
+    assert rows['limit_600s_A'].tolist() == [lim.limits_A[3] for lim in lims]
+    assert rows['binds_continuous'].tolist() == [lim.binds[0] for lim in lims]
+    assert rows['held_s'].tolist() == result.limits_held_s.tolist()
+    assert np.array_equal(rows['current_rms_A'], result.limits_current_A, equal_nan=True)
+    # the current under each tick's limits: RMS of a positive, moving signal
+    assert np.all(result.limits_current_A[:-1] > 0.0)
+    # and the estimates' columns: the forecast from the first tick on, the margin
+    table = np.genfromtxt(rp.write_csv(result, tmp_path / 'estimates.csv'), delimiter=',',
+                          names=True)
+    ticked = table['stamp_s'] >= lims[0].stamp_s - 1e-6
+    assert ticked.any() and not ticked.all()
+    for column in ('margin_current_A', 'forecast_stamp_s', 'time_to_limit_winding_hotspot_s'):
+        assert np.all(np.isnan(table[column][~ticked])), column
+    assert np.allclose(table['margin_current_A'], result.margin_current_A, atol=1e-3,
+                       equal_nan=True)
+    assert np.all(table['margin_current_A'][ticked] > 0.0)
+    assert np.all(table['time_to_limit_winding_hotspot_s'][ticked] > 0.0)
+
+
+def test_no_outlook_writes_no_limits(bag, tmp_path, capsys):
+    out = tmp_path / 'out'
+    assert main(['replay', str(bag), '--out', str(out), '--no-outlook']) == 0
+    assert 'limits.csv' not in capsys.readouterr().out
+    assert not (out / 'limits.csv').exists() and not (out / 'limits.png').exists()
+    assert not set(open_bag(out / 'estimates.mcap').topics) & {
+        interface.CURRENT_LIMITS_TOPIC, interface.CURRENT_LIMIT_TOPIC}
+    header = (out / 'estimates.csv').read_text().splitlines()[0]
+    assert 'margin' not in header and 'time_to_limit' not in header
+    assert 'Not computed (`--no-outlook`)' in (out / 'report.md').read_text()
 
 
 def test_truncated_bag_replays_up_to_the_cut_with_a_warning(bag, tmp_path, capsys):
@@ -159,7 +242,7 @@ def test_foreign_topic_names_mapped_by_option(bag, result, tmp_path):
              '/rig/load_dp': 'dp_Pa', '/rig/lvdt': 'position_m'}
     plan = rp.plan_replay(foreign, mapping={n: t for t, n in names.items()})
     assert 'differential' in plan.config_source        # no config stored: found from topics
-    mapped = rp.replay(plan, output_rate_Hz=50.0)
+    mapped = rp.replay(plan, output_rate_Hz=50.0, outlook=False)
     for name, values in result.temperatures_C.items():
         assert np.array_equal(mapped.temperatures_C[name], values), name
     assert math.isclose(mapped.stamp_s[-1], result.stamp_s[-1])
@@ -170,7 +253,7 @@ def test_a_topic_mapped_to_several_names_feeds_each(bag, result):
     plan = rp.plan_replay(bag, mapping={'speed_rad_s': '/eha/current',
                                         'measured/frame': '/eha/ambient'})
     assert plan.inputs['current_A'] == plan.inputs['speed_rad_s'] == '/eha/current'
-    shared = rp.replay(plan, output_rate_Hz=50.0)
+    shared = rp.replay(plan, output_rate_Hz=50.0, outlook=False)
     received = {name: h['received'] for name, h in shared.health.items()}
     assert received['speed_rad_s'] == received['current_A'] == \
         result.health['current_A']['received'] > 0
@@ -191,8 +274,23 @@ def test_replay_plan_falls_back_for_a_missing_input(bag, tmp_path):
     shutil.copy(partial, tmp_path / 'copy.mcap')
     plan = rp.plan_replay(tmp_path / 'copy.mcap', config_path=None)
     assert plan.missing == ['speed_rad_s']
+    # below the log's current (about 1.5 A RMS), the conservative limit binds
+    plan.cfg = with_values(plan.cfg, {'estimator.limits.fallback_current_A': 1.0})
     res = rp.replay(plan)
     assert res.steps > 900 and res.stale_inputs.max() == 1
+    # a stale input all along: every tick on the fallback, saying why
+    assert {(lim.status, lim.reason, lim.binding_A) for lim in res.current_limits} == {
+        ('fallback', 'stale inputs: speed_rad_s', 1.0)}
+    report = rp.write_report(res, tmp_path / 'report').read_text()
+    # the ticks' limits hold from the first tick to the log's end
+    held = res.limits_held_s.sum()
+    assert held == pytest.approx(res.sample_time_s - 0.5, abs=0.5)
+    assert f'On the fallback (1 A at most): {held:.1f} s of {held:.1f} s' in report
+    assert f'| stale inputs | {held:.1f} | ' in report
+    # and the current was above that limit all along
+    assert np.all(res.limits_current_A > 1.0)
+    assert '| 10s (binding) | 1.00 | ' in report and f'| fallback | {held:.1f} |' in report
+    assert (tmp_path / 'report' / 'limits.png').stat().st_size > 0
 
 
 def test_a_given_config_with_the_other_pressure_mode_is_stored_in_the_output(bag, tmp_path):
@@ -201,7 +299,7 @@ def test_a_given_config_with_the_other_pressure_mode_is_stored_in_the_output(bag
     plan = rp.plan_replay(bag, config_path=default_config_path())
     assert 'pressure_inputs: differential' in plan.config_source
     assert plan.config_yaml == default_config_path().read_text()
-    result = rp.replay(plan)
+    result = rp.replay(plan, outlook=False)
     out = rp.write_mcap(result, tmp_path / 'estimates.mcap')
     stored = open_bag(out).metadata[interface.CONFIG_METADATA]
     assert stored[interface.CONFIG_METADATA_KEY] == plan.config_yaml
@@ -213,13 +311,14 @@ def test_open_loop_replay_leaves_the_thermocouples_out_of_the_model(bag, tmp_pat
     # estimates of a configuration with the correction off, so that the errors against the
     # thermocouples validate the model rather than the filter
     closed, opened = tmp_path / 'closed', tmp_path / 'open'
-    assert main(['replay', str(bag), '--out', str(closed), '--no-report']) == 0
-    assert main(['replay', str(bag), '--out', str(opened), '--open-loop']) == 0
+    # (the outlook is not what this is about: off, for speed)
+    assert main(['replay', str(bag), '--out', str(closed), '--no-report', '--no-outlook']) == 0
+    assert main(['replay', str(bag), '--out', str(opened), '--open-loop', '--no-outlook']) == 0
     capsys.readouterr()
     plan = rp.plan_replay(bag)
     assert plan.cfg.estimator.correction.enabled
     plan.cfg = with_values(plan.cfg, {'estimator.correction.enabled': False})
-    off = rp.replay(plan, output_rate_Hz=10.0)
+    off = rp.replay(plan, output_rate_Hz=10.0, outlook=False)
     table = np.genfromtxt(opened / 'estimates.csv', delimiter=',', names=True)
     # the CSV holds 4 decimals
     assert np.allclose(table['winding_mean_C'], off.temperatures_C['winding_mean'], atol=1e-4)

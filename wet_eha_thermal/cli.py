@@ -356,8 +356,10 @@ def _add_replay_parser(sub) -> None:
                        description='Replay a rosbag2-style MCAP (ours, or ros2 bag record -s mcap '
                                    'with the same message types) through the estimator in sample '
                                    'time, as fast as it goes. Writes estimates.csv and '
-                                   'estimates.mcap, and a report (report.md, PNG plots of inputs, '
-                                   'temperatures, errors against the thermocouples and alerts). '
+                                   'estimates.mcap, the current limits for the drive as the live '
+                                   'estimator computes them (limits.csv, and in the MCAP), and a '
+                                   'report (report.md, PNG plots of inputs, temperatures, errors '
+                                   'against the thermocouples, alerts and limits). '
                                    'The configuration is --config, else the one stored in the '
                                    'bag, else the reference rig. Several bags, or a folder of '
                                    'them, are a campaign: replayed in parallel on Dask, each into '
@@ -380,6 +382,9 @@ def _add_replay_parser(sub) -> None:
     p.add_argument('--open-loop', action='store_true',
                    help='do not let the thermocouples correct the model (estimator.correction '
                         'off): the errors against them then validate the model itself')
+    p.add_argument('--no-outlook', action='store_true',
+                   help='skip the current limits for the drive, the forecast and the margin '
+                        '(limits.csv, the limit topics and columns): faster')
     _add_dask_arguments(p.add_mutually_exclusive_group(), 'replays of a campaign')
     p.set_defaults(func=_replay)
 
@@ -394,7 +399,7 @@ def _replay(args: argparse.Namespace) -> int:
     try:
         options = rp.ReplayOptions(config_path=args.config, mapping=rp.parse_mapping(args.map),
                                    output_rate_Hz=args.output_rate_Hz, report=not args.no_report,
-                                   open_loop=args.open_loop)
+                                   open_loop=args.open_loop, outlook=not args.no_outlook)
     except rp.ReplayError as exc:
         raise BadArgument(str(exc)) from None
     bags = campaign.expand(args.bag)
@@ -430,7 +435,8 @@ def _replay_one(bag: Path, options, out: Path) -> int:
                  f'{sample_s:.0f} s of log, {speed:.0f}x real time')
 
     try:
-        result = rp.replay(plan, output_rate_Hz=options.output_rate_Hz, on_progress=on_progress)
+        result = rp.replay(plan, output_rate_Hz=options.output_rate_Hz, on_progress=on_progress,
+                           outlook=options.outlook)
     except (rp.ReplayError, rp.BagError) as exc:
         raise BadArgument(str(exc)) from None
     progress(1000, 1000, 'done')

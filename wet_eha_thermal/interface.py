@@ -141,6 +141,11 @@ def prefixed(topic: str, prefix: str) -> str:
     return prefix.rstrip('/') + topic[len(PREFIX):]
 
 
+def limits_frame_id(status: str, reason: str) -> str:
+    """Return the header.frame_id of the limits on CURRENT_LIMITS_TOPIC for a status and why."""
+    return 'ok' if status == 'ok' else f'fallback: {reason}'
+
+
 #: The line of a node's :class:`NodeReport` starts with this, then its JSON.
 REPORT_PREFIX = 'wet_eha_thermal node report: '
 #: Version of the report's fields: a reader refuses any other.

@@ -63,6 +63,8 @@ import foxglove
 from foxglove import Channel, Context, Parameter
 from foxglove.websocket import Capability, ServerListener, StatusLevel
 
+from .interface import limits_frame_id
+
 #: Schema name prefix of the view's own JSON schemas.
 SCHEMA_PREFIX = 'wet_eha_thermal.view.'
 #: Width of the uncertainty band: estimate +- BAND_SIGMAS sigma (about 95 %).
@@ -580,7 +582,7 @@ class LiveView:
                'forecast_started_s': _num(est.forecast_stamp_s),
                'current_limit_A': _num(lim.binding_A if lim is not None else None),
                'current_limits_status': 'pending' if lim is None else (
-                   'ok' if lim.status == 'ok' else f'fallback: {lim.reason}')}
+                   limits_frame_id(lim.status, lim.reason))}
         rules = (self._summary or {}).get('quantities', {})
         for q in self.limited:
             value, limit = est.temperatures_C[q], est.limits_C[q]

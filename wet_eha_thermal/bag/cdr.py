@@ -12,6 +12,10 @@ field follows, aligned to its size counted from the end of that header.
 
 - std_msgs/String: ``data`` as a uint32 length counting its NUL, the UTF-8
   bytes, the NUL.
+- sensor_msgs/JointState: the Header, then ``name`` (a uint32 count aligned
+  to 4, each string as above, aligned to 4), then ``position``, ``velocity``
+  and ``effort``: each a uint32 count aligned to 4 and its float64 values
+  aligned to 8 (no padding when it is empty).
 
 The bag reader gathers these fields with numpy for whole chunks; the live
 estimator node decodes one message at a time with :func:`float64_data` and
@@ -23,7 +27,7 @@ without ROS and without building a message object per sample.
 """
 
 import struct
-from typing import List, Tuple
+from typing import List, Sequence, Tuple
 
 import numpy as np
 
@@ -76,8 +80,41 @@ def encode_float64(value: float) -> bytes:
 
 def encode_string(text: str) -> bytes:
     """Return a std_msgs/String holding ``text``, serialised."""
+    out = bytearray(_HEADER)
+    _put_string(out, text)
+    return bytes(out)
+
+
+def encode_joint_state(stamp_ns: int, frame_id: str, names: Sequence[str],
+                       position: Sequence[float], velocity: Sequence[float],
+                       effort: Sequence[float]) -> bytes:
+    """Return a sensor_msgs/JointState, serialised: one message (the limits of a tick)."""
+    out = bytearray(_HEADER)
+    out += _STAMP.pack(*divmod(int(stamp_ns), 1_000_000_000))
+    _put_string(out, frame_id)
+    _align(out, 4)
+    out += _U32.pack(len(names))
+    for name in names:
+        _put_string(out, name)
+    for values in (position, velocity, effort):
+        _align(out, 4)
+        out += _U32.pack(len(values))
+        if len(values):
+            _align(out, 8)
+            out += struct.pack(f'<{len(values)}d', *values)
+    return bytes(out)
+
+
+def _align(out: bytearray, size: int) -> None:
+    """Pad ``out`` with zeros to a multiple of ``size`` counted from the encapsulation header."""
+    out += bytes(-(len(out) - ENCAPSULATION_BYTES) % size)
+
+
+def _put_string(out: bytearray, text: str) -> None:
+    """Append a string field to ``out``: aligned uint32 length counting the NUL, bytes, NUL."""
     data = text.encode()
-    return _HEADER + _U32.pack(len(data) + 1) + data + b'\x00'
+    _align(out, 4)
+    out += _U32.pack(len(data) + 1) + data + b'\x00'
 
 
 def encode_stamped(stamps_ns: np.ndarray, frame_id: str, values: np.ndarray) -> List[bytes]:

@@ -135,7 +135,7 @@ def replay_log(path: Path, out_dir: Path, options: rp.ReplayOptions) -> Dict[str
         # a Dask worker runs one log per core: reading in a forked child on another core
         # would only take a core from the next log (and a daemonic worker cannot fork)
         result = rp.replay(options.plan(path), output_rate_Hz=options.output_rate_Hz,
-                           prefetch=False)
+                           prefetch=False, outlook=options.outlook)
         rp.write_outputs(result, out_dir, options.report)
     except Exception as exc:      # noqa: BLE001 - any failure is this log's: its row says it
         row.update(status='failed', reason=_reason(exc))

@@ -17,11 +17,19 @@ with the estimate each one measures. The configuration is, in this order, the
 one given, the one the recorder stored in the bag, or the shipped reference
 rig.
 
+The estimator works on its outlook inline, as the live one does in the
+background: at the same sample times, from the same states, the same current
+limits for the drive (every ``estimator.limits.period_s``), forecast and
+margin; ``outlook=False`` (``--no-outlook``) skips them for speed.
+
 Outputs go to one folder, each written under a ``.partial`` name and renamed
-when complete: ``estimates.csv`` and ``estimates.mcap`` at ``output_rate_Hz``,
-and with :func:`write_report` the plots and ``report.md``.
+when complete: ``estimates.csv`` and ``estimates.mcap`` at ``output_rate_Hz``
+(the MCAP with every tick's limits on the live node's topics),
+``limits.csv`` (one row per tick), and with :func:`write_report` the plots
+and ``report.md``.
 """
 
+import csv
 import dataclasses
 from dataclasses import dataclass, field
 import math
@@ -36,8 +44,9 @@ from .. import interface
 from ..bag.reader import BagError, BagInfo, Columns, iter_column_blocks, open_bag
 from ..config import (Config, config_from_yaml, ConfigError, default_config_path, load_config,
                       with_values)
-from ..estimator.core import Estimator
+from ..estimator.core import Estimate, Estimator
 from ..estimator.intake import INPUTS, sensor_inputs
+from ..estimator.limits import CurrentLimits
 from ..model import quantity_table
 from ..output_files import atomic, markdown_table, save_figure, write_text
 
@@ -209,6 +218,7 @@ class ReplayOptions:
     output_rate_Hz: float = 10.0
     report: bool = True
     open_loop: bool = False       # estimator.correction off: the thermocouples only compared
+    outlook: bool = True          # the current limits, forecast and margin (off: faster)
 
     def plan(self, path: os.PathLike) -> ReplayPlan:
         """Return the :func:`plan_replay` of the bag ``path`` under these options."""
@@ -244,6 +254,20 @@ class ReplayResult:
     correction: Optional[dict] = None
     # the estimator's limits (degC) of the estimates its alerts and forecast watch
     limits_C: Dict[str, float] = field(default_factory=dict)
+    # the outlook (False: not computed, the fields below are empty)
+    outlook: bool = False
+    # per estimate: the latest forecast's time from its start to each limit (s; inf
+    # beyond its horizon, NaN before the first), that start (sample time s), and the
+    # latest continuous current limit (A RMS; NaN before the first)
+    time_to_limit_s: Dict[str, np.ndarray] = field(default_factory=dict)
+    forecast_stamp_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    margin_current_A: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    # every limit tick's current limits, how long each was in force (s of sample time:
+    # until the next tick, the last until the log's end) and the RMS current (A) of the
+    # log meanwhile (NaN for none)
+    current_limits: List[CurrentLimits] = field(default_factory=list)
+    limits_held_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    limits_current_A: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def speed_x(self) -> float:
@@ -309,10 +333,46 @@ def _correction_summary(est: Estimator) -> Optional[dict]:
                               if h.received}}
 
 
+class _TickCurrent:
+    """The RMS current of the steps between limit ticks, from the estimates' inputs."""
+
+    def __init__(self) -> None:
+        self.squares = 0.0      # sum over steps of each step's mean I^2 (A^2)
+        self.steps = 0
+        self.last_step = 0
+        self.before: List[Tuple[int, float]] = []   # steps and RMS of the period ending at a tick
+
+    def add(self, e: Estimate, tick: bool) -> None:
+        """Add the steps of ``e`` (a held block counts as its steps); close a period at a tick."""
+        n = e.step - self.last_step
+        self.last_step = e.step
+        self.squares += float(np.mean(e.inputs['current_A'] ** 2)) * n
+        self.steps += n
+        if tick:
+            self.before.append(self._period())
+            self.squares, self.steps = 0.0, 0
+
+    def _period(self) -> Tuple[int, float]:
+        return self.steps, math.sqrt(self.squares / self.steps) if self.steps else math.nan
+
+    def in_force(self, step_s: float) -> Tuple[np.ndarray, np.ndarray]:
+        """Return how long each tick's limits held (s) and the RMS current meanwhile (A)."""
+        after = self.before[1:] + [self._period()] if self.before else []
+        return (np.array([n * step_s for n, _ in after]),
+                np.array([rms for _, rms in after]))
+
+
+def _outlook_row(e: Estimate, limited: Sequence[str]) -> List[float]:
+    """Return an estimate's times to limit, forecast start and margin (NaN: none yet)."""
+    times = [e.time_to_limit_s.get(q, math.nan) for q in limited]    # None: beyond it
+    return [math.inf if t is None else t for t in times] + [
+        math.nan if v is None else v for v in (e.forecast_stamp_s, e.margin_current_A)]
+
+
 def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
            on_progress: Optional[Callable[[float, float, float], None]] = None,
            plot_interval_s: float = 0.1, prefetch: bool = True,
-           estimator: Optional[Estimator] = None) -> ReplayResult:
+           estimator: Optional[Estimator] = None, outlook: bool = True) -> ReplayResult:
     """
     Run the estimator over the bag of ``plan`` in sample time; return the estimates.
 
@@ -320,11 +380,17 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
     the step rate). ``on_progress(fraction, sample_time_s, wall_s)`` is called
     after each block of about 10 s of log. ``prefetch``: read the bag in a
     forked child on another core (the same numbers either way; see
-    :class:`~.bag.reader.ColumnBlocks`). ``estimator``: the one to run, new
-    on ``plan.cfg`` (the default), kept by the caller to start from its last
-    state (a what-if from a bag).
+    :class:`~.bag.reader.ColumnBlocks`). ``outlook``: compute every tick's
+    current limits, the forecast and the margin, inline (``False``: none).
+    ``estimator``: the one to run (its own outlook then), new on ``plan.cfg``
+    by default, kept by the caller to start from its last state (a what-if
+    from a bag).
     """
-    est = estimator if estimator is not None else Estimator(plan.cfg)
+    est = estimator if estimator is not None else Estimator(
+        plan.cfg, outlook='inline' if outlook else 'off')
+    limited = list(est.limits_C)
+    current_limits: List[CurrentLimits] = []
+    tick_current = _TickCurrent()
     step_s = plan.cfg.estimator.step_s
     every = max(1, int(round(1.0 / (output_rate_Hz * step_s))))
     rows: List[np.ndarray] = []
@@ -340,13 +406,20 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
                                 on_progress=lambda done, total: done_bytes.__setitem__(0, done))
 
     def advance() -> None:
-        for e in est.advance_all():
+        estimates = est.advance_all()
+        # inline, a tick's limits are done within the step that made it
+        ticks = {lim.stamp_s: lim for lim in est.outlook.take_limits()}
+        current_limits.extend(ticks.values())
+        for e in estimates:
             for ev in e.alert_events:
                 events.append((e.stamp_s, ev.message))
+            if outlook:
+                tick_current.add(e, e.stamp_s in ticks)
             if e.step % every == 0:
                 rows.append(np.array(
                     [e.stamp_s] + [e.temperatures_C[n] for n in OUTPUT_ESTIMATES]
-                    + [max(e.uncertainty_K.values()), e.alert_level, len(e.stale)]))
+                    + [max(e.uncertainty_K.values()), e.alert_level, len(e.stale)]
+                    + (_outlook_row(e, limited) if outlook else [])))
 
     for block in blocks:
         samples = plan.route(block)
@@ -368,6 +441,8 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
                           f'{blocks.message_count} messages of the mapped topics')
     table = np.vstack(rows)
     n = len(OUTPUT_ESTIMATES)
+    ahead = table[:, 4 + n:]          # the outlook's columns (none when it is off)
+    held_s, current_A = tick_current.in_force(step_s)
     return ReplayResult(
         plan=plan, stamp_s=table[:, 0],
         temperatures_C={name: table[:, 1 + k] for k, name in enumerate(OUTPUT_ESTIMATES)},
@@ -382,25 +457,72 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
         problem=blocks.problem,
         health={name: dict(vars(h)) for name, h in est.health.items()},
         implausible=dict(est.implausible_counts), correction=_correction_summary(est),
-        limits_C=dict(est.limits_C))
+        limits_C=dict(est.limits_C), outlook=outlook,
+        time_to_limit_s={q: ahead[:, k] for k, q in enumerate(limited) if outlook},
+        forecast_stamp_s=ahead[:, -2] if outlook else np.zeros(0),
+        margin_current_A=ahead[:, -1] if outlook else np.zeros(0),
+        current_limits=current_limits, limits_held_s=held_s, limits_current_A=current_A)
 
 
 # ------------------------------------------------------------------ outputs
 def write_csv(result: ReplayResult, path: Path) -> Path:
-    """Write the estimates (degC) with stamps, uncertainty and alert level; return the path."""
+    """
+    Write the estimates (degC) with stamps, uncertainty and alert level; return the path.
+
+    With the outlook, also the latest forecast's time to each limit from its
+    start (``inf``: beyond its horizon; ``nan``: no forecast yet), that start
+    and the continuous current limit.
+    """
     header = ['stamp_s'] + [f'{n}_C' for n in OUTPUT_ESTIMATES] + [
         'sigma_K', 'alert_level', 'inputs_on_fallback']
-    table = np.column_stack([result.stamp_s] + [result.temperatures_C[n]
-                                                for n in OUTPUT_ESTIMATES]
-                            + [result.sigma_K, result.alert_level, result.stale_inputs])
+    columns = [result.stamp_s] + [result.temperatures_C[n] for n in OUTPUT_ESTIMATES] + [
+        result.sigma_K, result.alert_level, result.stale_inputs]
     fmt = ['%.6f'] + ['%.4f'] * len(OUTPUT_ESTIMATES) + ['%.3f', '%d', '%d']
+    if result.outlook:
+        header += [f'time_to_limit_{q}_s' for q in result.time_to_limit_s] + [
+            'forecast_stamp_s', 'margin_current_A']
+        columns += list(result.time_to_limit_s.values()) + [result.forecast_stamp_s,
+                                                            result.margin_current_A]
+        fmt += ['%.1f'] * len(result.time_to_limit_s) + ['%.6f', '%.3f']
+    table = np.column_stack(columns)
     with atomic(path) as tmp:
         np.savetxt(tmp, table, fmt=fmt, delimiter=',', header=','.join(header), comments='')
     return path
 
 
+def write_limits_csv(result: ReplayResult, path: Path) -> Path:
+    """
+    Write every tick's current limits, one row each; return the path.
+
+    Columns: the tick's stamp (sample time, s), the binding limit (A RMS),
+    then for each limit (``continuous``, ``10s``, ...) its value (A RMS) and
+    what binds it, the status, why it fell back, how long the limits were in
+    force and the RMS current the log carried meanwhile. Values at full
+    precision: a replay's limits are reproducible bit for bit.
+    """
+    names = result.current_limits[0].names if result.current_limits else ()
+    header = ['stamp_s', 'binding_A'] + [c for name in names
+                                         for c in (f'limit_{name}_A', f'binds_{name}')] + [
+        'status', 'reason', 'held_s', 'current_rms_A']
+    with atomic(path) as tmp, open(tmp, 'w', newline='') as f:
+        writer = csv.writer(f)
+        writer.writerow(header)
+        for lim, held, current in zip(result.current_limits, result.limits_held_s.tolist(),
+                                      result.limits_current_A.tolist()):
+            writer.writerow([repr(lim.stamp_s), repr(lim.binding_A)]
+                            + [c for v, b in zip(lim.limits_A, lim.binds) for c in (repr(v), b)]
+                            + [lim.status, lim.reason, repr(held), repr(current)])
+    return path
+
+
 def write_mcap(result: ReplayResult, path: Path) -> Path:
-    """Write the estimates as /eha/estimate/<name> Temperature messages, with the config."""
+    """
+    Write the estimates as /eha/estimate/<name> Temperature messages, with the config.
+
+    With the outlook, every tick's limits too, as the live estimator node
+    publishes them: a JointState on CURRENT_LIMITS_TOPIC and the binding
+    limit as a Float64 on CURRENT_LIMIT_TOPIC, logged at the tick's sample time.
+    """
     from ..bag import cdr
     from ..bag.writer import BagWriter, offered_qos
 
@@ -423,14 +545,27 @@ def write_mcap(result: ReplayResult, path: Path) -> Path:
                 w.write(topic, data[k], ns)
         for stamp, text in result.alert_events:
             w.write(interface.ALERT_TOPIC, cdr.encode_string(text), int(round(stamp * 1e9)))
+        if result.outlook:
+            # the live node's publishers: reliable, volatile, 10 deep
+            w.add_topic(interface.CURRENT_LIMITS_TOPIC, interface.JOINT_STATE,
+                        offered_qos(depth=10))
+            w.add_topic(interface.CURRENT_LIMIT_TOPIC, interface.FLOAT64, offered_qos(depth=10))
+        for lim in result.current_limits:
+            ns = int(round(lim.stamp_s * 1e9))
+            w.write(interface.CURRENT_LIMITS_TOPIC, cdr.encode_joint_state(
+                ns, interface.limits_frame_id(lim.status, lim.reason), lim.names,
+                lim.horizons_s, (), lim.limits_A), ns)
+            w.write(interface.CURRENT_LIMIT_TOPIC, cdr.encode_float64(lim.binding_A), ns)
     return path
 
 
 def write_outputs(result: ReplayResult, out_dir: Path, report: bool = True) -> List[Path]:
-    """Write estimates.csv, estimates.mcap and (``report``) the report; return the paths."""
+    """Write estimates.csv, estimates.mcap, limits.csv and the report; return the paths."""
     out_dir.mkdir(parents=True, exist_ok=True)
     files = [write_csv(result, out_dir / 'estimates.csv'),
              write_mcap(result, out_dir / 'estimates.mcap')]
+    if result.outlook:
+        files.append(write_limits_csv(result, out_dir / 'limits.csv'))
     if report:
         files.append(write_report(result, out_dir))
     return files
@@ -464,18 +599,18 @@ def error_stats(err: np.ndarray) -> Dict[str, float]:
 
 
 def write_report(result: ReplayResult, out_dir: Path) -> Path:
-    """Write PNG plots (inputs, temperatures, errors, alerts) and report.md; return its path."""
+    """Write the PNG plots (inputs, temperatures, errors, alerts, limits) and report.md."""
     out_dir.mkdir(parents=True, exist_ok=True)
     errors = thermocouple_errors(result)
     images = _write_plots(result, errors, out_dir)
     lines = _summary_lines(result) + _temperature_lines(result) + _error_lines(errors) \
-        + _health_lines(result) + _correction_lines(result.correction)
+        + _health_lines(result) + _correction_lines(result.correction) + _limits_lines(result)
     lines += [''] + [f'![{p.stem}]({p.name})' for p in images]
     return write_text(out_dir / 'report.md', '\n'.join(lines) + '\n')
 
 
 def _write_plots(result: ReplayResult, errors: Dict[str, dict], out_dir: Path) -> List[Path]:
-    """Write the report's PNGs (errors.png only with thermocouples); return their paths."""
+    """Write the report's PNGs (errors.png with thermocouples, limits.png with limits)."""
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
@@ -488,6 +623,8 @@ def _write_plots(result: ReplayResult, errors: Dict[str, dict], out_dir: Path) -
     if errors:
         images.append(save_figure(_plot_errors(plt, errors, t0), out_dir / 'errors.png'))
     images.append(save_figure(_plot_alerts(plt, result, t_min), out_dir / 'alerts.png'))
+    if result.current_limits:
+        images.append(save_figure(_plot_limits(plt, result, t0), out_dir / 'limits.png'))
     return images
 
 
@@ -581,6 +718,115 @@ def _plot_alerts(plt, result: ReplayResult, t_min: np.ndarray):
     ax.set_title('alert level')
     ax.grid(alpha=0.3)
     return fig
+
+
+def _limit_table(result: ReplayResult) -> tuple:
+    """Return the ticks' stamps (s), limits (A, ticks x limits) and fallback flags."""
+    lims = result.current_limits
+    return (np.array([lim.stamp_s for lim in lims]), np.array([lim.limits_A for lim in lims]),
+            np.array([lim.status != 'ok' for lim in lims]))
+
+
+def _runs(flags: np.ndarray) -> List[Tuple[int, int]]:
+    """Return the [start, stop) index ranges where ``flags`` holds."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], flags.astype(np.int8), [0]])))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
+
+
+def _plot_limits(plt, result: ReplayResult, t0: float):
+    """
+    Return the figure of the current limits over time, with the RMS current of the log.
+
+    Each tick's limits hold until the next tick (steps); the binding one (the
+    shortest horizon's) is thick, the fallback periods are shaded, and the
+    RMS current of each period is drawn over them: where it rises above the
+    binding limit, a drive applying that limit would have clamped it.
+    """
+    stamps, values, fallback = _limit_table(result)
+    first = result.current_limits[0]
+    period = result.plan.cfg.estimator.limits.period_s
+    # each tick's limits (and the current under them) hold until the next: the last too
+    t = (np.append(stamps, stamps[-1] + result.limits_held_s[-1]) - t0) / 60.0
+    values = np.vstack([values, values[-1]])
+    current = np.append(result.limits_current_A, result.limits_current_A[-1])
+    fig, ax = plt.subplots(figsize=(10, 3.8))
+    binding = int(np.argmin(first.horizons_s))
+    others = iter(('C0', 'C2', 'C4', 'C1', 'C5', 'C6'))     # red is the binding one's
+    for k, name in enumerate(first.names):
+        if k == binding:
+            # under the others: a limit equal to it (at the rating) stays visible on it
+            style = {'color': 'C3', 'lw': 2.2, 'label': f'{name} (binding)', 'zorder': 1.5}
+        elif math.isinf(first.horizons_s[k]):
+            style = {'color': 'grey', 'lw': 1.0, 'ls': '--', 'label': name}
+        else:
+            style = {'color': next(others, 'C7'), 'lw': 1.0, 'label': name}
+        ax.step(t, values[:, k], where='post', **style)
+    ax.step(t, current, where='post', color='k', lw=0.8,
+            label=f'RMS current over each {period:g} s', zorder=4)
+    for k, (lo, hi) in enumerate(_runs(fallback)):
+        ax.axvspan(t[lo], t[hi], color='orange', alpha=0.25, lw=0,
+                   label='fallback' if k == 0 else None)
+    ax.set_ylim(bottom=0.0)
+    ax.set_xlabel('time since the first estimate [min]')
+    ax.set_ylabel('A RMS')
+    ax.set_title('current limits for the drive', fontsize=10, loc='left')
+    ax.legend(fontsize=7, loc='upper left', bbox_to_anchor=(1.01, 1.0))
+    ax.grid(alpha=0.3)
+    return fig
+
+
+def _limits_lines(result: ReplayResult) -> List[str]:
+    """
+    Return the report's section on the current limits for the drive.
+
+    Per limit its lowest value, when, what bound it, and how long the RMS
+    current (per tick period) was above it; the time on the fallback and why.
+    Times are those the limits held (:attr:`ReplayResult.limits_held_s`).
+    """
+    lines = ['', '## Current limits for the drive', '']
+    if not result.outlook:
+        return lines + ['Not computed (`--no-outlook`).']
+    if not result.current_limits:
+        return lines + ['The log ends before the first limit tick.']
+    lim_cfg = result.plan.cfg.estimator.limits
+    stamps, values, fallback = _limit_table(result)
+    t0 = float(result.stamp_s[0])
+    first = result.current_limits[0]
+    binding = int(np.argmin(first.horizons_s))
+    lines += [f'{len(stamps)} ticks, one every {lim_cfg.period_s:g} s of sample time, each at '
+              f'the estimate + {lim_cfg.k_sigma:g} sigma, as the live estimator publishes them '
+              f'on `{interface.CURRENT_LIMITS_TOPIC}` (all in `limits.csv`). "Current above": '
+              f'the time the RMS current over a tick period exceeded the limit of its tick; '
+              f'above the binding ({first.names[binding]}) limit, a drive applying it would '
+              f'have clamped the current.', '']
+    held = result.limits_held_s
+    rows = []
+    for k, name in enumerate(first.names):
+        i = int(np.argmin(values[:, k]))
+        with np.errstate(invalid='ignore'):
+            above = result.limits_current_A > values[:, k]
+        rows.append((name + (' (binding)' if k == binding else ''), f'{values[i, k]:.2f}',
+                     f'{stamps[i] - t0:.1f}', result.current_limits[i].binds[k],
+                     f'{held[above].sum():.1f}'))
+    lines += markdown_table(('limit', 'lowest (A RMS)', 'at (s)', 'bound by',
+                             'current above (s)'), rows)
+    lines += ['', f'On the fallback ({lim_cfg.fallback_current_A:g} A at most): '
+              f'{held[fallback].sum():.1f} s of {held.sum():.1f} s.']
+    causes: Dict[str, List[int]] = {}
+    for k in np.flatnonzero(fallback).tolist():
+        causes.setdefault(result.current_limits[k].reason.split(':')[0], []).append(k)
+    if causes:
+        lines += [''] + markdown_table(
+            ('cause', 'time (s)', 'first at (s)', 'first reason'),
+            ((cause, f'{held[ks].sum():.1f}', f'{stamps[ks[0]] - t0:.1f}',
+              result.current_limits[ks[0]].reason) for cause, ks in causes.items()))
+    if math.isfinite(result.forecast_stamp_s[-1]):
+        horizon = result.plan.cfg.estimator.forecast_horizon_s
+        reach = ', '.join(f'{q} beyond {horizon:g} s' if math.isinf(v[-1])
+                          else f'{q} {v[-1]:.0f} s' for q, v in result.time_to_limit_s.items())
+        lines += ['', f'The last forecast (from {result.forecast_stamp_s[-1] - t0:.1f} s, the '
+                  f'recent duty repeated) reaches each limit after: {reach}.']
+    return lines
 
 
 def _summary_lines(result: ReplayResult) -> List[str]:

@@ -143,7 +143,7 @@ def limit_values(limits: Optional[CurrentLimits]) -> List[Tuple[str, object]]:
     """Return the estimate status's key-values of the latest current limits."""
     if limits is None:
         return [('current limit [A RMS]', 'pending')]
-    status = 'ok' if limits.status == 'ok' else f'fallback: {limits.reason}'
+    status = interface.limits_frame_id(limits.status, limits.reason)
     out = [('current limit [A RMS]', f'{limits.binding_A:.1f}'),
            ('current limits status', status),
            ('current limits stamp [s]', f'{limits.stamp_s:.3f}')]

@@ -603,7 +603,7 @@ class EstimatorNode(Node):
         """Publish ``limits`` as the JointState of every horizon and the binding Float64."""
         msg = self._limits_msg
         msg.header.stamp = _stamp_msg(int(round(limits.stamp_s * 1e9)))
-        msg.header.frame_id = 'ok' if limits.status == 'ok' else f'fallback: {limits.reason}'
+        msg.header.frame_id = interface.limits_frame_id(limits.status, limits.reason)
         msg.name = list(limits.names)
         msg.position = list(limits.horizons_s)
         msg.effort = list(limits.limits_A)

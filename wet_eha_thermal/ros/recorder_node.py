@@ -174,12 +174,12 @@ def recorded_topics(prefix: str = interface.PREFIX) -> Dict[str, Tuple[str, str]
     found[interface.STATE_TOPIC] = (interface.FLOAT64_ARRAY, 'output')
     found[interface.STATE_NAMES_TOPIC] = (interface.STRING, 'latched')
     found[interface.ALERT_TOPIC] = (interface.STRING, 'latched')
+    found[interface.CURRENT_LIMITS_TOPIC] = (interface.JOINT_STATE, 'output')
+    found[interface.CURRENT_LIMIT_TOPIC] = (interface.FLOAT64, 'output')
     found[interface.READY_TOPIC] = (interface.STRING, 'latched')
     found[interface.RECORDER_HEALTH_TOPIC] = (interface.STRING, 'latched')
     found[interface.ACK_TOPIC] = (interface.STRING, 'output')
     found[interface.DIAGNOSTICS_TOPIC] = (interface.DIAGNOSTIC_ARRAY, 'output')
-    found[interface.CURRENT_LIMITS_TOPIC] = (interface.JOINT_STATE, 'output')
-    found[interface.CURRENT_LIMIT_TOPIC] = (interface.FLOAT64, 'output')
     return {interface.prefixed(topic, prefix): spec for topic, spec in found.items()}
 
 
