@@ -413,3 +413,49 @@ def test_missing_column_lists_the_columns_found(cfg, tmp_path):
         load_duty_csv(path, cfg.hydraulics.actuator.area_m2, 0.04)
     for name in ('time_s', 'flow', 'load_MPa', 'extra', 'flow_L_min'):
         assert repr(name) in str(info.value)
+
+
+# ------------------------------------------------------------- a limited drive
+#: shaft friction that vanishes at standstill, as the motor's does (the load scale can take
+#: the speed through zero, where a friction power of LOSSY's would be an infinite torque)
+STILL = ThermalFeedback(drag_W=lambda speed: 2e-7 * np.asarray(speed) ** 3,
+                        electromagnetic_loss_W=em_loss)
+
+
+def test_a_limited_drive_clamps_only_where_and_as_much_as_needed(cfg, model):
+    # stage 1 (16 MPa): 33 A at its peak; a 20 A limit binds over about half of the period
+    d = stage_duty(cfg, 1)
+    t = np.linspace(0.0, d.period_s, 2001)
+    free = model.sample(d, t, STILL)
+    s, demanded = model.sample_limited(d, t, STILL, 20.0)
+    np.testing.assert_array_equal(demanded, free.current_A)
+    over = demanded > 20.0
+    assert 0.3 < over.mean() < 0.7
+    # within the limit the samples are the duty's, every one of their fields
+    for name in ('current_A', 'p_a_Pa', 'p_b_Pa', 'speed_rad_s', 'copper_W', 'torque_Nm'):
+        np.testing.assert_array_equal(getattr(s, name)[~over], getattr(free, name)[~over])
+    # over it the current is the limit, up to the friction's jump where the speed crosses 0
+    assert np.max(s.current_A) <= 20.0
+    cut_more = 20.0 - s.current_A[over]
+    assert np.mean(cut_more < 1e-3) > 0.95 and np.max(cut_more) < 2.0
+    # the load gave way, the flow and the piston followed the duty
+    held = np.abs(s.p_a_Pa - s.p_b_Pa)[over]
+    assert np.all(held < np.abs(free.p_a_Pa - free.p_b_Pa)[over])
+    np.testing.assert_array_equal(s.flow_m3_s, free.flow_m3_s)
+    np.testing.assert_array_equal(s.position_m, free.position_m)
+    # one physics: the clamped samples balance their power as the duty's do
+    shaft, total, scale = power_residuals(model, s)
+    assert np.max(np.abs(shaft)) < 1e-11 * scale and np.max(np.abs(total)) < 1e-11 * scale
+
+
+def test_a_limit_below_the_unloaded_current_unloads_the_pump(cfg, model):
+    d = stage_duty(cfg, 1)
+    t = np.linspace(0.0, d.period_s, 101)
+    s, demanded = model.sample_limited(d, t, STILL, 0.01)
+    unloaded = model.sample(d, t, STILL, load_scale=0.0)
+    # friction alone takes more than 10 mA: the load goes (or, regenerating, the little
+    # that cancels the friction stays), the current never rises above the unloaded one
+    assert np.all(s.current_A <= np.maximum(unloaded.current_A, 0.01) * (1 + 1e-12))
+    at_zero = s.current_A > 0.01
+    assert at_zero.mean() > 0.5
+    np.testing.assert_array_equal(s.p_a_Pa[at_zero], s.p_b_Pa[at_zero])
