@@ -32,3 +32,27 @@ def test_thermocouples_read_the_mean_or_the_mid_stack_point(points):
         assert tc['winding'] == pytest.approx(out['winding_mean'], abs=1e-9)
         assert tc['frame'] == pytest.approx(out['frame'], abs=1e-9)
     assert tc['pump_case'] == pytest.approx(out['pump_case'], abs=1e-9)
+
+
+def test_a_rig_honouring_a_limit_clamps_counts_and_heats_less():
+    cfg = load_config()
+    rigs = {limit: SimulatedRig(cfg, stage_duty(cfg, 1), rate_Hz=200.0, noise=False,
+                                block_s=0.1) for limit in (None, 20.0)}
+    rigs[20.0].current_limit_A = 20.0
+    currents = {limit: np.concatenate([rig.next_block()['current_A'] for _ in range(100)])
+                for limit, rig in rigs.items()}
+    free, held = rigs[None], rigs[20.0]
+    # stage 1 asks for 33 A at its peaks: the open rig carries it and counts nothing
+    assert np.max(currents[None]) > 32.0 and free.clamped_samples == 0
+    assert free.largest_cut_A == 0.0 and np.isnan(free.first_clamp_s)
+    # the limited one carries at most the limit, clamped over the demand's excess only
+    assert np.max(currents[20.0]) <= 20.0
+    demanded_over = currents[None] > 20.0
+    assert held.clamped_samples == pytest.approx(np.sum(demanded_over), rel=0.02)
+    assert held.first_clamp_s == pytest.approx(
+        (np.argmax(demanded_over) + 1) * held.period_s, abs=0.05)
+    assert held.largest_cut_A == pytest.approx(np.max(currents[None]) - 20.0, abs=0.5)
+    # the truth heats with what the drive carried
+    rise = {k: rig.peak_hotspot_K - (rig.ambient_C + C_TO_K) for k, rig in rigs.items()}
+    assert rise[20.0] < 0.8 * rise[None]
+    assert held.peak_hotspot_K >= held.truth.outputs()['winding_hotspot']

@@ -15,6 +15,13 @@ By default each thermocouple reads the model output it is named after
 thermocouples read one point, at mid-stack, of the truth's axial profile
 instead of the means the estimator publishes, as a bonded thermocouple does.
 
+A rig whose ``current_limit_A`` is set plays a drive that honours a current
+limit (:meth:`~wet_eha_thermal.model.kinetics.KineticModel.sample_limited`:
+the load yields where the duty asks for more current); it counts the samples
+it clamped, the first one's duty time and the largest cut. The truth model
+heats with the clamped current, and the rig keeps the truth's peak
+hot-spot.
+
 The ROS node (:mod:`wet_eha_thermal.ros.sim_rig_node`) publishes these
 blocks in real time; :func:`write_rig_bag` writes them straight to a bag,
 as the recorder would have recorded the rig, for replays and tests;
@@ -76,6 +83,12 @@ class SimulatedRig:
         self.tc_alpha = 1.0 - math.exp(-block_s / thermocouple_lag_s) \
             if thermocouple_lag_s > 0.0 else 1.0
         self.blocks = 0
+        #: the phase current the drive may carry (A RMS); None: the duty's, unlimited
+        self.current_limit_A: Optional[float] = None
+        self.clamped_samples = 0
+        self.first_clamp_s = math.nan        # duty time of the first clamped sample
+        self.largest_cut_A = 0.0             # demanded minus carried current, largest
+        self.peak_hotspot_K = self.truth.outputs()['winding_hotspot']
 
     def next_block(self) -> Dict[str, np.ndarray]:
         """
@@ -85,9 +98,15 @@ class SimulatedRig:
         """
         first = 1 + self.blocks * self.n_block
         t = (first + np.arange(self.n_block)) * self.period_s
-        s = self.kin.sample(self.duty, t, feedback(self.truth))
+        if self.current_limit_A is None:
+            s = self.kin.sample(self.duty, t, feedback(self.truth))
+        else:
+            s, demanded = self.kin.sample_limited(self.duty, t, feedback(self.truth),
+                                                  self.current_limit_A)
+            self._count_clamp(t, demanded - s.current_A)
         self.truth.step(s, self.ambient_C + C_TO_K)
         out = self.truth.outputs()
+        self.peak_hotspot_K = max(self.peak_hotspot_K, out['winding_hotspot'])
         seen = {name: out[quantity] for name, quantity in THERMOCOUPLES.items()}
         if self.point_thermocouples:
             seen.update(self._at_mid_stack())
@@ -103,6 +122,16 @@ class SimulatedRig:
             block[name] = v
         self.blocks += 1
         return block
+
+    def _count_clamp(self, t_s: np.ndarray, cut_A: np.ndarray) -> None:
+        """Count the block's clamped samples (a cut > 0) and keep the first and the largest."""
+        clamped = np.flatnonzero(cut_A > 0.0)
+        if not clamped.size:
+            return
+        if not self.clamped_samples:
+            self.first_clamp_s = float(t_s[clamped[0]])
+        self.clamped_samples += int(clamped.size)
+        self.largest_cut_A = max(self.largest_cut_A, float(np.max(cut_A)))
 
     def _at_mid_stack(self) -> Dict[str, float]:
         """Return the truth's slot copper and frame (K) at ``POINT_THERMOCOUPLE_Z``."""
