@@ -21,7 +21,23 @@ Topics (``topic_prefix`` replaces ``/eha``; see :mod:`.topics`):
 - the thermocouples ``<prefix>/measured/<name>`` for every name of
   ``THERMOCOUPLES`` at ``thermocouple_rate_Hz``;
 - ``/diagnostics`` at 1 Hz: samples published and skipped, timer jitter,
-  publish lag, CPU, and the truth model's hot-spot, magnet and oil.
+  publish lag, CPU, the truth model's hot-spot (and its peak), magnet and
+  oil, and with ``honour_limit`` the drive's limit and clamp.
+
+A drive that honours the limit (``honour_limit:=true``): the rig follows the
+estimator's current limits (sensor_msgs/JointState on
+``<prefix>/current_limits``, :data:`~wet_eha_thermal.interface.CURRENT_LIMITS_TOPIC`)
+and its simulated drive carries at most the binding one, the shortest
+horizon's entry, where the duty asks for more (the load yields:
+:meth:`~wet_eha_thermal.model.kinetics.KineticModel.sample_limited`); the
+truth model heats with what the drive carried. Its watchdog, as a drive's
+should be: a limit whose stamp (the sample time it belongs to) is older than
+``limit_watchdog_s`` by the rig's clock, or none yet, gives way to
+``limit_fallback_A``; a limit the estimator marks as its fallback
+(``frame_id`` "fallback: <why>") is applied, never above ``limit_fallback_A``.
+The limit is taken once per block (``block_s``). Counted: the time clamped,
+the first clamp (duty time), the largest cut (demanded minus carried
+current), the time on a fallback.
 
 Sensor noise (1 sigma, Gaussian, seeded by ``seed``; off with ``noise:=false``):
 current 0.05 A (the reading is an RMS value, so its magnitude is kept),
@@ -56,7 +72,7 @@ import json
 import math
 import sys
 import time
-from typing import Dict, List, Optional
+from typing import Dict, List, Optional, Tuple
 
 from builtin_interfaces.msg import Time as TimeMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -64,12 +80,14 @@ import numpy as np
 import rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from sensor_msgs.msg import FluidPressure, Temperature
+from rclpy.qos import qos_profile_sensor_data
+from sensor_msgs.msg import FluidPressure, JointState, Temperature
 from std_msgs.msg import Float64, String
 from wet_eha_thermal.config import ConfigError, load_config
-from wet_eha_thermal.interface import (AMBIENT_TOPIC, DIAGNOSTICS_TOPIC, INPUT_TOPICS,
-                                       MEASURED_PREFIX, NodeReport, PREFIX, prefixed,
-                                       PRESSURE_INPUTS, READY_TOPIC, RIG_NODE, THERMOCOUPLES)
+from wet_eha_thermal.interface import (AMBIENT_TOPIC, CURRENT_LIMITS_TOPIC, DIAGNOSTICS_TOPIC,
+                                       INPUT_TOPICS, MEASURED_PREFIX, NodeReport, PREFIX,
+                                       prefixed, PRESSURE_INPUTS, READY_TOPIC, RIG_NODE,
+                                       THERMOCOUPLES)
 from wet_eha_thermal.model.kinetics import DutyError, load_duty_csv, stage_duty, STAGES
 from wet_eha_thermal.offline.simulated_rig import (AMBIENT_SIGMA_K, NOISE_SIGMA, SimulatedRig,
                                                    THERMOCOUPLE_SIGMA_K)
@@ -112,6 +130,51 @@ class _Ring:
         return [float(x) for x in np.percentile(v, qs)] if v.size else [math.nan] * len(qs)
 
 
+class DriveLimit:
+    """
+    The current limit the simulated drive applies: the estimator's, or its own fallback.
+
+    :meth:`take` keeps the last limits message (sensor_msgs/JointState, one
+    entry per horizon: effort A RMS, position the horizon in s); its
+    shortest horizon's entry binds. :meth:`applied` says what the drive
+    carries at most now: that limit while its stamp is at most
+    ``watchdog_s`` old, else (or before any) ``fallback_A``; a message the
+    estimator marks as its fallback is applied up to ``fallback_A`` only.
+    """
+
+    def __init__(self, watchdog_s: float, fallback_A: float) -> None:
+        self.watchdog_s = watchdog_s
+        self.fallback_A = fallback_A
+        self.value_A: Optional[float] = None        # the last message's binding limit
+        self.stamp_ns = 0
+        self.status = ''                            # the last message's frame_id
+        self.received = 0
+        self.rejected = 0
+
+    def take(self, msg: JointState) -> None:
+        """Take one limits message; a malformed one is counted and left to the watchdog."""
+        n = len(msg.effort)
+        if not n or len(msg.position) != n or not all(
+                math.isfinite(e) and e >= 0.0 for e in msg.effort):
+            self.rejected += 1
+            return
+        self.received += 1
+        self.value_A = float(msg.effort[min(range(n), key=lambda i: msg.position[i])])
+        self.stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        self.status = msg.header.frame_id
+
+    def applied(self, now_ns: int) -> Tuple[float, str]:
+        """Return the limit to carry at ``now_ns`` (the rig's clock, ns) and whose it is."""
+        if self.value_A is None:
+            return self.fallback_A, 'fallback: no limit yet'
+        age_s = (now_ns - self.stamp_ns) * 1e-9
+        if age_s > self.watchdog_s:
+            return self.fallback_A, f'fallback: the last limit is {age_s:.1f} s old'
+        if self.status != 'ok':
+            return min(self.value_A, self.fallback_A), f'estimator {self.status}'
+        return self.value_A, 'estimator'
+
+
 class SimRigNode(Node):
     """The simulated rig: kinetics to sensor topics, truth model to thermocouples."""
 
@@ -129,6 +192,9 @@ class SimRigNode(Node):
                                 thermocouple_lag_s=p['thermocouple_lag_s'],
                                 block_s=p['block_s'])
         self.truth = self.rig.truth
+        self.drive: Optional[DriveLimit] = None
+        self.limit_source = 'open loop'
+        self.limit_fallback_s = 0.0         # duty time the drive spent on a fallback limit
         # before any subscription or publisher: a first step that compiled would keep
         # samples waiting for half a minute
         prepare_model_step(self, self.cfg)
@@ -164,6 +230,12 @@ class SimRigNode(Node):
         self.ready_topic = prefixed(READY_TOPIC, prefix)
         self.ready_pub = self.create_publisher(String, self.ready_topic, latched_qos())
         self.create_subscription(String, self.ready_topic, self._on_ready, latched_qos())
+        if p['honour_limit']:
+            self.drive = DriveLimit(p['limit_watchdog_s'], p['limit_fallback_A']
+                                    or self.cfg.motor.max_continuous_current_A)
+            # best effort: the watchdog, not the transport, deals with a lost limit
+            self.create_subscription(JointState, prefixed(CURRENT_LIMITS_TOPIC, prefix),
+                                     self.drive.take, qos_profile_sensor_data)
         # schedule: sample k (1, 2, ...) has duty time k * period and is due at t0 + k * period
         self.t0_ns: Optional[int] = None
         self.last_now_ns = 0
@@ -191,7 +263,9 @@ class SimRigNode(Node):
         self.get_logger().info(
             f'rig: {what} at {1.0 / self.period_s:g} Hz ({self.n_block} samples per '
             f'{self.rig.block_s * 1e3:g} ms block), noise {"on" if self.noise else "off"}, '
-            f'ambient {p["ambient_C"]:g} degC, qos {p["qos"]}, topics under {prefix}')
+            f'ambient {p["ambient_C"]:g} degC, qos {p["qos"]}, topics under {prefix}'
+            + (f'; the drive honours the current limit (watchdog {p["limit_watchdog_s"]:g} s, '
+               f'fallback {self.drive.fallback_A:g} A)' if self.drive is not None else ''))
 
     # ------------------------------------------------------------ parameters
     def _declare_parameters(self) -> Dict[str, object]:
@@ -223,6 +297,16 @@ class SimRigNode(Node):
             ('start_timeout_s', 120.0, descriptor(
                 'longest wait for wait_for and wait_for_subscribers before starting anyway, s',
                 0.0, 3600.0)),
+            ('honour_limit', False, descriptor(
+                'the simulated drive carries at most the current limit the estimator publishes '
+                'on <topic_prefix>/current_limits')),
+            ('limit_watchdog_s', 2.0, descriptor(
+                'a limit stamped longer ago than this by the rig clock gives way to '
+                'limit_fallback_A, s (default: 4 periods of the 2 Hz limits)', 0.1, 60.0)),
+            ('limit_fallback_A', 0.0, descriptor(
+                'the current the drive carries at most without a valid limit (none yet, too '
+                "old, the estimator's fallback), A RMS; 0: the configuration's "
+                'motor.max_continuous_current_A', 0.0, 1000.0)),
         ]
         accept_whole_numbers(self, {name: default for name, default, _ in specs})
         values = {}
@@ -238,9 +322,11 @@ class SimRigNode(Node):
         return values
 
     # -------------------------------------------------------------- kinetics
-    def _next_block(self) -> None:
+    def _next_block(self, now_ns: int) -> None:
         """Compute the next block of samples (the rig steps its truth model over it)."""
         t_start = time.perf_counter()
+        if self.drive is not None:
+            self._take_limit(now_ns)
         first = self.block_first if self.block is None else self.block_first + self.n_block
         block = self.rig.next_block()
         self.block = np.column_stack([block[name] for name in self.inputs]).tolist()
@@ -280,7 +366,7 @@ class SimRigNode(Node):
         while self.k_next <= due:
             k = self.k_next
             while self.block is None or k >= self.block_first + self.n_block:
-                self._next_block()
+                self._next_block(now_ns)
             row = self.block[k - self.block_first]
             sched_ns = self.t0_ns + k * self.period_ns
             publish_inputs(pubs, msgs, is_pressure, row, _stamp(sched_ns))
@@ -289,6 +375,21 @@ class SimRigNode(Node):
             self.max_lag_s = max(self.max_lag_s, lag)
             self.published += 1
             self.k_next += 1
+
+    def _take_limit(self, now_ns: int) -> None:
+        """Give the drive the limit of ``now_ns`` for the next block; log where it comes from."""
+        limit_A, source = self.drive.applied(now_ns)
+        self.rig.current_limit_A = limit_A
+        if source != 'estimator':
+            self.limit_fallback_s += self.rig.block_s
+        # the kind of source, not its text: an age that grows is not news
+        if source.split(':')[0] != self.limit_source.split(':')[0]:
+            # rclpy ties one severity to each call site: two calls
+            if source == 'estimator':
+                self.get_logger().info(f'drive limit {limit_A:.1f} A: {source}')
+            else:
+                self.get_logger().warning(f'drive limit {limit_A:.1f} A: {source}')
+        self.limit_source = source
 
     def _on_ready(self, msg: String) -> None:
         try:
@@ -370,7 +471,21 @@ class SimRigNode(Node):
                 'publish_lag_p50_ms': l50 * 1e3, 'publish_lag_p99_ms': l99 * 1e3,
                 'publish_lag_max_ms': self.max_lag_s * 1e3,
                 'block_p50_ms': b50, 'block_p99_ms': b99,
-                'cpu_percent': 100.0 * cpu / wall if wall > 0 else 0.0}
+                'cpu_percent': 100.0 * cpu / wall if wall > 0 else 0.0,
+                'truth_winding_hotspot_peak_C': self.rig.peak_hotspot_K - C_TO_K,
+                **self.limit_figures()}
+
+    def limit_figures(self) -> Dict[str, float]:
+        """Return the drive's limit and clamp (none in open loop): A, s of duty time, counts."""
+        if self.drive is None:
+            return {}
+        rig = self.rig
+        return {'limit_A': math.nan if rig.current_limit_A is None else rig.current_limit_A,
+                'limit_clamped_s': rig.clamped_samples * rig.period_s,
+                'limit_first_clamp_s': rig.first_clamp_s,
+                'limit_largest_cut_A': rig.largest_cut_A,
+                'limit_fallback_s': self.limit_fallback_s,
+                'limits_received': self.drive.received, 'limits_rejected': self.drive.rejected}
 
     def report(self) -> NodeReport:
         """Return the run's counts and figures as data: what ``live`` summarises."""
@@ -381,7 +496,9 @@ class SimRigNode(Node):
 
     def summary(self) -> str:
         """Return a one-line account of the run (samples, jitter, lag, CPU) for a log."""
-        return f'rig summary: {figures_text(self.report())}'
+        report = self.report()
+        clamp = clamp_text(report.figures)
+        return f'rig summary: {figures_text(report)}' + (f'; {clamp}' if clamp else '')
 
     def _publish_diagnostics(self) -> None:
         s = self.statistics()
@@ -395,6 +512,8 @@ class SimRigNode(Node):
             s['truth_winding_mean_C'] = out['winding_mean'] - C_TO_K
             s['truth_magnet_C'] = out['magnet'] - C_TO_K
             s['truth_oil_C'] = out['oil'] - C_TO_K
+        if self.drive is not None:
+            s['limit_source'] = self.limit_source
         st = DiagnosticStatus(name=f'{NODE_NAME}: rig', hardware_id=NODE_NAME)
         late = s['publish_lag_p99_ms'] > 10.0 or self.skipped > 0
         st.level = DiagnosticStatus.WARN if late else DiagnosticStatus.OK
@@ -417,6 +536,23 @@ def figures_text(report: NodeReport) -> str:
             f'{s["publish_lag_max_ms"]:.1f} ms, block (kinetics + truth step) p50/p99 '
             f'{s["block_p50_ms"]:.2f}/{s["block_p99_ms"]:.2f} ms, CPU '
             f'{s["cpu_percent"]:.1f} % of a core')
+
+
+def clamp_text(figures: Dict[str, float]) -> str:
+    """Return the drive's limit and clamp in words, from the rig's figures ('' in open loop)."""
+    if 'limit_clamped_s' not in figures:
+        return ''
+    s = figures
+    if s['limit_clamped_s'] > 0.0:
+        share = 100.0 * s['limit_clamped_s'] / max(s['duty_time_s'], 1e-9)
+        clamp = (f'clamped {s["limit_clamped_s"]:.1f} s of {s["duty_time_s"]:.1f} s '
+                 f'({share:.0f} %), first at {s["limit_first_clamp_s"]:.1f} s, largest cut '
+                 f'{s["limit_largest_cut_A"]:.1f} A')
+    else:
+        clamp = 'never clamped'
+    return (f'drive limit {s["limit_A"]:.1f} A at the end, {clamp}; '
+            f'{s["limit_fallback_s"]:.1f} s on a fallback limit; {s["limits_received"]:.0f} '
+            f'limits received ({s["limits_rejected"]:.0f} rejected)')
 
 
 def main(args: Optional[List[str]] = None) -> int:
