@@ -287,6 +287,10 @@ def _add_live_parser(sub) -> None:
                         'layouts/live.json); live prints the address to open; one taken is '
                         'one warning and the run goes on without it (default: %(default)s)')
     p.add_argument('--no-foxglove', action='store_true', help='no Foxglove view')
+    p.add_argument('--closed-loop', action='store_true',
+                   help="the rig's simulated drive honours the current limit the estimator "
+                        'publishes (the load yields where the duty asks for more); the status '
+                        'line and the summary show when it binds')
     p.set_defaults(func=_live)
 
 
@@ -346,7 +350,8 @@ def _live(args: argparse.Namespace) -> int:
                             rate_Hz=args.rate_Hz, config=args.config, noise=not args.no_noise,
                             executor=args.executor, record=not args.no_record,
                             record_path=args.record, max_bag_size_B=args.max_bag_size,
-                            max_bag_duration_s=args.max_bag_duration, foxglove=foxglove)
+                            max_bag_duration_s=args.max_bag_duration, foxglove=foxglove,
+                            closed_loop=args.closed_loop)
     return live.run(opts, domain=domain)
 
 

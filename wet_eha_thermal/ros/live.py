@@ -7,10 +7,10 @@ The live digital twin in one command: simulated rig, estimator and a status line
 private ROS domain (``WET_EHA_LIVE_DOMAIN_ID``, or the first domain with no
 ROS node on this machine from one picked by the process id; discovery
 limited to this machine), and a small node in this process that follows the
-ready topic, the estimates, the alerts and /diagnostics and prints one status
-line about twice a second (updated in place on a terminal, one line every few
-seconds otherwise). The estimator also serves the Foxglove view
-(:mod:`wet_eha_thermal.live_view`) at ``foxglove`` (127.0.0.1:8765 by
+ready topic, the estimates, the alerts, the drive's current limits and
+/diagnostics and prints one status line about twice a second (updated in
+place on a terminal, one line every few seconds otherwise). The estimator
+also serves the Foxglove view (:mod:`wet_eha_thermal.live_view`) at ``foxglove`` (127.0.0.1:8765 by
 default); :func:`run` prints the address to open. An address already in use
 is one line on stderr, and the run goes on without the view: the twin
 matters more than its display.
@@ -33,6 +33,12 @@ came, 1 otherwise (with the last lines a failed child printed). The recording
 (the rosbag2 bag directory ``runs/live_<UTC time>`` by default) holds the
 configuration and the estimator's parameters file, so the run can be
 replayed from it alone.
+
+With ``closed_loop`` the rig's simulated drive honours the current limit the
+estimator publishes for it (the rig's ``honour_limit``; the load yields where
+the duty asks for more current): the status line shows the limit and how
+much of the time it clamped, the summary when it first did, the largest cut
+and the rig truth's peak hot-spot.
 
 The jobs live beside this module: the child processes in
 :mod:`.live_children`, the private domain and the monitor node in
@@ -112,7 +118,9 @@ def run(opts: LiveOptions, out: TextIO = sys.stdout, err: TextIO = sys.stderr,
         os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'   # for this process's node
         context, domain = open_domain(domain)
         print(f'Live digital twin: {duty_text(opts)} on the simulated rig for '
-              f'{opts.duration_s:g} s (Ctrl-C stops it earlier), ROS domain {domain}',
+              f'{opts.duration_s:g} s (Ctrl-C stops it earlier), ROS domain {domain}'
+              + ("; closed loop: the rig's drive honours the estimator's current limit"
+                 if opts.closed_loop else ''),
               file=out, flush=True)
         if opts.foxglove is not None:
             print('\n'.join(foxglove_lines(*opts.foxglove)), file=out, flush=True)

@@ -34,7 +34,7 @@ PARAMS_FILE = Path(__file__).resolve().parents[2] / 'config' / 'estimator.params
 
 @dataclass
 class LiveOptions:
-    """What to run: a stage or a duty file, for how long, at which sample rate."""
+    """What to run: a stage or a duty file, for how long, at which sample rate, closed loop."""
 
     stage: Optional[int] = 6
     duty: Optional[Path] = None
@@ -49,6 +49,7 @@ class LiveOptions:
     max_bag_size_B: int = interface.LIVE_SPLIT_BYTES
     max_bag_duration_s: float = interface.LIVE_SPLIT_DURATION_S
     foxglove: Optional[Tuple[str, int]] = ('127.0.0.1', 8765)    # None: no Foxglove view
+    closed_loop: bool = False       # the rig's drive honours the estimator's current limit
 
 
 def child_commands(opts: LiveOptions, hardware_id: str,
@@ -69,7 +70,8 @@ def child_commands(opts: LiveOptions, hardware_id: str,
            # input: before that, samples would be lost or wait behind a start-up
            '-p', f'wait_for:=[{", ".join(waits)}]',
            '-p', f'wait_for_subscribers:={len(waits)}',
-           '-p', f'start_timeout_s:={START_TIMEOUT_S!r}']
+           '-p', f'start_timeout_s:={START_TIMEOUT_S!r}',
+           '-p', f'honour_limit:={"true" if opts.closed_loop else "false"}']
     if opts.duty is not None:
         rig += ['-p', f'duty_file:={Path(opts.duty).resolve()}']
     else:

@@ -3,8 +3,8 @@ The ROS side of ``live``'s own process: a private domain, and a node that follow
 
 :func:`open_domain` picks a ROS domain no other node uses on this machine;
 :func:`monitor_node` subscribes to the ready topic, the estimates, the
-alerts and /diagnostics, and keeps what it sees in a :class:`TwinState`,
-from which :mod:`.live_text` makes the status line and the summary.
+alerts, the drive's current limits and /diagnostics, and keeps what it sees
+in a :class:`TwinState`, from which :mod:`.live_text` makes the status line and the summary.
 """
 
 from dataclasses import dataclass, field
@@ -17,10 +17,10 @@ from typing import Dict, List, Optional
 from diagnostic_msgs.msg import DiagnosticArray
 import rclpy
 from rclpy.node import Node
-from rclpy.qos import QoSProfile
+from rclpy.qos import qos_profile_sensor_data, QoSProfile
 from rclpy.signals import SignalHandlerOptions
-from sensor_msgs.msg import Temperature
-from std_msgs.msg import String
+from sensor_msgs.msg import JointState, Temperature
+from std_msgs.msg import Float64, String
 from wet_eha_thermal import interface
 from wet_eha_thermal.interface import RIG_NODE
 from wet_eha_thermal.ros import topics
@@ -112,6 +112,10 @@ class TwinState:
     recorder_message: str = ''
     recorder_faults: List[str] = field(default_factory=list)  # each change to WARN or ERROR
     ready: Dict[str, dict] = field(default_factory=dict)      # node -> its ready message
+    limit_A: Optional[float] = None          # the drive's binding current limit, A RMS
+    lowest_limit_A: float = math.inf
+    limit_status: str = ''                   # the limits' frame_id: ok, fallback: <why>
+    limit_fallbacks: int = 0                 # limits messages that said fallback
     rig_started: Optional[float] = None                       # when the duty started
     hardware_id: str = field(default_factory=lambda: f'wet-eha-live-{os.getpid()}')
 
@@ -178,6 +182,17 @@ class TwinState:
             self.recorder_faults.append(f'{level}: {message}')
         self.recorder_level, self.recorder_message, self.recorder = level, message, values
 
+    def on_limit(self, value_A: float) -> None:
+        """Take the binding current limit (A RMS) the estimator published for the drive."""
+        self.limit_A = value_A
+        if math.isfinite(value_A):
+            self.lowest_limit_A = min(self.lowest_limit_A, value_A)
+
+    def on_limits(self, status: str) -> None:
+        """Take the status (``frame_id``) of one message of the limits per horizon."""
+        self.limit_status = status
+        self.limit_fallbacks += status != 'ok'
+
     def on_ready(self, text: str, rx: float) -> None:
         """Take one ready message (JSON); the rig's ``running`` starts the run's clock."""
         try:
@@ -215,6 +230,12 @@ def monitor_node(context, state: TwinState):
                              topics.latched_qos())
     node.create_subscription(DiagnosticArray, interface.DIAGNOSTICS_TOPIC,
                              lambda m: state.on_diagnostics(m.status), QoSProfile(depth=20))
+    # best effort: matches the limits whatever their publisher offers
+    node.create_subscription(Float64, interface.CURRENT_LIMIT_TOPIC,
+                             lambda m: state.on_limit(m.data), qos_profile_sensor_data)
+    node.create_subscription(JointState, interface.CURRENT_LIMITS_TOPIC,
+                             lambda m: state.on_limits(m.header.frame_id),
+                             qos_profile_sensor_data)
     node.create_subscription(String, interface.READY_TOPIC,
                              lambda m: state.on_ready(m.data, time.monotonic()),
                              topics.latched_qos(depth=10))

@@ -19,7 +19,7 @@ from wet_eha_thermal.live_view import address_text, app_url
 from wet_eha_thermal.model.quantity_table import label
 from wet_eha_thermal.ros.live_children import Child, LiveOptions
 from wet_eha_thermal.ros.live_monitor import TwinState, WATCHED
-from wet_eha_thermal.ros.sim_rig_node import figures_text
+from wet_eha_thermal.ros.sim_rig_node import clamp_text, figures_text
 
 #: Seconds between status lines: on a terminal (updated in place) and in a log.
 TTY_PERIOD_S, LOG_PERIOD_S = 0.5, 5.0
@@ -83,8 +83,34 @@ def status_line(state: TwinState, elapsed_s: float, duration_s: float) -> str:
     return (f't {elapsed_s:5.1f}/{duration_s:g} s | '
             f'{label("winding_hotspot")} {t("winding_hotspot")}'
             f' mean {t("winding_mean")} | magnet {t("magnet")} | oil {t("oil")} degC | '
-            f'margin {margin} | limit: {limit_text(state)} | alerts {alert} | '
+            f'margin {margin} | limit: {limit_text(state)} | drive {drive_text(state)} | '
+            f'alerts {alert} | '
             f'stale: {state.fallback}' + _recorder_part(state))
+
+
+def drive_text(state: TwinState) -> str:
+    """
+    Return the drive's current limit, and in a closed loop whether and since when it binds.
+
+    The limit is the estimator's (its status when not ok); the clamp comes
+    from the rig's last diagnostics, which carry it only when its drive
+    honours the limit.
+    """
+    if state.limit_A is None:
+        text = 'limit pending'
+    else:
+        text = f'<= {state.limit_A:.1f} A'
+        if state.limit_status not in ('', 'ok'):
+            text += f' ({state.limit_status})'
+    try:
+        clamped_s = float(state.rig['limit_clamped_s'])
+        share = 100.0 * clamped_s / max(float(state.rig['duty_time_s']), 1e-9)
+        first_s = float(state.rig['limit_first_clamp_s'])
+    except (KeyError, ValueError):
+        return text                 # open loop, or no word from the rig yet
+    if not clamped_s > 0.0:
+        return text + ', not clamped'
+    return text + f', clamped {share:.0f} % since {first_s:.1f} s'
 
 
 def _recorder_part(state: TwinState) -> str:
@@ -195,7 +221,8 @@ def summary(opts: LiveOptions, state: TwinState, children: List[Child], run_s: f
            f'  run             {run_s:.1f} s of duty after {start_s:.1f} s of start-up '
            f'({stopped_by}); {duty_text(opts)} on the simulated rig at {opts.rate_Hz:g} Hz, '
            f'noise {"on" if opts.noise else "off"}, ROS domain {domain}']
-    out += _estimate_lines(state) + _alert_lines(state)
+    out += _estimate_lines(state) + _drive_lines(opts, state, reports.get('rig'))
+    out += _alert_lines(state)
     out += _sample_lines(state, reports.get('estimator'), reports.get('rig'))
     out += [f'  {c.name:<15} {c.describe()}' for c in children]
     if reports.get('rig') is not None:
@@ -235,6 +262,35 @@ def _estimate_lines(state: TwinState) -> List[str]:
                    'rig report)')
     out.append(f'  margin, limits  margin current {state.margin} A RMS; time to limit: '
                f'{limit_text(state)}')
+    return out
+
+
+def _drive_lines(opts: LiveOptions, state: TwinState, rig: Optional[NodeReport]) -> List[str]:
+    """
+    Return the summary's lines on the drive: the limit, the clamp, the rig truth's peak.
+
+    The clamp and the peak come from the rig's report (exact), else from its
+    last diagnostics.
+    """
+    if state.limit_A is None:
+        limit = 'none received from the estimator'
+    else:
+        limit = (f'{state.limit_A:.1f} A RMS at the end ({state.limit_status or "no status"}), '
+                 f'lowest {state.lowest_limit_A:.1f} A; {state.limit_fallbacks} limits said '
+                 'fallback')
+    out = [f'  drive limit     {limit}']
+    figures = rig.figures if rig is not None else {}
+    if not figures:
+        figures = {k: float(v) for k, v in state.rig.items() if _is_number(v)}
+    if opts.closed_loop:
+        out.append(f'  closed loop     {clamp_text(figures) or "no word from the rig"}')
+    else:
+        out.append("  open loop       the rig's drive does not honour the limit "
+                   '(--closed-loop: it does)')
+    peak = figures.get('truth_winding_hotspot_peak_C')
+    if peak is not None:
+        out.append(f'  truth peak      {label("winding_hotspot")} {peak:.1f} degC (the rig\'s '
+                   'truth model)')
     return out
 
 
