@@ -6,6 +6,7 @@ Usage (after ``colcon build`` and sourcing the workspace)::
     ros2 launch wet_eha_thermal eha_twin.launch.py stage:=3
     ros2 launch wet_eha_thermal eha_twin.launch.py use_sim_time:=true
     ros2 launch wet_eha_thermal eha_twin.launch.py record_output:=runs/test
+    ros2 launch wet_eha_thermal eha_twin.launch.py stage:=1 honour_limit:=true
 
 Every node reads ``config/estimator.params.yaml`` from the package's share
 directory: its ``/**`` keys apply to every node, so the rig and the recorder
@@ -16,7 +17,9 @@ rig's duty), ``duty_file`` (a duty CSV; empty: the stage), ``use_sim_time``
 (every node follows /clock), ``executor`` (events or single; the recorder
 always uses events), ``record`` (true: start the recorder) and
 ``record_output`` (its bag directory, or one MCAP file for a name ending
-``.mcap``; empty: ``runs/eha_<UTC time>`` in the working folder).
+``.mcap``; empty: ``runs/eha_<UTC time>`` in the working folder) and
+``honour_limit`` (true: the rig's drive honours the estimator's current
+limit, as ``live --closed-loop``).
 
 ``launch`` and ``launch_ros`` are not on PyPI, so they are imported inside
 :func:`generate_launch_description` only: the file stays importable (and
@@ -52,6 +55,9 @@ def generate_launch_description():
                               description='follow /clock instead of the system clock'),
         DeclareLaunchArgument('executor', default_value='events',
                               description='rclpy executor of rig and estimator: events or single'),
+        DeclareLaunchArgument('honour_limit', default_value='false',
+                              description="the rig's drive honours the estimator's current "
+                                          'limit (a closed loop)'),
         DeclareLaunchArgument('record', default_value='true',
                               description='record every topic of the twin to a rosbag2 bag'),
         DeclareLaunchArgument('record_output', default_value='',
@@ -62,6 +68,8 @@ def generate_launch_description():
              parameters=[params_file,
                          {'stage': ParameterValue(stage, value_type=int),
                           'duty_file': ParameterValue(duty_file, value_type=str),
+                          'honour_limit': ParameterValue(LaunchConfiguration('honour_limit'),
+                                                         value_type=bool),
                           'use_sim_time': sim_time}]),
         Node(package='wet_eha_thermal', executable='wet-eha-thermal-estimator',
              name='eha_thermal_estimator', output='screen',
