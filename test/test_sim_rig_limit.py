@@ -104,8 +104,8 @@ def test_the_drive_carries_the_binding_limit_and_falls_back_on_its_watchdog(driv
     drive.run(0.5, {10.0: 30.0}, age_s=2 * WATCHDOG_S)
     assert node.rig.current_limit_A == FALLBACK_A
     assert node.limit_source.startswith('fallback: the last limit is')
-    drive.run(0.5, {10.0: 30.0})
-    assert node.rig.current_limit_A == 30.0
+    drive.run(0.5, {10.0: math.inf, math.inf: 30.0})       # no limit within 10 s
+    assert node.rig.current_limit_A == math.inf and node.limit_source == 'estimator'
     drive.run(2 * WATCHDOG_S)
     assert node.rig.current_limit_A == FALLBACK_A
     # malformed messages are counted and left to the watchdog
