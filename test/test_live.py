@@ -193,13 +193,15 @@ def test_live_summary_counts_come_from_the_reports_not_the_log_text(tmp_path):
 #: The winding hot-spot limit of the closed-loop test (degC): the heavy duty below takes the
 #: reference rig from 20 degC past it in about 18 s
 HOT_LIMIT_C = 30.0
+#: The heavy duty's peak current (A RMS): 22 MPa and the pump's friction
+HEAVY_PEAK_A = 45.5
 
 
 def _heavy_duty(path):
-    """Write 3 s at a quarter load, then 22 MPa against 4 L/min, reversing every 0.5 s."""
+    """Write 3 s at 3 MPa (7 A), then 22 MPa against 4 L/min, reversing every 0.5 s."""
     rows = ['time_s,flow_L_min,load_MPa']
     for k in range(120):
-        load = 22.0 if k >= 3 else 5.5
+        load = 22.0 if k >= 3 else 3.0
         for t, q, dp in ((0.0, 0.0, 0.0), (0.1, 4.0, load), (0.4, 4.0, load),
                          (0.6, -4.0, -load), (0.9, -4.0, -load)):
             rows.append(f'{k + t:g},{q:g},{dp:g}')
@@ -222,13 +224,6 @@ def _summary_figure(out, pattern):
     return [float(g) for g in m.groups()]
 
 
-def _estimator_publishes_limits():
-    from wet_eha_thermal.ros import estimator_node
-    return 'CURRENT_LIMITS_TOPIC' in Path(estimator_node.__file__).read_text()
-
-
-@pytest.mark.skipif(not _estimator_publishes_limits(),
-                    reason='the estimator does not publish current limits yet (issue 28, 1)')
 def test_closed_loop_keeps_the_winding_below_its_limit(tmp_path):
     compile_estimator(load_config())
     duty, cfg = _heavy_duty(tmp_path / 'heavy.csv'), _hot_config(tmp_path / 'hot.yaml')
@@ -256,12 +251,15 @@ def test_closed_loop_keeps_the_winding_below_its_limit(tmp_path):
     # clamped as much as needed, not more)
     assert HOT_LIMIT_C - 4.0 < truth['closed'] < HOT_LIMIT_C, runs['closed']
     assert estimated['closed'] < HOT_LIMIT_C, runs['closed']
-    clamped, duty_s, first, cut = _summary_figure(
-        runs['closed'], r'closed loop\s+drive limit [\d.]+ A at the end, clamped ([\d.]+) s of '
-                        r'([\d.]+) s \(\d+ %\), first at ([\d.]+) s, largest cut ([\d.]+) A')
-    # clamped only when needed: not in the light first seconds, nor all the time after
-    assert first > 5.0 and 0.0 < clamped < duty_s - first, runs['closed']
-    assert 0.0 < cut < 45.0, runs['closed']
+    limit, clamped, duty_s, first, cut = _summary_figure(
+        runs['closed'], r'closed loop\s+drive limit ([\d.]+) A at the end, clamped ([\d.]+) s '
+                        r'of ([\d.]+) s \(\d+ %\), first at ([\d.]+) s, largest cut ([\d.]+) A')
+    # clamped only when needed: not while the duty was light (below any limit), and then at
+    # the peaks of the demand only, not all the time
+    assert first >= 3.0 and 0.0 < clamped < 0.9 * (duty_s - first), runs['closed']
+    # and as much as needed: the demand's peak cut to the limit, never below the lowest one
+    assert HEAVY_PEAK_A - limit - 1.0 < cut < HEAVY_PEAK_A - lowest['closed'] + 1.0, \
+        runs['closed']
     assert re.search(r'drive <= [\d.]+ A[^|]*, clamped \d+ % since [\d.]+ s', runs['closed'])
 
 
