@@ -235,8 +235,9 @@ class SimRigNode(Node):
         self.ready_pub = self.create_publisher(String, self.ready_topic, latched_qos())
         self.create_subscription(String, self.ready_topic, self._on_ready, latched_qos())
         if p['honour_limit']:
+            # by default the conservative value the estimator falls back to: one number
             self.drive = DriveLimit(p['limit_watchdog_s'], p['limit_fallback_A']
-                                    or self.cfg.motor.max_continuous_current_A)
+                                    or self.cfg.estimator.limits.fallback_current_A)
             # best effort: the watchdog, not the transport, deals with a lost limit
             self.create_subscription(JointState, prefixed(CURRENT_LIMITS_TOPIC, prefix),
                                      self.drive.take, qos_profile_sensor_data)
@@ -310,7 +311,7 @@ class SimRigNode(Node):
             ('limit_fallback_A', 0.0, descriptor(
                 'the current the drive carries at most without a valid limit (none yet, too '
                 "old, the estimator's fallback), A RMS; 0: the configuration's "
-                'motor.max_continuous_current_A', 0.0, 1000.0)),
+                'estimator.limits.fallback_current_A', 0.0, 1000.0)),
         ]
         accept_whole_numbers(self, {name: default for name, default, _ in specs})
         values = {}
