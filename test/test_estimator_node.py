@@ -504,7 +504,7 @@ def test_foxglove_view_shows_the_published_estimates(context):
 
 
 def test_whatif_is_answered_while_the_estimates_go_on(rig):
-    """A what-if of half an hour runs beside the estimator: its estimates keep their rate."""
+    """A what-if of ten minutes runs beside the estimator: its estimates keep their rate."""
     answers, arrivals = [], []
     rig.probe.create_subscription(String, interface.WHATIF_RESPONSE_TOPIC,
                                   lambda m: answers.append(json.loads(m.data)),
@@ -527,20 +527,20 @@ def test_whatif_is_answered_while_the_estimates_go_on(rig):
     rig.feed(2.0)
     t0 = time.monotonic()
     rate_before = (len(arrivals) - before) / 2.0
-    pub.publish(String(data='{"id": "hour", "stage": 6, "duration_s": 1800}'))
+    pub.publish(String(data='{"id": "hour", "stage": 6, "duration_s": 600}'))
     pub.publish(String(data='{"id": "second", "stage": 6, "duration_s": 60}'))
     assert rig.feed(120.0, until=lambda: any(a['id'] == 'hour' for a in answers))
     t1 = time.monotonic()
     by_id = {a['id']: a for a in answers}
     assert "busy: what-if 'hour'" in by_id['second']['error']
     hour = by_id['hour']
-    assert hour['ok'] and hour['time_s'][-1] == 1800.0 and hour['source'] == 'live estimator'
+    assert hour['ok'] and hour['time_s'][-1] == 600.0 and hour['source'] == 'live estimator'
     assert hour['start_stamp_s'] is not None and set(hour['temperatures_C']) == set(
         interface.ESTIMATES)
     during = [t for t in arrivals if t0 <= t <= t1]
     rate_during = len(during) / (t1 - t0)
     gaps = np.diff(during)
-    print(f'what-if of 30 min of stage 6: {t1 - t0:.1f} s wall ({hour["wall_s"]:.1f} s in the '
+    print(f'what-if of 10 min of stage 6: {t1 - t0:.1f} s wall ({hour["wall_s"]:.1f} s in the '
           f'worker); estimates {rate_before:.1f}/s before, {rate_during:.1f}/s during, longest '
           f'gap {gaps.max() * 1e3:.0f} ms')
     assert rate_during > 0.8 * rate_before and gaps.max() < 0.5
@@ -570,9 +570,12 @@ def test_whatif_command_asks_the_running_estimator(rig, tmp_path, capsys):
     assert first['oil_C'] == pytest.approx(at.temperature, abs=1e-4)
 
 
-def test_whatif_command_says_when_no_estimator_answers(tmp_path, capsys):
+def test_whatif_command_says_when_no_estimator_answers(tmp_path, capsys, monkeypatch):
     from wet_eha_thermal import cli
+    from wet_eha_thermal.ros import whatif_client
 
+    # discovery on this machine's loopback takes well under a second
+    monkeypatch.setattr(whatif_client, 'FIND_TIMEOUT_S', 2.0)
     assert cli.main(['whatif', '--stage', '6', '--topic-prefix', '/nobody_here',
                      '--out', str(tmp_path)]) == 2
     assert 'no estimator subscribes to /nobody_here/whatif/request' in capsys.readouterr().err

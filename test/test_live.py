@@ -224,43 +224,27 @@ def _summary_figure(out, pattern):
     return [float(g) for g in m.groups()]
 
 
-def test_closed_loop_keeps_the_winding_below_its_limit(tmp_path):
+def test_closed_loop_live_the_rig_clamps_to_the_estimators_limit(tmp_path):
+    # the ROS path of the loop: the estimator's limits reach the rig's drive, which clamps
+    # when the heavy part starts; the open loop against the closed one, and the winding kept
+    # below its limit, are shown accelerated in test_closed_loop.py
     compile_estimator(load_config())
     duty, cfg = _heavy_duty(tmp_path / 'heavy.csv'), _hot_config(tmp_path / 'hot.yaml')
-    runs = {}
-    for loop in ('open', 'closed'):
-        args = ['live', '--duty', str(duty), '--config', str(cfg), '--duration', '30',
-                '--rate-Hz', '200', '--no-foxglove', '--no-record']
-        res = subprocess.run(_command(*args, *(['--closed-loop'] if loop == 'closed' else [])),
-                             env=_env(uuid.uuid4().hex), cwd=tmp_path, capture_output=True,
-                             text=True, timeout=150)
-        assert res.returncode == 0, res.stdout + res.stderr
-        runs[loop] = res.stdout
-    truth = {k: _summary_figure(out, r'truth peak\s+winding hot-spot (-?[\d.]+) degC')[0]
-             for k, out in runs.items()}
-    estimated = {k: _summary_figure(out, r'peak estimates\s+winding hot-spot (-?[\d.]+)')[0]
-                 for k, out in runs.items()}
-    lowest = {k: _summary_figure(out, r'drive limit\s+[\d.]+ A RMS at the end \([^)]*\), '
-                                      r'lowest ([\d.]+) A')[0] for k, out in runs.items()}
-    # open loop: the winding went past its limit, as the twin saw, where the limit had
-    # fallen below the 45 A the duty asks for
-    assert truth['open'] > HOT_LIMIT_C + 2.0 and estimated['open'] > HOT_LIMIT_C, runs['open']
-    assert lowest['open'] < 40.0, runs['open']
-    assert 'open loop       the rig' in runs['open']
-    # closed loop: below it, in truth and in the estimate, and not far below (the drive was
-    # clamped as much as needed, not more)
-    assert HOT_LIMIT_C - 4.0 < truth['closed'] < HOT_LIMIT_C, runs['closed']
-    assert estimated['closed'] < HOT_LIMIT_C, runs['closed']
+    res = subprocess.run(_command('live', '--duty', str(duty), '--config', str(cfg),
+                                  '--duration', '12', '--rate-Hz', '200', '--no-foxglove',
+                                  '--no-record', '--closed-loop'),
+                         env=_env(uuid.uuid4().hex), cwd=tmp_path, capture_output=True,
+                         text=True, timeout=120)
+    out = res.stdout
+    assert res.returncode == 0, out + res.stderr
     limit, clamped, duty_s, first, cut = _summary_figure(
-        runs['closed'], r'closed loop\s+drive limit ([\d.]+) A at the end, clamped ([\d.]+) s '
-                        r'of ([\d.]+) s \(\d+ %\), first at ([\d.]+) s, largest cut ([\d.]+) A')
-    # clamped only when needed: not while the duty was light (below any limit), and then at
-    # the peaks of the demand only, not all the time
-    assert first >= 3.0 and 0.0 < clamped < 0.9 * (duty_s - first), runs['closed']
-    # and as much as needed: the demand's peak cut to the limit, never below the lowest one
-    assert HEAVY_PEAK_A - limit - 1.0 < cut < HEAVY_PEAK_A - lowest['closed'] + 1.0, \
-        runs['closed']
-    assert re.search(r'drive <= [\d.]+ A[^|]*, clamped \d+ % since [\d.]+ s', runs['closed'])
+        out, r'closed loop\s+drive limit ([\d.]+) A at the end, clamped ([\d.]+) s '
+             r'of ([\d.]+) s \(\d+ %\), first at ([\d.]+) s, largest cut ([\d.]+) A')
+    received = _summary_figure(out, r'(\d+) limits received')[0]
+    assert received >= 10 and limit < HEAVY_PEAK_A, out
+    # clamped only once the heavy part asks for more than the limit, at its peaks
+    assert first >= 3.0 and 0.0 < clamped < duty_s - first and cut > 0.0, out
+    assert re.search(r'drive <= [\d.]+ A[^|]*, clamped \d+ % since [\d.]+ s', out), out
 
 
 def test_the_status_and_the_summary_say_the_limit_and_when_it_clamped(tmp_path):

@@ -51,7 +51,10 @@ def compile_estimator(cfg: Config) -> float:
                 est.add_measured(tc, float(tk), cfg.estimator.ambient_C)
         for name in est.inputs:
             est.take(name, float(tk), float(signals[name][k]), now_s=float(tk), budget_s=0.0)
-    while est.outlook.busy:         # the limits' and the forecast's jobs, to their end
+    # the first tick's limits and margin, to their end; not the forecast, whose model steps
+    # are the estimator's (a second of start-up saved)
+    est.outlook.forecast = None
+    while est.outlook.busy:
         est.background(0.05)
     # a silence: inputs go stale, the model steps on held values and in held blocks
     est.advance_all(float(t[-1]) + WARM_SILENCE_S)

@@ -1,0 +1,73 @@
+"""The loop closed on the simulated rig, accelerated: the drive honours the twin's limit."""
+
+from pathlib import Path
+
+import pytest
+from test_live import _heavy_duty, HEAVY_PEAK_A, HOT_LIMIT_C
+from wet_eha_thermal.config import load_config
+from wet_eha_thermal.estimator.core import Estimator
+from wet_eha_thermal.model.kinetics import load_duty_csv
+from wet_eha_thermal.offline.simulated_rig import SimulatedRig
+from wet_eha_thermal.units import C_TO_K
+
+SECONDS = 30.0
+
+
+def run(cfg, duty, honour):
+    """
+    Play the duty on the offline rig with the estimator beside it, in sample time.
+
+    Each 20 ms block goes to the estimator (its limits worked out at once at
+    every tick, as a replay does); with ``honour`` the rig's drive takes the
+    newest binding limit for its next block, as the ROS rig takes the
+    JointState. Return the rig, the estimator's peak hot-spot (degC) and the
+    lowest binding limit (A).
+    """
+    rig = SimulatedRig(cfg, duty, rate_Hz=200.0, seed=3)
+    est = Estimator(cfg, outlook='inline')
+    peak_C, lowest_A = -1e9, 1e9
+    for _, _, block, tcs, _ in rig.run(SECONDS):
+        for name in est.inputs:
+            est.add_many(name, block['t_s'], block[name])
+        for name, value in (tcs or {}).items():
+            est.add_measured(name, float(block['t_s'][-1]), value)
+        for e in est.advance_all():
+            peak_C = max(peak_C, e.temperatures_C['winding_hotspot'])
+        limits = est.outlook.take_limits()
+        if limits:
+            lowest_A = min(lowest_A, min(lim.binding_A for lim in limits))
+            if honour:
+                rig.current_limit_A = limits[-1].binding_A
+    return rig, peak_C, lowest_A
+
+
+@pytest.fixture(scope='module')
+def runs(tmp_path_factory):
+    """Return the open and the closed loop on the heavy duty, the winding limit at 30 degC."""
+    cfg = load_config(overrides={'motor.winding.insulation_limit_C': HOT_LIMIT_C})
+    act = cfg.hydraulics.actuator
+    duty = load_duty_csv(_heavy_duty(Path(tmp_path_factory.mktemp('duty')) / 'heavy.csv'),
+                         act.area_m2, act.half_stroke_m)
+    return {loop: run(cfg, duty, loop == 'closed') for loop in ('open', 'closed')}
+
+
+def test_open_loop_the_heavy_duty_takes_the_winding_past_its_limit(runs):
+    rig, peak_C, lowest_A = runs['open']
+    assert rig.peak_hotspot_K - C_TO_K > HOT_LIMIT_C + 2.0       # the truth
+    assert peak_C > HOT_LIMIT_C                                  # and the twin saw it
+    assert lowest_A < 40.0            # the limit fell below the 45 A the duty asks for
+    assert rig.clamped_samples == 0
+
+
+def test_closed_loop_the_winding_stays_below_its_limit_clamped_only_as_needed(runs):
+    rig, peak_C, lowest_A = runs['closed']
+    truth_C = rig.peak_hotspot_K - C_TO_K
+    # below the limit, in truth and in the estimate, and not far below: not over-clamped
+    assert HOT_LIMIT_C - 4.0 < truth_C < HOT_LIMIT_C
+    assert peak_C < HOT_LIMIT_C
+    # clamped only when needed: not in the light first 3 s, and at the demand's peaks only
+    clamped_s = rig.clamped_samples * rig.period_s
+    assert rig.first_clamp_s >= 3.0
+    assert 0.0 < clamped_s < 0.9 * (SECONDS - rig.first_clamp_s)
+    # and as much as needed: the demand's peak cut to a limit, never below the lowest one
+    assert rig.largest_cut_A < HEAVY_PEAK_A - lowest_A + 1.0
