@@ -47,12 +47,18 @@ def logs(tmp_path_factory, record_rig_log):
 
 @pytest.fixture(scope='module')
 def serial(logs, tmp_path_factory):
-    """Return, per log, its single replay's summary figures and output files (bytes)."""
+    """
+    Return, per log, its single replay's summary figures and output files (bytes).
+
+    The campaigns here are about distributing replays: the outlook (the limits, done inline
+    and compared bit for bit in test_replay.py) is off throughout, for speed.
+    """
     out = tmp_path_factory.mktemp('serial')
     ref = {}
     for bag in sorted(logs.iterdir()):
-        assert main(['replay', str(bag), '--out', str(out / bag.name), '--no-report']) == 0
-        figures = campaign.summarise(rp.replay(rp.plan_replay(bag)))
+        assert main(['replay', str(bag), '--out', str(out / bag.name), '--no-report',
+                     '--no-outlook']) == 0
+        figures = campaign.summarise(rp.replay(rp.plan_replay(bag), outlook=False))
         ref[bag.name] = (figures, {name: (out / bag.name / name).read_bytes()
                                    for name in ('estimates.csv', 'estimates.mcap')})
     return ref
@@ -149,7 +155,7 @@ def test_a_folder_of_bags_expands_to_its_bag_directories(logs, tmp_path):
 def test_a_campaign_on_a_scheduler_equals_the_single_replays(cluster, logs, serial, tmp_path,
                                                              capsys):
     out = tmp_path / 'out'
-    assert main(['replay', str(logs), '--out', str(out), '--no-report',
+    assert main(['replay', str(logs), '--out', str(out), '--no-report', '--no-outlook',
                  '--scheduler', cluster]) == 0
     captured = capsys.readouterr()
     assert f'replaying 4 logs on 2 worker(s) at {cluster}' in captured.out
@@ -170,7 +176,7 @@ def test_the_default_local_cluster_reports_failed_logs_and_completes_the_others(
     empty.write_bytes(b'')
     bags = sorted(logs.iterdir())
     argv = [str(b) for b in (bags[0], empty, tmp_path / 'missing.mcap', bags[1])]
-    assert main(['replay', *argv, '--out', str(out), '--workers', '2']) == 1
+    assert main(['replay', *argv, '--out', str(out), '--workers', '2', '--no-outlook']) == 1
     captured = capsys.readouterr()
     assert 'replaying 4 logs on 2 worker(s)' in captured.out
     assert '2 of 4 logs failed' in captured.err.splitlines()[-1]
@@ -209,8 +215,8 @@ def test_a_worker_killed_mid_run_costs_nothing(logs, serial, tmp_path):
                 workers[busy[0]].send_signal(signal.SIGKILL)
                 killed.append(busy[0])
 
-        rows = campaign.run(client, bags, tmp_path / 'out', rp.ReplayOptions(report=False),
-                            on_done)
+        rows = campaign.run(client, bags, tmp_path / 'out',
+                            rp.ReplayOptions(report=False, outlook=False), on_done)
         assert workers[killed[0]].wait(timeout=START_S) == -signal.SIGKILL
     for row in rows:
         assert_as_serial(row, tmp_path / 'out', serial)
