@@ -7,7 +7,7 @@ import pickle
 import pytest
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.estimator.core import Estimator, INPUTS
-from wet_eha_thermal.estimator.limits import limit_steps, RATING
+from wet_eha_thermal.estimator.limits import limit_steps, probing, RATING
 from wet_eha_thermal.units import C_TO_K
 
 #: a loaded pump (8 MPa) at 15 A: the winding warms by about 10 K in a minute
@@ -76,9 +76,10 @@ def test_a_limit_takes_the_model_to_its_limit_and_no_further(warm, winding_C, ho
     est = warm
     lim = est.cfg.estimator.limits
     limits_C = {'winding_hotspot': winding_C, 'magnet': 120.0, 'oil': 120.0}
-    got = run(limit_steps(pickle.dumps(est.model), est.outlook.held_duty(), est.ambient_K,
-                          est.latest.uncertainty_K, limits_C, lim.k_sigma, (horizon_s,),
-                          lim.period_s, est.cfg.motor.peak_current_A))
+    got = run(limit_steps(pickle.dumps(est.model), est.model.state,
+                          probing(est.model, list(limits_C)), est.outlook.held_duty(),
+                          est.ambient_K, est.latest.uncertainty_K, limits_C, lim.k_sigma,
+                          (horizon_s,), lim.period_s, est.cfg.motor.peak_current_A))
     amps, binds = got[0]
     assert binds == 'winding_hotspot' and 5.0 < amps < est.cfg.motor.peak_current_A
     # the model itself, stepped at the limit: the winding ends at its limit less k sigma,

@@ -36,7 +36,7 @@ a peak between two checked times of a horizon is not seen.
 from dataclasses import dataclass
 import math
 import pickle
-from typing import Dict, Generator, List, Optional, Sequence, Tuple
+from typing import Dict, Generator, List, NamedTuple, Optional, Sequence, Tuple
 
 import numpy as np
 from scipy.optimize import brentq
@@ -52,14 +52,12 @@ CONTINUOUS = 'continuous'
 RATING = 'rating'
 #: what a limit capped at the conservative value is bound by
 FALLBACK = 'fallback'
-#: held steps before the probes (see :func:`linearise`)
-SETTLE_STEPS = 2
 #: a longer horizon is solved again, linearised at the middle of its path (s)
 RELINEARISE_AFTER_S = 120.0
-#: I^2 tolerance of the search (A^2): 0.01 A at 25 A
-TOL_A2 = 0.5
+#: I^2 tolerance of the search (A^2): 0.04 A at 25 A, a tenth of the model's own spread
+TOL_A2 = 2.0
 #: half-width of a search started near a guess (A)
-NEAR_A = 2.0
+NEAR_A = 1.0
 
 
 def horizon_name(horizon_s: float) -> str:
@@ -270,51 +268,56 @@ def probe(model: EHAModel, held: HeldDuty, current_A: float, dt_s: float, ambien
     return Phi, model.state
 
 
-def settle(model: EHAModel, held: HeldDuty, dt_s: float, ambient_K: float, layout,
-           alpha_copper: float) -> bytes:
-    """
-    Step ``model`` onto the held duty; return it pickled, the start of every probe.
-
-    Two steps take the oil to the held pressures: their compression heat is a
-    transient of that jump (the pressure work of a step takes its start's and
-    end's pressures), which the affine terms must not repeat at every step.
-    """
-    for _ in range(SETTLE_STEPS):
-        probe(model, held, 0.0, dt_s, ambient_K, layout, alpha_copper)
-    return pickle.dumps(model, pickle.HIGHEST_PROTOCOL)
-
-
-def linearise(settled: bytes, shift_K: Optional[np.ndarray], held: HeldDuty, dt_s: float,
+def linearise(saved: bytes, shift_K: Optional[np.ndarray], held: HeldDuty, dt_s: float,
               ambient_K: float, peak_A: float, layout, alpha_copper: float
               ) -> Tuple[np.ndarray, ...]:
     """
-    Return (A, K, c0, c1) of one probe step from the ``settled`` model.
+    Return (A, K, c0, c1) of one probe step from the pickled model ``saved``.
 
-    Its state moved first by ``shift_K`` (K; None: as it is), a step at no
-    current and one at ``peak_A`` (module docstring).
+    Its state moved first by ``shift_K`` (K; None: as it is), the held duty
+    taken as its last sample (:meth:`~..model.eha.EHAModel.hold_from`: no
+    jump of the pressures), a step at no current and one at ``peak_A``
+    (module docstring).
     """
-    cold, hot = pickle.loads(settled), pickle.loads(settled)
-    if shift_K is not None:
-        cold.correct(shift_K)
-        hot.correct(shift_K)
-    x_settled = cold.state
+    cold, hot = pickle.loads(saved), pickle.loads(saved)
+    for m in (cold, hot):
+        m.hold_from(held.block(m.time_s, 0.0))
+        if shift_K is not None:
+            m.correct(shift_K)
+    x_start = cold.state
     A, x_cold = probe(cold, held, 0.0, dt_s, ambient_K, layout, alpha_copper)
     Phi, x_hot = probe(hot, held, peak_A, dt_s, ambient_K, layout, alpha_copper)
     i2 = peak_A ** 2
-    c0 = x_cold - A @ x_settled
-    return A, (Phi - A) / i2, c0, (x_hot - Phi @ x_settled - c0) / i2
+    c0 = x_cold - A @ x_start
+    return A, (Phi - A) / i2, c0, (x_hot - Phi @ x_start - c0) / i2
 
 
-def limit_steps(saved: bytes, held: HeldDuty, ambient_K: float,
-                sigma_K: Dict[str, float], limits_C: Dict[str, float], k_sigma: float,
-                horizons_s: Sequence[float], dt_s: float, peak_A: float
+class Probing(NamedTuple):
+    """What the probes of a model need of it, the same at every tick (:func:`probing`)."""
+
+    layout: object                 # the couplings (:func:`~.correction.filter_layout`)
+    rows: Dict[str, np.ndarray]    # the states each limited quantity is the hottest of
+    alpha_copper: float            # the copper's temperature coefficient (1/K)
+
+
+def probing(model: EHAModel, limited: Sequence[str]) -> Probing:
+    """Return the :class:`Probing` of ``model`` for the ``limited`` quantities."""
+    q = model.quantities
+    return Probing(filter_layout(model), {name: q.state_indices(name) for name in limited},
+                   model.cfg.motor.winding.copper_tempco_1_K)
+
+
+def limit_steps(saved: bytes, x0: np.ndarray, setup: Probing, held: HeldDuty,
+                ambient_K: float, sigma_K: Dict[str, float], limits_C: Dict[str, float],
+                k_sigma: float, horizons_s: Sequence[float], dt_s: float, peak_A: float
                 ) -> Generator[None, None, List[Tuple[float, str]]]:
     """
     Compute a tick's limit for each horizon from the pickled model ``saved``, in slices.
 
     A generator: it yields between the linearisations and between the
     horizons, and returns (limit A RMS, what binds it) for each of
-    ``horizons_s``. ``sigma_K`` the tick's 1-sigma uncertainty of each
+    ``horizons_s``. ``x0`` the model's state (K), ``setup`` its
+    :class:`Probing`, ``sigma_K`` the tick's 1-sigma uncertainty of each
     limited quantity (K), ``limits_C`` their limits (degC), ``dt_s`` the
     probe step (s; each horizon a whole number of them), ``peak_A`` the
     search's top. A horizon longer than ``RELINEARISE_AFTER_S`` is solved
@@ -322,17 +325,15 @@ def limit_steps(saved: bytes, held: HeldDuty, ambient_K: float,
     over minutes the oil's viscosity, and with it the friction and the
     leakage heat, move far from the tick's.
     """
-    snapshot = pickle.loads(saved)
-    layout = filter_layout(snapshot)
-    alpha = snapshot.cfg.motor.winding.copper_tempco_1_K
-    x0 = snapshot.state
-    q = snapshot.quantities
-    rows = {name: q.state_indices(name) for name in limits_C}
     ceiling = {name: lim + C_TO_K - k_sigma * sigma_K[name] for name, lim in limits_C.items()}
-    settled = settle(snapshot, held, dt_s, ambient_K, layout, alpha)
-    x_settled = snapshot.state
-    problem = LimitProblem(*linearise(settled, None, held, dt_s, ambient_K, peak_A, layout,
-                                      alpha), x0, rows, ceiling)
+
+    def problem_at(shift_K: Optional[np.ndarray]) -> LimitProblem:
+        """Return the problem linearised at the state moved by ``shift_K`` (None: as it is)."""
+        return LimitProblem(*linearise(saved, shift_K, held, dt_s, ambient_K, peak_A,
+                                       setup.layout, setup.alpha_copper),
+                            x0, setup.rows, ceiling)
+
+    problem = problem_at(None)
     out = []
     for h in horizons_s:
         yield
@@ -340,9 +341,7 @@ def limit_steps(saved: bytes, held: HeldDuty, ambient_K: float,
         amps, binds = problem.solve(lambda s, n=steps: problem.horizon_excess(s, n), peak_A)
         if h > RELINEARISE_AFTER_S:
             yield
-            half_way = problem.trajectory(amps ** 2, steps // 2)[:, -1]
-            again = LimitProblem(*linearise(settled, half_way - x_settled, held, dt_s, ambient_K,
-                                            peak_A, layout, alpha), x0, rows, ceiling)
+            again = problem_at(problem.trajectory(amps ** 2, steps // 2)[:, -1] - x0)
             amps, binds = again.solve(lambda s, n=steps: again.horizon_excess(s, n), peak_A,
                                       near_A=amps)
         out.append((amps, binds))

@@ -31,7 +31,7 @@ from typing import Deque, Dict, Generator, List, Optional, Sequence, Tuple
 import numpy as np
 
 from .limits import (current_limits, CurrentLimits, fallback_limits, HeldDuty, limit_steps,
-                     RATING, step_statistics)
+                     probing, RATING, step_statistics)
 from ..config import Config
 from ..model.eha import EHAModel, SampleBlock
 from ..model.motor import MotorInputs, WetMotor
@@ -56,11 +56,13 @@ def copy_model(saved: bytes) -> EHAModel:
 
 @dataclass
 class _Forecast:
-    model: EHAModel
     start_s: float
-    duty: Dict[str, np.ndarray]   # the recent samples; 'dx_m' position increments, drift-free
     ambient_K: float
     now_C: Dict[str, float]       # the estimate at the start (a quantity past its limit)
+    saved: bytes                  # the tick's model, pickled: copied by the first slice
+    blocks: List[SampleBlock]     # the recent duty, steps of samples: summed by the first slice
+    model: Optional[EHAModel] = None
+    duty: Dict[str, np.ndarray] = field(default_factory=dict)   # 'dx_m': drift-free moves
     t_s: float = 0.0
     k: int = 0
     crossed: Dict[str, Optional[float]] = field(default_factory=dict)
@@ -115,6 +117,7 @@ class Outlook:
         self.limits_behind = 0         # ticks whose limits were not computed (fallback)
         self.forecasts_skipped = 0     # forecast ticks while a forecast was under way
         self._margin_motor = WetMotor(cfg.motor, model.oil)
+        self._probing = probing(model, list(limits_C))
 
     @property
     def busy(self) -> bool:
@@ -172,15 +175,15 @@ class Outlook:
             target = (self.limits_C['winding_hotspot'] - self.lim.k_sigma
                       * sigma_K['winding_hotspot'] + C_TO_K)
             self._margin_jobs.append((tick, self._margin_steps(
-                copy_model(saved), held.speed_rad_s, ambient_K, target)))
+                saved, held.speed_rad_s, ambient_K, target)))
         why = self._distrust(sigma_K, stale)
         if why:
             self._finish(fallback_limits(stamp_s, self.lim.horizons_s,
                                          self.lim.fallback_current_A, why))
             return
-        steps = limit_steps(saved, held, ambient_K, sigma_K, self.limits_C,
-                            self.lim.k_sigma, self.lim.horizons_s, self.lim.period_s,
-                            self.cfg.motor.peak_current_A)
+        steps = limit_steps(saved, self.model.state, self._probing, held, ambient_K, sigma_K,
+                            self.limits_C, self.lim.k_sigma, self.lim.horizons_s,
+                            self.lim.period_s, self.cfg.motor.peak_current_A)
         delay = int(round(MARGIN_DELAY_S / self.lim.period_s))
         margin_tick = max((f for f in self._forecast_tick_numbers if f <= tick - delay),
                           default=None)
@@ -309,9 +312,22 @@ class Outlook:
         if self.forecast is not None:
             self.forecasts_skipped += 1
             return
-        blocks = list(self.window)
-        # one sample per model step (the step's means; I^2 for the current): a forecast
-        # step of seconds then costs about a millisecond
+        # the duty's averages and the model's copy take tens of ms: the first slice's work,
+        # not the tick's (which is the estimator's step)
+        self.forecast = _Forecast(start_s=t_model, ambient_K=ambient_K, now_C=dict(now_C),
+                                  saved=saved, blocks=list(self.window),
+                                  crossed=dict.fromkeys(self.limits_C),
+                                  n=max(1, int(round(self.settings.forecast_step_s
+                                                     / self.settings.step_s))))
+        if self.inline:
+            while self.forecast is not None:
+                self._forecast_step()
+
+    def _prepare_forecast(self, f: _Forecast) -> None:
+        """Copy the forecast's model and average its duty: one sample per model step."""
+        blocks = f.blocks
+        # the step's means, I^2 for the current: a forecast step of seconds then costs
+        # about a millisecond
         duty = {a: np.array([getattr(b, a).mean() for b in blocks])
                 for a in ('speed_rad_s', 'p_a_Pa', 'p_b_Pa', 'p_acc_Pa')}
         duty['current_A'] = np.array([math.sqrt(np.mean(b.current_A ** 2)) for b in blocks])
@@ -320,17 +336,11 @@ class Outlook:
         # removed, so the repeated duty is periodic and stays inside the stroke
         dx = np.diff(x, prepend=x[0])
         duty['dx_m'] = dx - dx.mean()
-        model = copy_model(saved)
+        model = copy_model(f.saved)
         model.defer_refresh = False       # forecast steps are seconds long: no lag there
         model.circuit.keep_transition = False     # no filter follows the forecast
         model.oil_substep_s = self.settings.forecast_substep_s
-        self.forecast = _Forecast(model=model, start_s=t_model, duty=duty, ambient_K=ambient_K,
-                                  now_C=dict(now_C), crossed=dict.fromkeys(self.limits_C),
-                                  n=max(1, int(round(self.settings.forecast_step_s
-                                                     / self.settings.step_s))))
-        if self.inline:
-            while self.forecast is not None:
-                self._forecast_step()
+        f.model, f.duty, f.saved, f.blocks = model, duty, b'', []
 
     def _forecast_step(self) -> None:
         """Advance the forecast by one ``forecast_step_s`` of repeated duty."""
@@ -344,6 +354,9 @@ class Outlook:
     def _forecast_step_unguarded(self) -> None:
         """Step the forecast's model; note the limits crossed; finish at the horizon."""
         f = self.forecast
+        if f.model is None:
+            self._prepare_forecast(f)
+            return
         s = self.settings
         n_all = f.duty['dx_m'].size
         n = f.n
@@ -371,18 +384,20 @@ class Outlook:
             self.stamp_s = f.start_s
             self.forecast = None
 
-    def _margin_steps(self, model: EHAModel, speed_rad_s: float, ambient_K: float,
+    def _margin_steps(self, saved: bytes, speed_rad_s: float, ambient_K: float,
                       target_K: float):
         """
-        Return the largest continuous current (A RMS) at the oil and flow of ``model``.
+        Return the largest continuous current (A RMS) at the oil and flow of a saved model.
 
-        The motor alone in steady state with the cooling oil of ``model`` (the
-        pump case temperature and the motor's flow) at ``speed_rad_s``: the
-        current whose steady winding hot-spot reaches ``target_K``, by secant
-        iterations on I^2 (the rise is nearly linear in I^2), at ``ambient_K``.
-        A generator: it yields once per fixed-point iteration of a steady solve, each
-        solve from the same start, so the result depends on the inputs alone.
+        The motor alone in steady state with the cooling oil of the pickled
+        model ``saved`` (the pump case temperature and the motor's flow) at
+        ``speed_rad_s``: the current whose steady winding hot-spot reaches
+        ``target_K``, by secant iterations on I^2 (the rise is nearly linear
+        in I^2), at ``ambient_K``. A generator: it yields once per fixed-point
+        iteration of a steady solve, each solve from the same start, so the
+        result depends on the inputs alone.
         """
+        model = copy_model(saved)
         mot = self._margin_motor
         u = MotorInputs(current_sq_mean_A2=0.0, speed_rad_s=speed_rad_s,
                         oil_inlet_K=float(model.T_hyd[model.circuit.index('case')]),

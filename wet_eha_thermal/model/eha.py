@@ -187,6 +187,19 @@ class EHAModel:
         p = self._node_pressures(raw[:, None], np.zeros(1))
         self._last = (float(first.t_s[-1]), float(first.position_m[-1]), raw, p[:, -1].copy())
 
+    def hold_from(self, sample: SampleBlock) -> None:
+        """
+        Take the last values of ``sample`` as the last sample taken; keep the state and time.
+
+        A copy that then steps a made-up duty (the estimator's limits hold the
+        recent one) starts it without the jump from the real last sample: the
+        pressure work of that jump would heat the oil once, a transient of the
+        copy, not of the duty.
+        """
+        raw = np.array([sample.p_a_Pa[-1], sample.p_b_Pa[-1], sample.p_acc_Pa[-1]])
+        p = self._node_pressures(raw[:, None], np.zeros(1))
+        self._last = (self._last[0], float(sample.position_m[-1]), raw, p[:, -1].copy())
+
     @property
     def defer_refresh(self) -> bool:
         """Return whether motor re-discretisations wait for :meth:`prepare` or the next step."""
