@@ -132,16 +132,21 @@ def _number(data: Mapping[str, Any], key: str, low: float, high: float,
     return float(value)
 
 
+def _only(given: Mapping[str, Any], allowed: Sequence[str], where: str, what: str) -> None:
+    """Raise a :class:`RequestError` naming the first key of ``given`` not in ``allowed``."""
+    unknown = sorted(set(given) - set(allowed))
+    if unknown:
+        raise RequestError(f'{where}{unknown[0]}: unknown {what}; the {what}s are '
+                           f'{", ".join(allowed)}')
+
+
 def _columns(data: Mapping[str, Any], key: str, columns: Sequence[str],
              optional: Sequence[str] = ()) -> Dict[str, Tuple[float, ...]]:
     """Return the table ``data[key]``: each of ``columns`` as a tuple of finite numbers."""
     table = data[key]
     if not isinstance(table, dict):
         raise RequestError(f'{key}: expected an object of columns {", ".join(columns)}')
-    unknown = sorted(set(table) - set(columns))
-    if unknown:
-        raise RequestError(f'{key}.{unknown[0]}: unknown column; the columns are '
-                           f'{", ".join(columns)}')
+    _only(table, columns, f'{key}.', 'column')
     out = {}
     for name in columns:
         if name not in table:
@@ -188,10 +193,7 @@ def parse_request(text: Union[str, Mapping[str, Any]], cfg: Config,
         raise RequestError(f'not JSON: {exc}') from None
     if not isinstance(data, dict):
         raise RequestError(f'expected a JSON object with {", ".join(REQUEST_KEYS)}')
-    unknown = sorted(set(data) - set(REQUEST_KEYS))
-    if unknown:
-        raise RequestError(f'{unknown[0]}: unknown field; the fields are '
-                           f'{", ".join(REQUEST_KEYS)}')
+    _only(data, REQUEST_KEYS, '', 'field')
     rid = data.get('id', '')
     if not isinstance(rid, str) or len(rid) > MAX_ID:
         raise RequestError(f'id = {rid!r}: expected a string of at most {MAX_ID} characters')
