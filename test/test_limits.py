@@ -86,7 +86,7 @@ def test_a_limit_takes_the_model_to_its_limit_and_no_further(warm, winding_C, ho
     # within the linearisation's error: 0.5 K over a minute (the coefficients barely
     # move); over 10 minutes the oil thins, its friction falls and the pump's leakage heat
     # grows, which a linearisation half-way along follows only in part: 1.2 K here,
-    # 2.5 K after 10 minutes of stage 2 (8 MPa) with the limit at 60 degC
+    # 2.6 K after 10 minutes of stage 2 (8 MPa) with the limit at 60 degC
     assert abs(peak_excess(est, limits_C, amps, horizon_s, lim.k_sigma)) < tol_K
     # and it is the largest: 1 A more crosses the limit
     if tol_K <= 0.5:
