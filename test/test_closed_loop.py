@@ -3,14 +3,32 @@
 from pathlib import Path
 
 import pytest
-from test_live import _heavy_duty, HEAVY_PEAK_A, HOT_LIMIT_C
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.estimator.core import Estimator
 from wet_eha_thermal.model.kinetics import load_duty_csv
 from wet_eha_thermal.offline.simulated_rig import SimulatedRig
 from wet_eha_thermal.units import C_TO_K
 
+#: Duty played per run (s)
 SECONDS = 30.0
+#: The winding hot-spot limit of the closed-loop test (degC): the heavy duty below takes the
+#: reference rig from 20 degC past it in about 18 s
+HOT_LIMIT_C = 30.0
+#: The heavy duty's peak current (A RMS): 22 MPa and the pump's friction
+HEAVY_PEAK_A = 45.5
+
+
+def _heavy_duty(path):
+    """Write 3 s at 3 MPa (7 A), then 22 MPa against 4 L/min, reversing every 0.5 s."""
+    rows = ['time_s,flow_L_min,load_MPa']
+    for k in range(120):
+        load = 22.0 if k >= 3 else 3.0
+        for t, q, dp in ((0.0, 0.0, 0.0), (0.1, 4.0, load), (0.4, 4.0, load),
+                         (0.6, -4.0, -load), (0.9, -4.0, -load)):
+            rows.append(f'{k + t:g},{q:g},{dp:g}')
+    rows.append('120,0,0')
+    path.write_text('\n'.join(rows) + '\n')
+    return path
 
 
 def run(cfg, duty, honour):

@@ -124,9 +124,15 @@ def collect(mode, seconds):
     return out
 
 
-def test_limits_are_bit_for_bit_the_same_at_once_and_in_background_slices():
+@pytest.fixture(scope='module')
+def inline():
+    """Return the limits of 12 s of the duty worked out at once (past MARGIN_DELAY_S)."""
+    return collect('inline', 12.0)
+
+
+def test_limits_are_bit_for_bit_the_same_at_once_and_in_background_slices(inline):
     # past MARGIN_DELAY_S, so the continuous limit (the margin job's) is compared too
-    inline, background = collect('inline', 12.0), collect('background', 12.0)
+    background = collect('background', 12.0)
     assert len(inline) == 23               # a tick each 0.5 s from the start at 1 ms
     assert inline[-1].binds[0] == 'winding_hotspot'   # (at 40 degC)
     assert inline == background            # every field, floats compared exactly
@@ -135,10 +141,10 @@ def test_limits_are_bit_for_bit_the_same_at_once_and_in_background_slices():
     assert stamps == sorted(stamps)
 
 
-def test_limits_taken_sample_by_sample_with_a_small_budget_are_the_same_as_at_once():
+def test_limits_taken_sample_by_sample_with_a_small_budget_are_the_same_as_at_once(inline):
     # as the live node works: take() per sample, 4 ms of background after each estimate,
     # the limits given up when older than max_age_s; what it computes is what a replay does
-    inline = {lim.stamp_s: lim for lim in collect('inline', 12.0)}
+    at_once = {lim.stamp_s: lim for lim in inline}
     est = Estimator(load_config(overrides=LOW_LIMITS), outlook='background')
     live = []
     for k in range(1, 12001):
@@ -147,8 +153,8 @@ def test_limits_taken_sample_by_sample_with_a_small_budget_are_the_same_as_at_on
             if est.take(ch, t, DUTY[ch], now_s=t, budget_s=0.004):
                 live += est.outlook.take_limits(est.t_model)
     computed = [lim for lim in live if lim.status == 'ok']
-    assert len(computed) >= len(inline) // 2, [lim.reason for lim in live]
-    assert all(lim == inline[lim.stamp_s] for lim in computed)
+    assert len(computed) >= len(at_once) // 2, [lim.reason for lim in live]
+    assert all(lim == at_once[lim.stamp_s] for lim in computed)
     assert all(lim.reason.startswith('behind') for lim in live if lim.status != 'ok')
 
 
