@@ -18,14 +18,13 @@ import threading
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
+from node_probe import NodeAndProbe
 import numpy as np
 import pytest
 import rclpy
 from rclpy.exceptions import InvalidParameterValueException
-from rclpy.experimental import EventsExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
-from rclpy.task import Future
 from ros_domains import claim_domain
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, JointState, Temperature
@@ -48,13 +47,13 @@ VALUES = {'current_A': 20.0, 'speed_rad_s': 800.0, 'p_a_Pa': 1.0e6, 'p_b_Pa': 1.
           'p_acc_Pa': 1.0e6, 'dp_Pa': 0.0, 'position_m': 0.002}
 
 
-class Rig:
+class Rig(NodeAndProbe):
     """The estimator under test, a probe node that feeds it and listens, one executor."""
 
     def __init__(self, context, overrides=(), sim_time=False):
-        self.node = EstimatorNode(context=context, parameter_overrides=[
-            Parameter('diagnostics_rate_Hz', value=5.0), *overrides])
-        self.probe = rclpy.create_node('estimator_test_probe', context=context)
+        super().__init__(context, EstimatorNode(context=context, parameter_overrides=[
+            Parameter('diagnostics_rate_Hz', value=5.0), *overrides]),
+            rclpy.create_node('estimator_test_probe', context=context))
         self.clock_ns = 1000 * 10**9 if sim_time else None
         in_qos = topics.input_qos('sensor_data', 100)
         self.pubs = {name: self.probe.create_publisher(
@@ -70,15 +69,6 @@ class Rig:
         self.diagnostics = []
         self.probe.create_subscription(DiagnosticArray, interface.DIAGNOSTICS_TOPIC,
                                        self.diagnostics.append, 10)
-        self.executor = EventsExecutor(context=context)
-        self.executor.add_node(self.node)
-        self.executor.add_node(self.probe)
-        self._never = Future()
-
-    def close(self):
-        self.executor.shutdown()
-        self.node.destroy_node()
-        self.probe.destroy_node()
 
     def publish_samples(self, skip=(), current=None):
         if self.clock_ns is not None:
@@ -99,9 +89,6 @@ class Rig:
             else:
                 msg = Float64(data=value)
             pub.publish(msg)
-
-    def spin(self, seconds):
-        self.executor.spin_until_future_complete(self._never, timeout_sec=seconds)
 
     def feed(self, seconds, until=None, skip=()):
         """Publish at 1 kHz for ``seconds`` or until ``until()``; return whether it held."""

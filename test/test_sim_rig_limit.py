@@ -11,11 +11,10 @@ import math
 import os
 import time
 
+from node_probe import NodeAndProbe
 import pytest
 import rclpy
-from rclpy.experimental import EventsExecutor
 from rclpy.parameter import Parameter
-from rclpy.task import Future
 from ros_domains import claim_domain
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
@@ -30,30 +29,21 @@ os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 WATCHDOG_S, FALLBACK_A = 0.5, 5.0
 
 
-class Drive:
+class Drive(NodeAndProbe):
     """The rig under test, a probe that sends limits and keeps the published current."""
 
     def __init__(self, context):
-        self.node = SimRigNode(context=context, parameter_overrides=[
+        super().__init__(context, SimRigNode(context=context, parameter_overrides=[
             Parameter('stage', value=1), Parameter('rate_Hz', value=200.0),
             Parameter('noise', value=False), Parameter('honour_limit', value=True),
             Parameter('limit_watchdog_s', value=WATCHDOG_S),
-            Parameter('limit_fallback_A', value=FALLBACK_A)])
-        self.probe = rclpy.create_node('drive_test_probe', context=context)
+            Parameter('limit_fallback_A', value=FALLBACK_A)]),
+            rclpy.create_node('drive_test_probe', context=context))
         self.pub = self.probe.create_publisher(JointState, interface.CURRENT_LIMITS_TOPIC, 10)
         self.currents = []
         self.probe.create_subscription(Float64, interface.INPUT_TOPICS['current_A'],
                                        lambda m: self.currents.append(m.data),
                                        topics.input_qos('sensor_data', 1000))
-        self.executor = EventsExecutor(context=context)
-        self.executor.add_node(self.node)
-        self.executor.add_node(self.probe)
-        self._never = Future()
-
-    def close(self):
-        self.executor.shutdown()
-        self.node.destroy_node()
-        self.probe.destroy_node()
 
     def run(self, seconds, limits=None, status='ok', age_s=0.0):
         """
@@ -72,7 +62,7 @@ class Drive:
                 msg.header.stamp = rclpy.time.Time(nanoseconds=now).to_msg()
                 msg.header.frame_id = status
                 self.pub.publish(msg)
-            self.executor.spin_until_future_complete(self._never, timeout_sec=0.1)
+            self.spin(0.1)
         # what the last block was computed with (blocks run 0.1 s ahead of the published)
         return list(self.currents[-self.node.n_block:])
 
