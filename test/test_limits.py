@@ -170,6 +170,18 @@ def test_a_stale_input_drops_the_limits_to_the_fallback_and_says_why():
     assert set(last.limits_A) == {cfg.estimator.limits.fallback_current_A}
 
 
+def test_fallbacks_wait_behind_the_ticks_still_worked_on_so_stamps_never_go_back():
+    est = Estimator(load_config(), outlook='background')
+    t = feed(est, 0.0, 1.1)                # two ticks waiting for background work
+    feed(est, t, 1.0, skip=('current_A',))  # then stale ticks, decided at once
+    while est.outlook.busy:
+        est.background(1.0)
+    limits = est.outlook.take_limits()
+    stamps = [lim.stamp_s for lim in limits]
+    assert stamps == sorted(stamps) and len(stamps) == len(set(stamps))
+    assert limits[0].status == 'ok' and 'current_A' in limits[-1].reason
+
+
 def test_too_uncertain_an_estimate_drops_the_limits_to_the_fallback():
     cfg = load_config(overrides={'estimator.limits.max_sigma_K': 1.0,
                                  'estimator.correction.enabled': False})

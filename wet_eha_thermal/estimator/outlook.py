@@ -72,9 +72,10 @@ class _Forecast:
 @dataclass
 class _LimitJob:
     stamp_s: float
-    steps: Generator
+    steps: Optional[Generator]    # None: a ready fallback
     margin_tick: Optional[int]    # the forecast tick whose continuous limit it takes
     values: Optional[List[Tuple[float, str]]] = None    # each horizon's, once computed
+    ready: Optional[CurrentLimits] = None   # a fallback decided at the tick, waiting its turn
 
 
 class Outlook:
@@ -178,8 +179,13 @@ class Outlook:
                 saved, held.speed_rad_s, ambient_K, target)))
         why = self._distrust(sigma_K, stale)
         if why:
-            self._finish(fallback_limits(stamp_s, self.lim.horizons_s,
-                                         self.lim.fallback_current_A, why))
+            # behind the ticks still worked on, so that the stamps go out in order
+            fallback = fallback_limits(stamp_s, self.lim.horizons_s,
+                                       self.lim.fallback_current_A, why)
+            if self._jobs:
+                self._jobs.append(_LimitJob(stamp_s, None, None, ready=fallback))
+            else:
+                self._finish(fallback)
             return
         steps = limit_steps(saved, self.model.state, self._probing, held, ambient_K, sigma_K,
                             self.limits_C, self.lim.k_sigma, self.lim.horizons_s,
@@ -189,7 +195,7 @@ class Outlook:
                           default=None)
         self._jobs.append(_LimitJob(stamp_s, steps, margin_tick))
         while len(self._jobs) > MAX_LIMIT_JOBS:
-            self._behind(self._jobs.popleft().stamp_s)
+            self._give_up(self._jobs.popleft())
         if self.inline:
             self.run(math.inf)
 
@@ -203,10 +209,14 @@ class Outlook:
                     f'{self.lim.max_sigma_K:g} K')
         return ''
 
-    def _behind(self, stamp_s: float) -> None:
-        """Publish a tick's limits as the fallback: they were not computed in time."""
+    def _give_up(self, job: _LimitJob) -> None:
+        """Publish a waiting tick's limits as the fallback: not computed in time (behind)."""
+        if job.ready is not None:
+            self._finish(job.ready)
+            return
         self.limits_behind += 1
-        self._finish(fallback_limits(stamp_s, self.lim.horizons_s, self.lim.fallback_current_A,
+        self._finish(fallback_limits(job.stamp_s, self.lim.horizons_s,
+                                     self.lim.fallback_current_A,
                                      'behind: the estimator had no time to compute them'))
 
     def _finish(self, limits: CurrentLimits) -> None:
@@ -223,7 +233,7 @@ class Outlook:
         """
         if model_time_s is not None:
             while self._jobs and model_time_s - self._jobs[0].stamp_s > self.lim.max_age_s:
-                self._behind(self._jobs.popleft().stamp_s)
+                self._give_up(self._jobs.popleft())
         out, self._new = self._new, []
         return out
 
@@ -241,7 +251,10 @@ class Outlook:
         """
         while time.perf_counter() < deadline:
             job = self._jobs[0] if self._jobs else None
-            if job is not None and job.values is None:
+            if job is not None and job.ready is not None:
+                self._jobs.popleft()
+                self._finish(job.ready)
+            elif job is not None and job.values is None:
                 self._work_on(job)
             elif job is not None and (job.margin_tick is None
                                       or job.margin_tick in self._margins):
