@@ -12,18 +12,16 @@ same held duty at that current for that horizon: printed, the limit and how far 
 """
 
 import argparse
-import copy
 from pathlib import Path
 import pickle
 import sys
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
 from bench_step import make_inputs  # noqa: E402 - the benchmarks' stage signals
-from test_limits import feed, run  # noqa: E402 - the tests' duty and generator runner
+from test_limits import feed, peak_excess, run  # noqa: E402 - the tests' duty, check, runner
 from wet_eha_thermal.config import load_config  # noqa: E402
 from wet_eha_thermal.estimator.core import Estimator  # noqa: E402
 from wet_eha_thermal.estimator.limits import limit_steps, probing  # noqa: E402
-from wet_eha_thermal.units import C_TO_K  # noqa: E402
 
 CASES = {'steady duty after 60 s': ((40.0, (10.0, 60.0)), (80.0, (600.0,))),
          'stage 2': ((60.0, (10.0, 60.0, 600.0)), (75.0, (600.0,)))}
@@ -32,25 +30,13 @@ CASES = {'steady duty after 60 s': ((40.0, (10.0, 60.0)), (80.0, (600.0,))),
 def check(est: Estimator, winding_C: float, horizons) -> list:
     """Return (horizon, limit A, binds, end excess K) for each horizon at ``winding_C``."""
     limits_C = dict(est.limits_C, winding_hotspot=winding_C)
-    held = est.outlook.held_duty()
     k = est.cfg.estimator.limits.k_sigma
-    dt = est.cfg.estimator.limits.period_s
     got = run(limit_steps(pickle.dumps(est.model), est.model.state,
-                          probing(est.model, list(limits_C)), held, est.ambient_K,
-                          est.latest.uncertainty_K, limits_C, k, horizons, dt,
-                          est.cfg.motor.peak_current_A))
-    out = []
-    for h, (amps, binds) in zip(horizons, got):
-        m = copy.deepcopy(est.model)
-        m.defer_refresh = False
-        worst = -1e9
-        for _ in range(int(round(h / dt))):
-            m.step(held.block(m.time_s + dt, amps), est.ambient_K, max_substep_s=dt)
-            o = m.outputs()
-            worst = max(worst, max(o[q] - C_TO_K + k * est.latest.uncertainty_K[q] - lim
-                                   for q, lim in limits_C.items()))
-        out.append((h, amps, binds, worst))
-    return out
+                          probing(est.model, list(limits_C)), est.outlook.held_duty(),
+                          est.ambient_K, est.latest.uncertainty_K, limits_C, k, horizons,
+                          est.cfg.estimator.limits.period_s, est.cfg.motor.peak_current_A))
+    return [(h, amps, binds, peak_excess(est, limits_C, amps, h, k))
+            for h, (amps, binds) in zip(horizons, got)]
 
 
 def main() -> None:

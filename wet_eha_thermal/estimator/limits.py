@@ -3,12 +3,13 @@ Thermal current limits for the drive: the largest RMS phase current, now and for
 
 At each limit tick (every ``estimator.limits.period_s`` of sample time) the
 outlook copies the model; from that copy :func:`limit_steps` finds, for each
-horizon H of ``horizons_s`` and for the steady state (``continuous``), the
-largest constant RMS current I that keeps every limited quantity q (winding
-hot-spot, magnet, oil) at or below its limit over (0, H], at its estimate plus
-``k_sigma`` times its present uncertainty, with the recent speed and pressure
-duty held. The search stops at the motor's peak rating
-(``motor.peak_current_A``): a limit there means no temperature binds.
+horizon H of ``horizons_s``, the largest constant RMS current I that keeps
+every limited quantity q (winding hot-spot, magnet, oil) at or below its
+limit over (0, H], at its estimate plus ``k_sigma`` times its present
+uncertainty, with the recent speed and pressure duty held. The search stops
+at the motor's peak rating (``motor.peak_current_A``): a limit there means
+no temperature binds. The continuous limit, the steady margin, is the
+outlook's (:mod:`.outlook`).
 
 How: over one probe step of dt = ``period_s`` the coupled model is affine in
 its state and, through the copper's R(T), bilinear in I^2:
@@ -21,8 +22,8 @@ peak rating, give the four terms: A and K from the model's own linearisation
 :func:`~.kalman.coupled_transition`), c0 and c1 from where the copies
 ended. The state at every power of two of dt and at H follows from powers of
 the augmented matrix [[A + I^2 K, c0 + I^2 c1], [0, 1]] by squaring (a
-dozen 71 x 71 products for 600 s), the steady state from one linear solve,
-and scipy's ``brentq`` finds the I^2 where the worst quantity meets its limit.
+dozen 71 x 71 products for 600 s), and scipy's ``brentq`` finds the I^2
+where the worst quantity meets its limit.
 
 What it leaves out (``test/test_limits.py`` measures it against the model
 itself): the coefficients that move with temperature (convection,
@@ -130,12 +131,10 @@ class CurrentLimits:
         """Return the shortest horizon's limit (A RMS): the one a simple drive applies."""
         return self.limits_A[int(np.argmin(self.horizons_s))]
 
-    def fallback(self, current_A: float, reason: str, stamp_s: Optional[float] = None
-                 ) -> 'CurrentLimits':
+    def fallback(self, current_A: float, reason: str) -> 'CurrentLimits':
         """Return these limits capped at the conservative ``current_A``, saying why."""
         return CurrentLimits(
-            stamp_s=self.stamp_s if stamp_s is None else stamp_s, names=self.names,
-            horizons_s=self.horizons_s,
+            stamp_s=self.stamp_s, names=self.names, horizons_s=self.horizons_s,
             limits_A=tuple(min(v, current_A) for v in self.limits_A),
             binds=tuple(FALLBACK if v > current_A else b
                         for v, b in zip(self.limits_A, self.binds)),
@@ -178,8 +177,7 @@ class LimitProblem:
 
     def _excess(self, X: np.ndarray) -> Tuple[float, str]:
         """Return the largest excess over its ceiling (K) among states ``X`` (n x k), and whose."""
-        worst = {q: float(np.max(X[idx])) - c for q, (idx, c) in
-                 ((q, (self.rows[q], self.ceiling_K[q])) for q in self.rows)}
+        worst = {q: float(np.max(X[idx])) - self.ceiling_K[q] for q, idx in self.rows.items()}
         q = max(worst, key=worst.get)
         return worst[q], q
 

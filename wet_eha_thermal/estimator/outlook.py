@@ -167,9 +167,13 @@ class Outlook:
         if steps_after // p == steps_before // p or not self.window:
             return
         tick = steps_after // p
-        saved = pickle.dumps(self.model, pickle.HIGHEST_PROTOCOL)
         held = self.held_duty()
-        if tick % self.forecast_ticks == 0 or not self._forecast_tick_numbers:
+        why = self._distrust(sigma_K, stale)
+        forecast_tick = tick % self.forecast_ticks == 0 or not self._forecast_tick_numbers
+        # the state saved only for work that reads it (1 ms inside the estimator's step)
+        saved = pickle.dumps(self.model, pickle.HIGHEST_PROTOCOL) \
+            if forecast_tick or not why else b''
+        if forecast_tick:
             # at every forecast tick and at the first tick of the run
             self._forecast_tick_numbers.append(tick)
             self._start_forecast(saved, stamp_s, ambient_K, now_C)
@@ -177,7 +181,6 @@ class Outlook:
                       * sigma_K['winding_hotspot'] + C_TO_K)
             self._margin_jobs.append((tick, self._margin_steps(
                 saved, held.speed_rad_s, ambient_K, target)))
-        why = self._distrust(sigma_K, stale)
         if why:
             # behind the ticks still worked on, so that the stamps go out in order
             fallback = fallback_limits(stamp_s, self.lim.horizons_s,

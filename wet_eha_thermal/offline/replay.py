@@ -382,12 +382,13 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
     forked child on another core (the same numbers either way; see
     :class:`~.bag.reader.ColumnBlocks`). ``outlook``: compute every tick's
     current limits, the forecast and the margin, inline (``False``: none).
-    ``estimator``: the one to run (its own outlook then), new on ``plan.cfg``
+    ``estimator``: the one to run (its own outlook, not ``outlook``), new on ``plan.cfg``
     by default, kept by the caller to start from its last state (a what-if
     from a bag).
     """
     est = estimator if estimator is not None else Estimator(
         plan.cfg, outlook='inline' if outlook else 'off')
+    outlook = est.outlook_mode != 'off'       # a caller's estimator has its own
     limited = list(est.limits_C)
     current_limits: List[CurrentLimits] = []
     tick_current = _TickCurrent()
