@@ -130,12 +130,41 @@ def test_flat_plate_laws_meet_and_scale():
 
 
 def test_swirl_speed_is_solid_body_inside_and_free_vortex_outside():
-    w, a = 1000.0, 0.02
-    r = np.array([0.005, 0.02, 0.04])
-    v = c.end_space_swirl_speed(w, a, r)
-    np.testing.assert_allclose(v, c.CORE_SWIRL_RATIO * w * np.array([0.005, 0.02, 0.01]))
+    w, a, k = 1000.0, 0.02, 0.3
+    v = [c.end_space_swirl_speed(w, a, r, k) for r in (0.005, 0.02, 0.04)]
+    np.testing.assert_allclose(v, k * w * np.array([0.005, 0.02, 0.01]))
     # angular momentum r v is conserved past the disc
-    assert v[2] * r[2] == pytest.approx(v[1] * r[1])
+    assert v[2] * 0.04 == pytest.approx(v[1] * 0.02)
+
+
+def test_plate_shear_and_plate_heat_transfer_are_one_reynolds_colburn_pair():
+    """The plate's Nusselt laws are St Pr^(2/3) = C_f / 2 of its friction laws, both regimes."""
+    rho, nu, pr, L = 850.0, 1.0e-5, 150.0, 0.1
+    k_oil = 0.13
+    cp = pr * k_oil / (rho * nu)
+    for re in (1.0e3, 2.0e5, 8.0e5, 5.0e6):
+        v = re * nu / L
+        h = c.flat_plate_shear(rho, nu, v, L) * cp * pr ** (-2.0 / 3.0) / v
+        assert h * L / k_oil == pytest.approx(c.flat_plate_nusselt(re, pr), rel=1e-9)
+
+
+def test_disc_heat_transfer_takes_the_velocity_relative_to_the_core():
+    """
+    The analogy h = tau c_p Pr^(-2/3) / V takes each wall's speed relative to the core.
+
+    With the core at Daily and Nece's own K0 the disc's Nusselt number is
+    the analogy with the disc speed omega r divided by (1 - K0), the facing
+    wall's by K0 (the same torque, a slower stream); a core at rest leaves
+    the stationary wall at the conduction floor.
+    """
+    re, pr, g = 2.5e4, 170.0, 0.2
+    k0 = c.DAILY_NECE_CORE_SWIRL[1]
+    cm = c.daily_nece_moment_coefficient(re, g)[0]
+    plain = c.colburn_disc_nusselt(cm, re, pr, 1.0)          # regime II, omega r as V
+    assert c.enclosed_disc_nusselt(re, pr, g, k0) == pytest.approx(plain / (1 - k0), rel=1e-12)
+    assert (c.enclosed_disc_nusselt(re, pr, g, k0, rotating=False)
+            == pytest.approx(plain / k0, rel=1e-12))
+    assert c.enclosed_disc_nusselt(re, pr, g, 0.0, rotating=False) == pytest.approx(2.0 / g)
 
 
 def test_palmgren_torque_hand_values_and_join():

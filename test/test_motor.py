@@ -36,8 +36,9 @@ def maps(cfg):
 def test_default_network_size_and_names(cfg):
     m = make_motor(cfg)
     assert m.cfg.slices == 5
-    # 8 stack parts x 5 slices, 5 end parts (with the bearing) x 2 sides, 5 + 2 oil volumes
-    assert m.state_count == 8 * 5 + 5 * 2 + 7
+    # 8 stack parts x 5 slices, 6 end parts (the cap's hub and the bearing with them) x 2
+    # sides, 5 + 2 oil volumes
+    assert m.state_count == 8 * 5 + 6 * 2 + 7
     m.steady_state(inputs())
     assert m.temperature('winding.s3') > m.temperature('gap_oil.s3')
     assert m.temperature('gap_oil.s5') == m.outputs()['airgap_oil_outlet']

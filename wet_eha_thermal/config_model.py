@@ -146,8 +146,10 @@ class EndSpaces:
 
     oil_volume_m3: float = positive('each end space')
     rotor_clearance_m: float = positive(
-        "axial clearance between the rotor's end face and the end cap: the Daily-Nece "
-        'disc friction and heat transfer of the face')
+        "axial clearance between the rotor's end face and the end cap's hub (the bearing "
+        "housing, of the rotor's radius, reaching in from the cap inside the end winding): "
+        'the Daily-Nece disc friction and heat transfer of the face, and where the network '
+        'and the finite-element check draw the hub')
     htc_multiplier: float = spec(0.0, 10.0, low_open=True, default=1.0, doc=(
         "calibration factor on every end-space coefficient (the correlations' value: 1)"))
     cap_thickness_m: float = positive('axial thickness of each end cap (reference rig: est.)')
@@ -272,8 +274,11 @@ class Motor:
                     'stack_length_m) / 2)', 0.5 * (self.frame.length_m - self.stack_length_m))
         check_below(key or 'motor', 'stack_length_m', self.stack_length_m, 'rotor.shaft_length_m',
                     self.rotor.shaft_length_m)
-        check_below(key + '.bearings' if key else 'bearings', 'seat_radius_m',
-                    self.bearings.seat_radius_m, 'frame inner radius', self.frame.inner_radius_m)
+        if not self.bearings.seat_radius_m < self.rotor.outer_radius_m:
+            raise ConfigError(f'{p}bearings.seat_radius_m = {self.bearings.seat_radius_m!r}: '
+                              f'must be below {p}rotor.outer_radius_m = '
+                              f"{self.rotor.outer_radius_m!r} (the end cap's hub that holds the "
+                              "bearing faces the rotor's end face out to its radius)")
         check_below(key + '.rotor' if key else 'rotor', 'core_inner_radius_m',
                     self.rotor.core_inner_radius_m, 'bearings.seat_radius_m',
                     self.bearings.seat_radius_m + 1e-12)

@@ -1084,11 +1084,14 @@ _DN_RE_EXPO = np.array([1.0, 0.5, 0.25, 0.2])
 #: Couette flow; turbulent: 8/5, the 1/7-power-law boundary layer of von Karman), as
 #: :func:`enclosed_disc_nusselt` integrates it.
 DAILY_NECE_SHEAR_EXPONENT = np.array([1.0, 1.0, 1.6, 1.6])
-#: Swirl of the end space's oil core as a share of the disc speed: between the laminar
-#: (Batchelor flow, 0.31) and turbulent (0.43) values of a rotor-stator cavity without
-#: through-flow (Owen and Rogers 1989; Poncet, Chauve and Schiestel, Phys. Fluids 17,
-#: 075110, 2005). See :func:`end_space_swirl_speed`.
-CORE_SWIRL_RATIO = 0.4
+#: Core swirl ratio K0 of Daily and Nece's cavity, one disc face and the wall facing it,
+#: in regimes I-IV: 0.5 where the boundary layers merge (the mid-gap speed of plane Couette
+#: flow, laminar or turbulent, by its symmetry); 0.4 where they are separate (Daily and
+#: Nece measured about 0.4-0.45 in turbulent flow; the laminar similarity solution,
+#: Batchelor flow, gives 0.31, Poncet, Chauve and Schiestel, Phys. Fluids 17, 075110,
+#: 2005, 0.44 in turbulent flow; one value for both keeps K continuous where the regimes
+#: meet). Their C_M is the disc's torque with the core at K0. See :func:`disc_shear_factor`.
+DAILY_NECE_CORE_SWIRL = np.array([0.5, 0.4, 0.5, 0.4])
 #: Laminar-turbulent transition of a flat plate's boundary layer (Incropera, 7th ed., 7.2).
 PLATE_RE_CRITICAL = 5.0e5
 
@@ -1193,6 +1196,56 @@ def enclosed_disc_friction(rho, mu, w, radius_m, laws):
 
 
 @jit
+def disc_shear_factor(swirl_ratio, regime, rotating):
+    """
+    Return an enclosed disc's wall shear, or the facing wall's, over Daily and Nece's.
+
+    The oil's core between the two boundary layers turns at K omega
+    (``swirl_ratio`` K); each wall's shear follows its speed relative to the
+    core, the disc's (1 - K) omega r and the facing stationary wall's
+    K omega r, as the regime's law follows the disc speed (C_M ~ Re^-n, so
+    tau ~ V^(2 - n)), and is Daily and Nece's where K is their cavity's
+    K0 (:data:`DAILY_NECE_CORE_SWIRL`): their C_M is the disc's torque there,
+    and the facing wall, alone, takes the same. The disc ((1 - K) / (1 - K0))^(2 - n),
+    the facing wall (K / K0)^(2 - n). Compiled; ``regime`` 1-4.
+
+    Examples
+    --------
+    Hand-checked: regime II (n = 0.5, K0 = 0.4) with the core at K = 0.2: the
+    disc (0.8 / 0.6)^1.5 = 1.5396, the facing wall (0.2 / 0.4)^1.5 = 0.35355.
+
+    >>> [round(float(disc_shear_factor(0.2, 2, r)), 5) for r in (True, False)]
+    [1.5396, 0.35355]
+
+    """
+    k0 = DAILY_NECE_CORE_SWIRL[regime - 1]
+    p = 2.0 - _DN_RE_EXPO[regime - 1]
+    if rotating:
+        return ((1.0 - swirl_ratio) / (1.0 - k0)) ** p
+    return (swirl_ratio / k0) ** p
+
+
+@jit
+def disc_annulus_share(r_in_m, r_out_m, disc_radius_m, shear_exponent):
+    """
+    Return the share of a disc face's torque that the annulus r_in..r_out takes.
+
+    With the wall shear tau ~ r^m (``shear_exponent``, :data:`DAILY_NECE_SHEAR_EXPONENT`)
+    over a face of radius a: (r_out^(m+3) - r_in^(m+3)) / a^(m+3). Compiled.
+
+    Examples
+    --------
+    Hand-checked: the outer half of a laminar face (m = 1), 1 - 0.5^4 = 0.9375.
+
+    >>> float(disc_annulus_share(0.5, 1.0, 1.0, 1.0))
+    0.9375
+
+    """
+    e = shear_exponent + 3.0
+    return (r_out_m ** e - r_in_m ** e) / disc_radius_m ** e
+
+
+@jit
 def colburn_disc_nusselt(C_M, Re, Pr, shear_exponent):
     """
     Return the face-mean Nusselt number h a / k of a disc from its moment coefficient.
@@ -1230,45 +1283,58 @@ def colburn_disc_nusselt(C_M, Re, Pr, shear_exponent):
     return C_M * Re * np.cbrt(Pr) * (shear_exponent + 3.0) / (4.0 * np.pi * (shear_exponent + 1.0))
 
 
-def enclosed_disc_nusselt(Re, Pr, gap_ratio, log: Optional[ValidityLog] = None):
+def enclosed_disc_nusselt(Re, Pr, gap_ratio, swirl_ratio=None, rotating=True,
+                          log: Optional[ValidityLog] = None):
     """
-    Return the face-mean Nusselt number h a / k between an enclosed disc and the cavity's oil.
+    Return the face-mean Nusselt number h a / k of an enclosed disc, or of the wall facing it.
 
     :func:`colburn_disc_nusselt` with the boundary-layer laws of Daily and
     Nece (:func:`daily_nece_moment_coefficient`'s regimes II, III and IV with
     their shear exponents; the largest of the three values, so that the
-    curve is continuous and rises with speed), but never below conduction
-    across the clearance to the well-mixed oil at its middle, Nu_a = 2 / G
-    (h = 2 k / s, as for the airgap). In regime I (merged laminar layers,
-    Couette flow) no fluid crosses the gap, so conduction is the physics
-    there; the boundary-layer value grows from it as omega^0.5, and the curve
-    is continuous. In a closed cavity the torque on the stator wall equals
-    the rotor's (no through-flow), so the stator wall facing the disc takes
-    the same mean coefficient. Validity flagged as Daily and Nece's data.
+    curve is continuous and rises with speed), each with the wall's shear and
+    velocity relative to the oil's core turning at K omega (``swirl_ratio``):
+    h(r) = tau(r) c_p Pr^(-2/3) / V, V = (1 - K) omega r on the disc
+    (``rotating``), K omega r on the facing stationary wall, tau scaled by
+    :func:`disc_shear_factor`; so the disc's Nu is the ``colburn_disc_nusselt``
+    value times ((1 - K) / (1 - K0))^(2 - n) / (1 - K), the wall's times
+    (K / K0)^(2 - n) / K. Never below conduction across the clearance to
+    the well-mixed oil at its middle, Nu_a = 2 / G (h = 2 k / s, as for the
+    airgap): in regime I (merged laminar layers, Couette flow) no fluid
+    crosses the gap, so conduction is the physics there; the boundary-layer
+    value grows from it as omega^0.5, and the curve is continuous. Without
+    ``swirl_ratio``, each law's own K0 (:data:`DAILY_NECE_CORE_SWIRL`, Daily
+    and Nece's cavity). Validity flagged as Daily and Nece's data.
 
     :param Re: disc Reynolds number omega a^2 / nu (>= 0).
     :param Pr: Prandtl number of the oil (film temperature).
     :param gap_ratio: G = s / a.
+    :param swirl_ratio: K, the core's speed over the disc's (0-1); None: K0.
+    :param rotating: the disc (True) or the stationary wall facing it.
     :param log: optional validity log.
 
     Examples
     --------
     The reference rig's rotor face at 10 000 r/min, oil at 40 degC (Re =
     1047 * 0.018^2 / 13.5e-6 = 25 128, Pr = 170, G = 0.222): regime II,
-    C_M = 3.70 * 0.8603 / 158.52 = 0.020079, Nu = C_M Re 5.540 / (2 pi) =
-    444.9 (h = Nu k / a = 3200 W/(m^2 K) with k = 0.13); at rest, conduction:
-    2 / G = 9.0.
+    C_M = 3.70 * 0.8603 / 158.52 = 0.020079, colburn_disc_nusselt = C_M Re
+    5.540 / (2 pi) = 444.9; with the core at K0 = 0.4 the disc takes
+    444.9 / 0.6 = 741.5 (h = Nu k / a = 5360 W/(m^2 K) with k = 0.13); with
+    the core at K = 0.2, 444.9 (0.8 / 0.6)^1.5 / 0.8 = 856.2; at rest,
+    conduction: 2 / G = 9.0.
 
-    >>> [round(float(enclosed_disc_nusselt(re, 170.0, 0.004 / 0.018)), 1) for re in (25128.0, 0.0)]
-    [444.9, 9.0]
+    >>> [round(float(enclosed_disc_nusselt(re, 170.0, 0.004 / 0.018, k)), 1)
+    ...  for re, k in ((25128.0, None), (25128.0, 0.2), (0.0, 0.2))]
+    [741.5, 856.2, 9.0]
 
     """
     check_enclosed_disc_nusselt(log, Re, gap_ratio)
-    re, g, pr = np.broadcast_arrays(np.asarray(Re, dtype=float),
-                                    np.asarray(gap_ratio, dtype=float),
-                                    np.asarray(Pr, dtype=float))
-    nu = np.array([enclosed_disc_nusselt_kernel(r, p, daily_nece_laws(x), x)
-                   for r, p, x in zip(re.ravel(), pr.ravel(), g.ravel())])
+    re, g, pr, k = np.broadcast_arrays(np.asarray(Re, dtype=float),
+                                       np.asarray(gap_ratio, dtype=float),
+                                       np.asarray(Pr, dtype=float),
+                                       np.asarray(np.nan if swirl_ratio is None else swirl_ratio,
+                                                  dtype=float))
+    nu = np.array([enclosed_disc_nusselt_kernel(r, p, daily_nece_laws(x), x, s, rotating)
+                   for r, p, x, s in zip(re.ravel(), pr.ravel(), g.ravel(), k.ravel())])
     return _scalar(nu.reshape(re.shape))
 
 
@@ -1282,18 +1348,23 @@ def check_enclosed_disc_nusselt(log: Optional[ValidityLog], Re, gap_ratio) -> No
 
 
 @jit
-def enclosed_disc_nusselt_kernel(re, pr, laws, gap_ratio):
+def enclosed_disc_nusselt_kernel(re, pr, laws, gap_ratio, swirl_ratio, rotating):
     """
     Return :func:`enclosed_disc_nusselt` at one point (floats); compiled, no checks.
 
-    ``laws``: :func:`daily_nece_laws` at ``gap_ratio``.
+    ``laws``: :func:`daily_nece_laws` at ``gap_ratio``; ``swirl_ratio`` NaN: each law's K0.
     """
     best = 2.0 / gap_ratio
     if re > 0.0:
         log_re = np.log(re)
         for k in range(1, 4):
             cm = np.exp(laws[k] - _DN_RE_EXPO[k] * log_re)
-            best = max(best, colburn_disc_nusselt(cm, re, pr, DAILY_NECE_SHEAR_EXPONENT[k]))
+            swirl = DAILY_NECE_CORE_SWIRL[k] if np.isnan(swirl_ratio) else swirl_ratio
+            relative = (1.0 - swirl) if rotating else swirl
+            if relative > 0.0:
+                nu = colburn_disc_nusselt(cm, re, pr, DAILY_NECE_SHEAR_EXPONENT[k]) \
+                    * disc_shear_factor(swirl, k + 1, rotating) / relative
+                best = max(best, nu)
     return best
 
 
@@ -1346,28 +1417,59 @@ def flat_plate_nusselt_kernel(re, pr):
 
 
 @jit
-def end_space_swirl_speed(omega, disc_radius_m, r_m, swirl_ratio=CORE_SWIRL_RATIO):
+def flat_plate_shear(rho, nu, speed_m_s, length_m):
     """
-    Return the speed (m/s) of the end space's swirling oil at radius ``r_m``.
+    Return the mean wall shear (Pa) of a plate of length L in a parallel stream of speed V.
 
-    Inside the disc's radius the core turns as a solid body at K omega (K the
-    core swirl ratio of a rotor-stator cavity, ``CORE_SWIRL_RATIO``); past
-    it nothing drives the oil and its angular momentum is conserved (a free
-    vortex), so v = K omega a^2 / r. Approximate: an estimate of the oil's
-    speed past the end windings, the stack faces and the housing, for a
-    plate law; the end space's calibration multiplier absorbs its error.
+    tau = rho V^2 C_f / 2 with Incropera's mean friction coefficients (7th ed.,
+    section 7.2): laminar (Blasius) C_f = 1.328 Re_L^-0.5 up to Re_L = 5e5,
+    mixed laminar-turbulent C_f = 0.074 Re_L^-0.2 - 1742 / Re_L above (meeting
+    within 0.1 %). The Reynolds-Colburn analogy (St Pr^(2/3) = C_f / 2) of
+    these is :func:`flat_plate_nusselt`. Floats, compiled; V = 0 gives 0.
 
     Examples
     --------
-    Hand-checked: 1000 rad/s, a = 18 mm: at r = 9 mm 0.4 * 1000 * 0.009 = 3.6
-    m/s; at r = 36 mm 0.4 * 1000 * 0.018^2 / 0.036 = 3.6 m/s.
+    Hand-checked: oil (850 kg/m^3, 1e-5 m^2/s) at 2 m/s along 0.1 m: Re_L =
+    2e4, tau = 0.5 * 850 * 4 * 1.328 / 141.42 = 15.96 Pa.
 
-    >>> [round(float(end_space_swirl_speed(1000.0, 0.018, r)), 3) for r in (0.009, 0.036)]
+    >>> round(float(flat_plate_shear(850.0, 1e-5, 2.0, 0.1)), 2)
+    15.96
+
+    """
+    re = abs(speed_m_s) * length_m / nu
+    if re <= 0.0:
+        return 0.0
+    if re <= PLATE_RE_CRITICAL:
+        cf = 1.328 / np.sqrt(re)
+    else:
+        cf = 0.074 * re ** -0.2 - 1742.0 / re
+    return 0.5 * rho * speed_m_s * speed_m_s * cf
+
+
+@jit
+def end_space_swirl_speed(omega, disc_radius_m, r_m, swirl_ratio):
+    """
+    Return the speed (m/s) of the end space's swirling oil at radius ``r_m``.
+
+    Inside the disc's radius a the core turns as a solid body at K omega (K,
+    ``swirl_ratio``, from the end space's torque balance); past it nothing
+    drives the oil and its angular momentum is conserved (a free vortex), so
+    v = K omega a^2 / r. Approximate: an estimate of the oil's speed past the
+    end windings, the stack faces and the housing, for a plate law; the end
+    space's calibration multiplier absorbs its error. Floats, compiled.
+
+    Examples
+    --------
+    Hand-checked: 1000 rad/s, a = 18 mm, K = 0.4: at r = 9 mm 0.4 * 1000 *
+    0.009 = 3.6 m/s; at r = 36 mm 0.4 * 1000 * 0.018^2 / 0.036 = 3.6 m/s.
+
+    >>> [round(float(end_space_swirl_speed(1000.0, 0.018, r, 0.4)), 3) for r in (0.009, 0.036)]
     [3.6, 3.6]
 
     """
-    return swirl_ratio * np.abs(omega) * np.where(r_m <= disc_radius_m, r_m,
-                                                  disc_radius_m ** 2 / r_m)
+    if r_m <= disc_radius_m:
+        return swirl_ratio * abs(omega) * r_m
+    return swirl_ratio * abs(omega) * disc_radius_m * disc_radius_m / r_m
 
 
 # ----------------------------------------------------------------- rolling bearings

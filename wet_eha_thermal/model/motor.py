@@ -6,9 +6,9 @@ Layout (front = oil-inlet side, rear = outlet side; stack slices 1..n):
 - stack parts, one Mellor slice per axial section: ``frame``, ``yoke``,
   ``teeth`` (iron share of the tooth annulus), ``winding`` (slot share),
   ``sleeve``, ``magnet``, ``rotor_core``, ``shaft``; airgap oil ``gap_oil.s1..``;
-- each end: ``frame_end_<side>``, ``end_cap_<side>``, ``end_winding_<side>``,
-  ``shaft_end_<side>``, the bearing ``bearing_<side>`` and the end-space oil
-  ``end_oil_<side>``;
+- each end: ``frame_end_<side>``, ``end_cap_<side>`` and its hub
+  ``end_cap_hub_<side>``, ``end_winding_<side>``, ``shaft_end_<side>``, the
+  bearing ``bearing_<side>`` and the end-space oil ``end_oil_<side>``;
 - boundaries ``ambient`` and ``oil_inlet``.
 
 Oil path: oil_inlet -> end_oil_front -> gap_oil.s1 .. s<n> -> end_oil_rear
@@ -28,15 +28,16 @@ from .loss_table import build_loss_table, COPPER_EXCESS, IRON, MAGNET, ROTOR_COR
 from .losses import copper_resistance
 from .motor_build import LOSS_GROUPS, LOSS_NAMES, MotorNetworkBuilder  # noqa: F401 (importers)
 from .motor_kernels import AmbientLedger, CopperLaw, core_loss_density, end_drag, \
-    end_space_htc, EndDrag, EndGeometry, FILTER_CASCADE, filter_coefficient_point, \
-    FILTER_RUNNING_MEAN, FILTER_START, gap_friction, GapFriction, IronLaw, motor_losses, \
-    MotorLossConstants, step_energies
+    end_space_htc, end_space_swirl, end_space_torques, EndDrag, EndGeometry, FILTER_CASCADE, \
+    filter_coefficient_point, FILTER_RUNNING_MEAN, FILTER_START, gap_friction, GapFriction, \
+    IronLaw, motor_losses, MotorLossConstants, step_energies
 from .network import ThermalNetwork
 from .oil import Oil
 from .quantities import motor_outputs, QuantityMap
 from .rotor_losses import rotor_eddy_loss_breakdown
 from .validity import ValidityLog
 from ..config import Motor
+from ..units import C_TO_K, RPM
 
 
 def _mean(a, axis: Optional[int] = None):
@@ -120,19 +121,27 @@ class WetMotor(MotorNetworkBuilder):
         weights = np.concatenate([self.yoke_mass * st.yoke_flux_density_T ** 2,
                                   self.teeth_mass * st.teeth_flux_density_T ** 2])
         self._iron_split = weights / weights.sum()
-        # the rotor's end faces as Daily and Nece's disc: its laws at the clearance ratio
+        # the end spaces: the rotor's end face as Daily and Nece's disc, its laws at the
+        # clearance ratio of the hub the network draws (_build_end_housing)
         g = cfg.end_spaces.rotor_clearance_m / ro.outer_radius_m
-        disc_laws = corr.daily_nece_laws(g)
+        self._end_geometry = EndGeometry(
+            float(ro.outer_radius_m), corr.daily_nece_laws(g), float(g),
+            0.5 * (cfg.frame.length_m - cfg.stack_length_m), self.idx_end_oil)
         bg = cfg.bearings
+        #: each end space's core swirl ratio K (front, rear) at the last coefficient refresh
+        #: (before the first: at half the top speed, the oil at 40 degC)
+        self.end_swirl_ratio = np.zeros(2)
+        T0 = C_TO_K + 40.0
+        for e in range(2):
+            self.end_swirl_ratio[e] = end_space_swirl(
+                e, 0.5 * cfg.max_speed_rpm * RPM, float(oil.density(T0, 0.0)),
+                float(oil.kinematic_viscosity(T0, 0.0)), tuple(self.end_surfaces),
+                tuple(self._end_geometry))[0]
         self._ends = EndDrag(
-            float(ro.outer_radius_m), disc_laws, float(bg.mean_diameter_m),
-            float(bg.lubrication_factor_f0),
+            tuple(self.end_surfaces), tuple(self._end_geometry), self.end_swirl_ratio,
+            float(bg.mean_diameter_m), float(bg.lubrication_factor_f0),
             float(corr.deep_groove_ball_f1(bg.radial_load_N, bg.static_load_rating_N)),
             float(bg.radial_load_N), float(bg.friction_factor))
-        # the end-space geometry of end_space_htc
-        self._end_geometry = EndGeometry(float(ro.outer_radius_m), disc_laws, float(g),
-                                         float(self._cap_disc_share),
-                                         0.5 * (cfg.frame.length_m - cfg.stack_length_m))
         #: the electromagnetic losses over speed and current (rotor, AC copper; a map's all)
         self.loss_table = build_loss_table(cfg)
         lt = self.loss_table
@@ -238,10 +247,35 @@ class WetMotor(MotorNetworkBuilder):
         ``end_spaces.htc_multiplier``, with the correlations' ranges flagged.
         """
         h, re_disc, re_plate, pr = end_space_htc(T, tuple(self.end_surfaces), w, p_Pa,
-                                                 tuple(self._end_geometry), self.oil.laws)
+                                                 tuple(self._end_geometry), self.oil.laws,
+                                                 self.end_swirl_ratio)
         corr.check_enclosed_disc_nusselt(self.log, re_disc, self._end_geometry.gap_ratio)
         corr.check_flat_plate_nusselt(self.log, re_plate, pr)
         return self.cfg.end_spaces.htc_multiplier * h
+
+    def end_space_torques_Nm(self, speed_rad_s: float, T: Optional[np.ndarray] = None,
+                             p_Pa: Optional[float] = None) -> Tuple[np.ndarray, np.ndarray]:
+        """
+        Return each end space's core swirl ratio K and the torque (N m) of each wetted surface.
+
+        docs/model.md (End spaces): K (front, rear) from the torque balance of
+        each end space at |``speed_rad_s``| with the oil at the temperatures of
+        ``T`` (K, default the model's) and ``p_Pa`` (default the case pressure
+        of the last refresh), and the torque each surface of
+        :attr:`end_surfaces` puts on its oil: positive from the rotating ones
+        (the rotor's end face, the shaft end), negative on the stationary ones.
+        The model's own K and friction are those of its last refresh.
+        """
+        T = self.T if T is None else T
+        p = self._case_pressure_Pa if p_Pa is None else p_Pa
+        w = abs(float(speed_rad_s))
+        swirl = np.zeros(2)
+        surfaces, geometry = tuple(self.end_surfaces), tuple(self._end_geometry)
+        T_oil = T[self.idx_end_oil]
+        rho, nu = self.oil.density(T_oil, p), self.oil.kinematic_viscosity(T_oil, p)
+        for e in range(2):
+            swirl[e] = end_space_swirl(e, w, float(rho[e]), float(nu[e]), surfaces, geometry)[0]
+        return swirl, end_space_torques(T, surfaces, w, p, geometry, self.oil.laws, swirl)
 
     def _to_ambient_htc(self, Ts_K, T_amb_K, natural_convection) -> np.ndarray:
         """Return the surface-to-ambient h (W/(m^2 K)): fan or natural convection, + radiation."""

@@ -71,10 +71,16 @@ class MotorNetworkBuilder:
 
     def _to_end_oil(self, node: str, side: str, area_m2: float, kind: int, radius_m: float,
                     length_m: float) -> None:
-        """Link a surface to its end space's oil: its kind, mean radius and plate length (m)."""
+        """
+        Link a surface to its end space's oil: its kind, mean radius and length (m).
+
+        The length is an annulus's radial width (the rotor's face and the hub's
+        facing it), else the surface's length as a plate along the swirl.
+        """
         self.end_links.append(self.net.add_conductance(node, self.end_oil[side]))
         self.end_areas.append(area_m2)
-        self.end_surfaces.append((node, self.end_oil[side], kind, radius_m, length_m))
+        self.end_surfaces.append((node, self.end_oil[side], ('front', 'rear').index(side), kind,
+                                  radius_m, length_m, area_m2))
 
     def _build_stack(self, g: 'Radii') -> None:
         """Add the cylinders of the active length, a block per slice: frame to shaft."""
@@ -221,7 +227,15 @@ class MotorNetworkBuilder:
         return ew
 
     def _build_end_housing(self, side: str, g: 'Radii', joined, outward: int) -> tuple:
-        """Add one end's frame segment, end cap, bearing and shaft end; return the blocks."""
+        """
+        Add one end's frame segment, end cap and its hub, bearing and shaft end; return the blocks.
+
+        The cap closes the frame segment; its hub (the bearing's housing, of the
+        rotor's radius, inside the end winding) reaches from it to
+        ``rotor_clearance_m`` from the rotor's end face: the stationary wall
+        of Daily and Nece's enclosed disc, the same clearance their gap ratio
+        takes.
+        """
         c, net, cyl = self.cfg, self.net, self._cylinder
         fr, ro, es, bg = c.frame, c.rotor, c.end_spaces, c.bearings
         L_fend = 0.5 * (fr.length_m - c.stack_length_m)
@@ -238,13 +252,22 @@ class MotorNetworkBuilder:
                             * (fr.outer_radius_m ** 2 - fr.inner_radius_m ** 2))
         self.cap_links.append(net.add_conductance(cap.faces[outward], self.amb))
         self.cap_areas.append(np.pi * (fr.outer_radius_m ** 2 - bg.seat_radius_m ** 2))
-        # the cap's face: facing the rotor's end face out to its radius, a swirl plate beyond
         a, r_seat = ro.outer_radius_m, bg.seat_radius_m
-        self._cap_disc_share = max(a ** 2 - r_seat ** 2, 0.0) / (fr.inner_radius_m ** 2
-                                                                 - r_seat ** 2)
-        r_cap = 0.5 * (fr.inner_radius_m + max(a, r_seat))
-        end(cap.faces[1 - outward], side, np.pi * (fr.inner_radius_m ** 2 - r_seat ** 2),
-            END_CAP, r_cap, 2 * np.pi * r_cap)
+        # the hub on the cap's inner face (one material with it): its face at the clearance
+        # from the rotor's face, its outer and bore surfaces in the swirl
+        L_hub = L_fend - es.rotor_clearance_m
+        hub = cyl(f'end_cap_hub_{side}', a, r_seat, [L_hub], es.cap_material,
+                  **({'front_face': cap.faces[1]} if side == 'front'
+                     else {'rear_face': cap.faces[0]}))
+        end(hub.faces[1 - outward], side, np.pi * (a ** 2 - r_seat ** 2), END_CAP,
+            0.5 * (a + r_seat), a - r_seat)
+        end(hub.outer[0], side, 2 * np.pi * a * L_hub, END_STATOR, a, 2 * np.pi * a)
+        end(hub.inner[0], side, 2 * np.pi * r_seat * L_hub, END_STATOR, r_seat,
+            2 * np.pi * r_seat)
+        # the cap's face beyond the hub, a plate in the swirl
+        r_cap = 0.5 * (fr.inner_radius_m + a)
+        end(cap.faces[1 - outward], side, np.pi * (fr.inner_radius_m ** 2 - a ** 2),
+            END_STATOR, r_cap, 2 * np.pi * r_cap)
         se = cyl(f'shaft_end_{side}', g.shaft, 0.0, [L_send], ro.shaft, **joined('shaft'))
         end(se.outer[0], side, 2 * np.pi * g.shaft * min(L_send, L_fend), END_SHAFT, g.shaft,
             2 * np.pi * g.shaft)
@@ -253,6 +276,7 @@ class MotorNetworkBuilder:
             f'bearing_{side}', bg.mass_kg * BEARING_STEEL_SPECIFIC_HEAT_J_KGK)
         net.add_conductance(se.outer[0], b, 2.0 * bg.conductance_W_K)
         net.add_conductance(b, cap.inner[0], 2.0 * bg.conductance_W_K)
+        self.parts[f'end_cap_hub_{side}'] = hub
         return fe, cap, se
 
     def _build_sources(self) -> None:
@@ -296,12 +320,14 @@ class MotorNetworkBuilder:
         self.idx_gap = np.array([net.index(m) for m in self.gap])
         self.idx_oil = np.array([net.index(m) for m in self.oil_nodes])
         self.idx_end_oil = self.idx_oil[[0, -1]]
-        # the surfaces the end-space oil washes: node, its oil, kind, radius, plate length
-        surf, oil, kind, radius, length = zip(*self.end_surfaces)
+        # the surfaces the end-space oil washes: node, its oil and side, kind, radius, length,
+        # area
+        surf, oil, side, kind, radius, length, area = zip(*self.end_surfaces)
         self.end_surfaces = EndSurfaces(
             surface=np.array([net.index(m) for m in surf]),
-            oil=np.array([net.index(m) for m in oil]), kind=np.array(kind),
-            radius_m=np.array(radius), length_m=np.array(length))
+            oil=np.array([net.index(m) for m in oil]), side=np.array(side),
+            kind=np.array(kind), radius_m=np.array(radius), length_m=np.array(length),
+            area_m2=np.array(area))
         self.idx_frame_outer = np.array([net.index(m) for m in p['frame'].outer])
         self.idx_cap_outer = np.array([net.index(p[f'end_cap_{s}'].faces[o])
                                        for s, o in (('front', 0), ('rear', 1))])

@@ -21,9 +21,10 @@ from .losses import copper_resistance, electrical_frequency, steinmetz_loss_dens
 from .oil import conductivity as oil_conductivity, density as oil_density, \
     kinematic_viscosity as oil_nu, specific_heat as oil_cp
 
-#: the kinds of surface the end-space oil washes (:func:`end_space_htc`): the rotor's end
-#: face, the end cap (its part facing the rotor, and the rest), a stator surface in the
-#: oil's swirl (end winding, stack faces, frame), the turning shaft end
+#: the kinds of surface the end-space oil washes (:func:`end_space_htc`): an annulus of the
+#: rotor's end face, an annulus of the stationary wall facing it (the end cap's hub), a
+#: stationary surface in the oil's swirl (end winding, stack faces, frame, cap), the turning
+#: shaft end
 END_ROTOR_FACE, END_CAP, END_STATOR, END_SHAFT = range(4)
 #: how :func:`filter_coefficient_point` moves the filter: start at the input, the running
 #: mean of the first time constant, or the two cascaded first-order stages
@@ -65,36 +66,51 @@ class GapFriction(NamedTuple):
     ta_per_re2: float
 
 
-class EndDrag(NamedTuple):
-    """The rotor's end faces (Daily and Nece's enclosed disc) and the bearings' friction."""
+class EndSurfaces(NamedTuple):
+    """
+    The surfaces the end-space oil washes, one row each (node indices, kinds END_*).
 
-    disc_radius_m: float
-    disc_laws: np.ndarray       #: :func:`~.correlations.daily_nece_laws` at the clearance
+    An annulus of the disc or of the wall facing it (END_ROTOR_FACE,
+    END_CAP) spans ``radius_m`` -+ ``length_m`` / 2; a surface in the swirl
+    (END_STATOR, END_SHAFT) is a plate of ``length_m`` along the flow at
+    ``radius_m``.
+    """
+
+    surface: np.ndarray         #: the surface's node
+    oil: np.ndarray             #: the end-space oil node that washes it
+    side: np.ndarray            #: its end space: 0 front, 1 rear
+    kind: np.ndarray            #: END_ROTOR_FACE, END_CAP, END_STATOR or END_SHAFT
+    radius_m: np.ndarray        #: its mean radius
+    length_m: np.ndarray        #: its radial width (an annulus) or its length as a plate
+    area_m2: np.ndarray         #: its wetted area
+
+
+class EndGeometry(NamedTuple):
+    """The end spaces' geometry in :func:`end_space_htc` and :func:`end_space_swirl`."""
+
+    disc_radius_m: float        #: the rotor's end face as a disc, its radius a
+    disc_laws: np.ndarray       #: :func:`~.correlations.daily_nece_laws` at its clearance
+    gap_ratio: float            #: G, the rotor-to-hub clearance over a
+    depth_m: float              #: the end space's axial depth
+    oil: np.ndarray             #: the two end spaces' oil nodes (front, rear)
+
+
+class EndDrag(NamedTuple):
+    """
+    The end spaces' friction (their rotating surfaces) and the bearings'.
+
+    ``swirl`` holds each end space's core swirl ratio K (front, rear) from
+    the last coefficient refresh (:func:`end_space_htc`), moved in place.
+    """
+
+    surfaces: tuple             #: the :class:`EndSurfaces` (a plain tuple)
+    geometry: tuple             #: the :class:`EndGeometry` (a plain tuple)
+    swirl: np.ndarray           #: K of each end space, front and rear
     bearing_mean_diameter_m: float
     bearing_f0: float           #: Palmgren's lubrication factor
     bearing_f1: float           #: Palmgren's load factor
     bearing_load_N: float
     bearing_factor: float       #: calibration factor on the bearing's friction
-
-
-class EndGeometry(NamedTuple):
-    """The end spaces' geometry in :func:`end_space_htc`."""
-
-    disc_radius_m: float        #: the rotor's end face as a disc, its radius a
-    disc_laws: np.ndarray       #: :func:`~.correlations.daily_nece_laws` at its clearance
-    gap_ratio: float            #: G, the rotor-to-cap clearance over a
-    cap_disc_share: float       #: the share of the cap's face that faces the disc
-    depth_m: float              #: the end space's axial depth
-
-
-class EndSurfaces(NamedTuple):
-    """The surfaces the end-space oil washes, one row each (node indices, kinds END_*)."""
-
-    surface: np.ndarray         #: the surface's node
-    oil: np.ndarray             #: the end-space oil node that washes it
-    kind: np.ndarray            #: END_ROTOR_FACE, END_CAP, END_STATOR or END_SHAFT
-    radius_m: np.ndarray        #: its mean radius
-    length_m: np.ndarray        #: its length as a plate in the swirl
 
 
 class MotorLossConstants(NamedTuple):
@@ -173,69 +189,200 @@ def gap_friction(speed_abs_rad_s, T_gap_K, p_Pa, gap, laws):
 
 
 @jit
-def end_space_htc(T_K, surfaces, w, p_Pa, geometry, laws):
+def surface_torque(i, swirl, w, rho, nu, s, a, m, regime, face_Nm):
+    """
+    Return the torque (N m) surface ``i`` of the :class:`EndSurfaces` ``s`` puts on the oil.
+
+    Positive from a rotating surface, negative on a stationary one, with the
+    end space's core at K = ``swirl`` and |speed| ``w`` (rad/s), the oil's
+    ``rho`` (kg/m^3) and ``nu`` (m^2/s). An annulus of the disc or of the wall
+    facing it: its :func:`~.correlations.disc_annulus_share` (shear exponent
+    ``m``) of the one-face torque ``face_Nm`` of Daily and Nece's cavity
+    (:func:`~.correlations.enclosed_disc_friction` over w) times
+    :func:`~.correlations.disc_shear_factor` of the ``regime``; a surface in
+    the swirl: :func:`~.correlations.flat_plate_shear` at its speed relative
+    to the swirl (:func:`~.correlations.end_space_swirl_speed`) times its
+    area and radius.
+    """
+    kind, r, L = s.kind[i], s.radius_m[i], s.length_m[i]
+    if kind == END_ROTOR_FACE or kind == END_CAP:
+        share = corr.disc_annulus_share(r - 0.5 * L, r + 0.5 * L, a, m)
+        rotating = kind == END_ROTOR_FACE
+        torque = face_Nm * share * corr.disc_shear_factor(swirl, regime, rotating)
+        return torque if rotating else -torque
+    v = corr.end_space_swirl_speed(w, a, r, swirl)
+    if kind == END_SHAFT:
+        return corr.flat_plate_shear(rho, nu, w * r - v, L) * s.area_m2[i] * r
+    return -corr.flat_plate_shear(rho, nu, v, L) * s.area_m2[i] * r
+
+
+@jit
+def end_space_swirl(side, w, rho, nu, surfaces, geometry):
+    """
+    Return the core swirl ratio K of end space ``side`` (0 front, 1 rear), regime, face torque.
+
+    The torque balance of the oil's core: what the rotating surfaces put in
+    equals what the stationary ones take out (:func:`surface_torque`, each
+    falls or rises monotonically with K), solved for K in [0, 1] by the
+    Illinois method to 1e-12; at rest, K = 0. ``w`` |speed| (rad/s), the
+    oil's ``rho`` and ``nu`` at its temperature; ``surfaces`` and
+    ``geometry`` the :class:`EndSurfaces` and :class:`EndGeometry` (plain
+    tuples). Returns (K, Daily and Nece's regime, the one-face torque N m
+    of their cavity).
+    """
+    s, geo = EndSurfaces(*surfaces), EndGeometry(*geometry)
+    a = geo.disc_radius_m
+    power, regime, re = corr.enclosed_disc_friction(rho, rho * nu, w, a, geo.disc_laws)
+    if w <= 0.0:
+        return 0.0, regime, 0.0
+    face = power / w
+    m = corr.DAILY_NECE_SHEAR_EXPONENT[regime - 1]
+    rows = np.flatnonzero(s.side == side)
+
+    def balance(k):
+        total = 0.0
+        for i in rows:
+            total += surface_torque(i, k, w, rho, nu, s, a, m, regime, face)
+        return total
+    lo, hi = 0.0, 1.0
+    f_lo, f_hi = balance(lo), balance(hi)
+    if f_lo <= 0.0:
+        return 0.0, regime, face
+    if f_hi >= 0.0:
+        return 1.0, regime, face
+    last = 0
+    k = 0.5
+    for _ in range(200):
+        k = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+        f = balance(k)
+        if f > 0.0:
+            lo, f_lo = k, f
+            if last > 0:
+                f_hi *= 0.5
+            last = 1
+        elif f < 0.0:
+            hi, f_hi = k, f
+            if last < 0:
+                f_lo *= 0.5
+            last = -1
+        else:
+            break
+        if hi - lo < 1e-12:
+            break
+    return k, regime, face
+
+
+@jit
+def end_space_htc(T_K, surfaces, w, p_Pa, geometry, laws, swirl):
     """
     Return h (W/(m^2 K)) of each end-space surface, and the disc's and plates' Re and Pr.
 
     The :class:`EndSurfaces` at the temperatures ``T_K`` (K); ``w`` |speed|
-    (rad/s); oil properties at the film temperature and ``p_Pa``;
-    ``geometry`` the :class:`EndGeometry` (as plain tuples, see the module
-    docstring). The rotor's end face, and the cap where it faces it:
-    :func:`~.correlations.enclosed_disc_nusselt_kernel`; the stator surfaces and the shaft
-    end: :func:`~.correlations.flat_plate_nusselt_kernel` in the swirl of
-    :func:`~.correlations.end_space_swirl_speed` (relative to the shaft for
-    the shaft), never below conduction through half the end space's depth.
+    (rad/s); ``geometry`` the :class:`EndGeometry` (as plain tuples, see the
+    module docstring). First each end space's core swirl K,
+    :func:`end_space_swirl` with the oil at its node's temperature, written
+    into ``swirl`` (front, rear). Then, with the oil's properties at each
+    surface's film temperature and ``p_Pa``, at its velocity relative to
+    the core: an annulus of the rotor's end face, or of the wall facing it,
+    :func:`~.correlations.enclosed_disc_nusselt_kernel`; the stator surfaces
+    and the shaft end, :func:`~.correlations.flat_plate_nusselt_kernel` in
+    the swirl of :func:`~.correlations.end_space_swirl_speed` (relative to
+    the shaft for the shaft), never below conduction through half the end
+    space's depth.
     """
     s, geo = EndSurfaces(*surfaces), EndGeometry(*geometry)
     kind, radius_m, length_m = s.kind, s.radius_m, s.length_m
-    a, disc_laws, g, cap_share, depth = (geo.disc_radius_m, geo.disc_laws, geo.gap_ratio,
-                                         geo.cap_disc_share, geo.depth_m)
+    a, disc_laws, g, depth = geo.disc_radius_m, geo.disc_laws, geo.gap_ratio, geo.depth_m
+    T_oil = T_K[geo.oil]
+    rho_oil = oil_density(T_oil, p_Pa, laws)
+    nu_oil = oil_nu(T_oil, p_Pa, laws)
+    for e in range(2):
+        swirl[e] = end_space_swirl(e, w, rho_oil[e], nu_oil[e], surfaces, geometry)[0]
     T_film = 0.5 * (T_K[s.surface] + T_K[s.oil])
     rho = oil_density(T_film, p_Pa, laws)
     nu = oil_nu(T_film, p_Pa, laws)
     k = oil_conductivity(T_film, laws)
     pr = nu * rho * oil_cp(T_film, laws) / k
-    v = corr.end_space_swirl_speed(w, a, radius_m, corr.CORE_SWIRL_RATIO)
-    v = np.where(kind == END_SHAFT, w * radius_m - v, v)
-    re_plate = v * length_m / nu
-    h = np.maximum(corr.flat_plate_nusselt_kernel(re_plate, pr) * k / length_m, 2.0 * k / depth)
-    re_disc = np.zeros(kind.size)
-    for i in range(kind.size):
+    n = kind.size
+    h = np.empty(n)
+    re_disc = np.zeros(n)
+    re_plate = np.zeros(n)
+    for i in range(n):
+        K = swirl[s.side[i]]
         if kind[i] <= END_CAP:
             re_disc[i] = w * a * a / nu[i]
-            h_disc = corr.enclosed_disc_nusselt_kernel(re_disc[i], pr[i], disc_laws, g) * k[i] / a
-            if kind[i] == END_ROTOR_FACE:
-                h[i] = h_disc
-            else:
-                h[i] = cap_share * h_disc + (1.0 - cap_share) * h[i]
+            h[i] = corr.enclosed_disc_nusselt_kernel(re_disc[i], pr[i], disc_laws, g, K,
+                                                     kind[i] == END_ROTOR_FACE) * k[i] / a
+        else:
+            v = corr.end_space_swirl_speed(w, a, radius_m[i], K)
+            if kind[i] == END_SHAFT:
+                v = w * radius_m[i] - v
+            re_plate[i] = v * length_m[i] / nu[i]
+            h[i] = max(corr.flat_plate_nusselt_kernel(re_plate[i:i + 1], pr[i:i + 1])[0]
+                       * k[i] / length_m[i], 2.0 * k[i] / depth)
     return h, re_disc, re_plate, pr
+
+
+@jit
+def end_space_torques(T_K, surfaces, w, p_Pa, geometry, laws, swirl):
+    """
+    Return the torque (N m) each end-space surface puts on its oil (:func:`surface_torque`).
+
+    At the core swirl ``swirl`` (front, rear), |speed| ``w`` (rad/s) and the
+    oil at its nodes' temperatures in ``T_K`` (K) and ``p_Pa``.
+    """
+    s, geo = EndSurfaces(*surfaces), EndGeometry(*geometry)
+    a = geo.disc_radius_m
+    T_oil = T_K[geo.oil]
+    rho = oil_density(T_oil, p_Pa, laws)
+    nu = oil_nu(T_oil, p_Pa, laws)
+    out = np.zeros(s.kind.size)
+    if w <= 0.0:
+        return out
+    for e in range(2):
+        power, regime, re = corr.enclosed_disc_friction(rho[e], rho[e] * nu[e], w, a,
+                                                        geo.disc_laws)
+        m = corr.DAILY_NECE_SHEAR_EXPONENT[regime - 1]
+        for i in np.flatnonzero(s.side == e):
+            out[i] = surface_torque(i, swirl[e], w, rho[e], nu[e], s, a, m, regime, power / w)
+    return out
 
 
 @jit
 def end_drag(speed_abs_rad_s, T_end_K, p_Pa, ends, laws):
     """
-    Return the friction (W) of each end face and of each bearing at each |speed| (samples x 2).
+    Return the friction (W) of each end space and of each bearing at each |speed| (samples x 2).
 
     With the end spaces' oil at ``T_end_K`` (K, front and rear) and ``p_Pa``:
-    the rotor's end face, :func:`~.correlations.enclosed_disc_friction`; the
-    bearing, :func:`~.correlations.palmgren_bearing_torque` times the speed
-    and the calibration factor. ``ends``: the :class:`EndDrag`.
+    the rotating surfaces' torques (:func:`surface_torque`: the rotor's end
+    face and the shaft end) at each end space's core swirl ``ends.swirl``,
+    times the speed; the bearing, :func:`~.correlations.palmgren_bearing_torque`
+    times the speed and the calibration factor. ``ends``: the :class:`EndDrag`.
     """
-    a, disc, dm, f0, f1, load, factor = (
-        ends.disc_radius_m, ends.disc_laws, ends.bearing_mean_diameter_m, ends.bearing_f0,
-        ends.bearing_f1, ends.bearing_load_N, ends.bearing_factor)
+    s, geo = EndSurfaces(*ends.surfaces), EndGeometry(*ends.geometry)
+    a = geo.disc_radius_m
+    dm, f0, f1, load, factor = (ends.bearing_mean_diameter_m, ends.bearing_f0,
+                                ends.bearing_f1, ends.bearing_load_N, ends.bearing_factor)
     rho = oil_density(T_end_K, p_Pa, laws)
     nu = oil_nu(T_end_K, p_Pa, laws)
     n = speed_abs_rad_s.size
-    face = np.empty((n, 2))
+    face = np.zeros((n, 2))
     bearing = np.empty((n, 2))
+    rotating = np.flatnonzero((s.kind == END_ROTOR_FACE) | (s.kind == END_SHAFT))
     for e in range(2):
         mu = nu[e] * rho[e]
         for k in range(n):
             w = speed_abs_rad_s[k]
-            face[k, e] = corr.enclosed_disc_friction(rho[e], mu, w, a, disc)[0]
-            torque = corr.palmgren_bearing_torque(nu[e], w, dm, f0, f1, load)
-            bearing[k, e] = factor * w * torque
+            if w > 0.0:
+                power, regime, re = corr.enclosed_disc_friction(rho[e], mu, w, a, geo.disc_laws)
+                m = corr.DAILY_NECE_SHEAR_EXPONENT[regime - 1]
+                torque = 0.0
+                for i in rotating:
+                    if s.side[i] == e:
+                        torque += surface_torque(i, ends.swirl[e], w, rho[e], nu[e], s, a, m,
+                                                 regime, power / w)
+                face[k, e] = torque * w
+            bearing[k, e] = factor * w * corr.palmgren_bearing_torque(nu[e], w, dm, f0, f1, load)
     return face, bearing
 
 

@@ -248,6 +248,8 @@ class GridFE:
         ``target`` is a temperature (K) or the name of a lumped unknown.
         """
         facets = self._facets(edges)
+        # a surface is where its group ends: a face another block of the group covers is inside
+        facets = facets[self.mesh.f2t[1, facets] < 0]
         if facets.size == 0:
             raise ValueError(f'link {name}: no surface found for it')
         _, b1 = self._surface(facets, 1.0)

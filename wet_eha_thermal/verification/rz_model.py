@@ -54,8 +54,11 @@ def rz_blocks(motor: WetMotor) -> List[Block]:
     conductivities of their material times that share (radial: the tooth and the
     slot conduct in parallel). The end windings continue the winding continuum.
     The tooth tips are iron over the whole pitch (closed slots, as in
-    :func:`slot_pitch`). Each bearing is a ring in the cap's bore, shaft to cap,
-    whose conductivity gives the network's bearing conductance.
+    :func:`slot_pitch`). Each cap carries its hub (the rotor's radius, from the
+    cap to ``rotor_clearance_m`` from the rotor's end face, one material with
+    the cap), as the network draws it. Each bearing is a ring in the cap's
+    bore, shaft to cap, whose conductivity gives the network's bearing
+    conductance.
     """
     c = motor.cfg
     fr, st, wd, ro, es = c.frame, c.stator, c.winding, c.rotor, c.end_spaces
@@ -67,7 +70,7 @@ def rz_blocks(motor: WetMotor) -> List[Block]:
     r_tip = st.bore_radius_m + st.tooth_tip_depth_m
     l_fe = 0.5 * (fr.length_m - Ls)
     l_se = 0.5 * (ro.shaft_length_m - Ls)
-    t_cap, oh = es.cap_thickness_m, wd.end_overhang_m
+    t_cap, oh, s_cap = es.cap_thickness_m, wd.end_overhang_m, es.rotor_clearance_m
     tf = st.tooth_fraction
     sf = 1.0 - tf
 
@@ -97,6 +100,8 @@ def rz_blocks(motor: WetMotor) -> List[Block]:
                   span(0.0, l_fe), ks(fr.material)),
             Block(f'end_cap_{side}', f'cap_{side}', (r_b, fr.outer_radius_m),
                   span(l_fe, l_fe + t_cap), ks(es.cap_material)),
+            Block(f'end_cap_hub_{side}', f'cap_{side}', (r_b, ro.outer_radius_m),
+                  span(s_cap, l_fe), ks(es.cap_material)),
             Block(f'end_winding_{side}', 'winding', (r_tip, st.yoke_inner_radius_m),
                   span(0.0, oh), k_wind, sf),
             Block(f'shaft_end_{side}', 'shaft', (0.0, r_sh), span(0.0, l_se), ks(ro.shaft)),
