@@ -126,6 +126,16 @@ class MotorNetworkBuilder:
         gap_h = st.contact_gap_conductivity_W_mK / st.frame_contact_gap_m
         tooth_pitch = 2 * np.pi * 0.5 * (st.yoke_inner_radius_m + g.tip) / c.slots
         slot_depth = st.yoke_inner_radius_m - g.tip
+        # slot sides to the teeth: liner in series with the mean-to-wall resistance of a
+        # slab with uniform generation (w / (6 k A_walls)), the slot's and the tooth's
+        walls = 2 * c.slots * slot_depth * dz
+        r_tooth = st.tooth_fraction * tooth_pitch / (6 * st.material.k_radial_W_mK * walls)
+        r_lat = (1 / (liner_h * walls) + slot_frac * tooth_pitch / (6 * wd.k_radial_W_mK * walls)
+                 + r_tooth)
+        #: the slot's radii (m), tip and bottom, and its lateral link (K/W): whole and
+        #: the tooth's part of it (the hot spot reads the flanks' temperature from them)
+        self.slot_radii_m = (g.tip, st.yoke_inner_radius_m)
+        self.slot_lateral_R = (r_lat, r_tooth)
         for i in range(c.slices):
             self._to_ambient(frame.outer[i], fr.outer_radius_m * ring)
             net.add_conductance(frame.inner[i], yoke.outer[i],
@@ -134,13 +144,6 @@ class MotorNetworkBuilder:
                                 liner_h * slot_frac * st.yoke_inner_radius_m * ring)
             net.add_conductance(winding.inner[i], teeth.inner[i],
                                 liner_h * slot_frac * g.tip * ring)
-            # slot sides to the teeth: liner in series with the mean-to-wall
-            # resistance of a slab with uniform generation (w / (6 k A_walls))
-            walls = 2 * c.slots * slot_depth * dz
-            r_lat = (1 / (liner_h * walls)
-                     + slot_frac * tooth_pitch / (6 * wd.k_radial_W_mK * walls)
-                     + st.tooth_fraction * tooth_pitch / (6 * st.material.k_radial_W_mK
-                                                          * walls))
             net.add_resistance(winding.mean[i], teeth.mean[i], r_lat)
             self.gap_links_stator.append(net.add_conductance(teeth.inner[i], self.gap[i]))
             self.gap_links_rotor.append(net.add_conductance(sleeve.outer[i], self.gap[i]))

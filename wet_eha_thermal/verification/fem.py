@@ -41,8 +41,8 @@ from .fe_grid import annulus_check, annulus_exact, Block, GridFE, SIDES  # noqa:
 from .network_nodes import oil_nodes, source_names, split_name  # noqa: F401
 from .rz_model import (bearing_conductance, end_space_box, fit_coupling,  # noqa: F401
                        motor_rz, PERFECT_HTC, rz_blocks)
-from .slot_section import (slice_motor, slot_coupling, slot_network, slot_pitch,  # noqa: F401
-                           slot_problem, SlotProblem)
+from .slot_section import (slice_motor, slice_problem, slot_coupling,  # noqa: F401
+                           slot_network, slot_pitch, slot_problem, SlotProblem)
 from ..model.motor import MotorInputs, WetMotor
 from ..units import C_TO_K, RPM
 
