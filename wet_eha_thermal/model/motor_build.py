@@ -13,6 +13,7 @@ import numpy as np
 
 from .mellor import add_cylinder
 from .motor_kernels import END_CAP, END_ROTOR_FACE, END_SHAFT, END_STATOR, EndSurfaces
+from .winding import winding_layout
 from ..units import C_TO_K
 
 #: the motor's loss groups in the order of its sources (:meth:`WetMotor.losses`)
@@ -85,10 +86,11 @@ class MotorNetworkBuilder:
         yoke = cyl('yoke', st.outer_radius_m, st.yoke_inner_radius_m, stack, st.material)
         teeth = cyl('teeth', st.yoke_inner_radius_m, st.bore_radius_m, stack, st.material,
                     st.tooth_fraction, outer=yoke.inner)
-        # slot winding: copper + insulation mixture
-        rc_wind = (wd.copper_fill * wd.copper_density_kg_m3 * wd.copper_specific_heat_J_kgK
-                   + (1 - wd.copper_fill) * wd.insulation_density_kg_m3
-                   * wd.insulation_specific_heat_J_kgK)
+        # slot winding: copper + insulation mixture, the fill from the winding's description
+        self.winding_layout = winding_layout(c)
+        fill = self.winding_layout.copper_fill
+        rc_wind = (fill * wd.copper_density_kg_m3 * wd.copper_specific_heat_J_kgK
+                   + (1 - fill) * wd.insulation_density_kg_m3 * wd.insulation_specific_heat_J_kgK)
         winding = add_cylinder(self.net, 'winding', st.yoke_inner_radius_m, g.tip, stack,
                                wd.k_radial_W_mK, wd.k_axial_W_mK, rc_wind,
                                1.0 - st.tooth_fraction)
@@ -201,7 +203,7 @@ class MotorNetworkBuilder:
         # end turns hold copper volume fill * A_slots * l_end_turn / 2
         a_slots = slot_frac * np.pi * (st.yoke_inner_radius_m ** 2 - g.tip ** 2)
         v_block = a_slots * wd.end_overhang_m
-        v_cu = wd.copper_fill * a_slots * wd.end_turn_length_m / 2
+        v_cu = self.winding_layout.copper_fill * a_slots * wd.end_turn_length_m / 2
         if v_cu > v_block:
             v_cu = v_block  # tightly packed end turns: the block is all copper
         rc_end = (v_cu * wd.copper_density_kg_m3 * wd.copper_specific_heat_J_kgK
