@@ -110,13 +110,14 @@ def test_published_hot_spot_is_the_fe_peak_of_the_hottest_slice(point):
 def _rz_targets(pc):
     fe, net = pc.fe, pc.network
     return {'winding_mean': abs(fe['winding_mean'] - net['winding_mean']) <= 1.0,
-            'winding_hotspot': abs(fe['winding_hotspot'] - net['winding_hotspot']) <= 2.0,
+            'winding_hottest_block': abs(fe['winding_hottest_block']
+                                         - net['winding_hottest_block']) <= 2.0,
             'magnet': abs(fe['magnet'] - net['magnet']) <= 3.0}
 
 
 @pytest.mark.parametrize('point', POINTS)
 def test_rz_motor_against_network(checks, point):
-    """Winding mean within 1 K, hot spot within 2 K, magnet within 3 K; energy closes."""
+    """Winding mean within 1 K, hottest block within 2 K, magnet within 3 K; energy closes."""
     pc = checks[point]
     met = _rz_targets(pc)
     assert all(met.values()), {k: (pc.fe[k], pc.network[k]) for k in met}
