@@ -13,10 +13,11 @@ import inspect
 import io
 
 import pytest
-from wet_eha_thermal.model import (correlations, fluid_power, losses, mellor, oil, rotor_losses,
-                                   stator_harmonics)
+from wet_eha_thermal.model import (correlations, fluid_power, hot_spot, losses, mellor, oil,
+                                   rotor_losses, stator_harmonics, winding)
 
-MODULES = (correlations, oil, mellor, losses, rotor_losses, stator_harmonics, fluid_power)
+MODULES = (correlations, oil, mellor, losses, rotor_losses, stator_harmonics, fluid_power,
+           hot_spot, winding)
 
 #: Public functions and methods of MODULES without an example of their own, and why.
 NO_EXAMPLE = {
@@ -60,6 +61,9 @@ NO_EXAMPLE = {
     'rotor_losses.implied_turns_per_phase': 'test_rotor_losses: about 36 turns on the rig',
     'stator_harmonics.pwm_current_harmonics': 'pwm_ripple_current_rms_A sums it (its example)',
     'stator_harmonics.pwm_ripple_ac_factor': 'copper_ac_factor over pwm_current_harmonics',
+    'hot_spot.slot_peak_forms': 'slot_section_field at the network (test_fem_check: the FE peak)',
+    'hot_spot.end_winding_peak_forms': 'cylinder_profile and slab_profile of an end winding',
+    'winding.check_winding': 'raises on contradictions (test_winding: each message)',
     'rotor_losses.rotor_eddy_loss_breakdown': 'harmonic_losses per wave (test_rotor_losses)',
     'rotor_losses.rotor_eddy_loss_table': 'the breakdown tabulated (test_rotor_losses)',
     'rotor_losses.RotorGeometry.radii': 'a datum of the geometry',

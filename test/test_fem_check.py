@@ -3,14 +3,16 @@ The motor network against an independent finite-element solution (check 8 of doc
 
 Coarse meshes (the benchmark benchmarks/fem_check.py refines them and shows that the figures
 asserted here have converged to well within the tolerances): the analytic annulus as the mesh
-check; the 2-D slot pitch against a one-slice network built by the production builder; the r-z
-motor against the full network at three map points of config/reference_eha.yaml.
+check; the 2-D slot pitch against a one-slice network built by the production builder; the
+published hot spot against the 2-D slot pitch of the network's hottest slice; the r-z motor
+against the full network at three map points of config/reference_eha.yaml.
 """
 
 import numpy as np
 import pytest
 
 from wet_eha_thermal.config import load_config
+from wet_eha_thermal.model.motor import WetMotor
 from wet_eha_thermal.model.oil import get_oil
 from wet_eha_thermal.verification import fem
 
@@ -76,16 +78,46 @@ def test_rz_cross_section_reproduces_the_slot_pitch(checks, point):
     assert bore == pytest.approx(pc.slot['bore_W_m'], rel=0.01)
 
 
+#: the published hot spot against the FE: 10 000 r/min from rated to peak current, 20 000 r/min
+HOTSPOT_POINTS = ((10000, 15.0), (10000, 30.0), (10000, 45.0), (20000, 15.0))
+H_PEAK_M = 0.0005    # the slot pitch's peak-over-mean within 0.5 % of the 0.25 mm mesh's
+
+
+@pytest.mark.parametrize('point', HOTSPOT_POINTS)
+def test_published_hot_spot_is_the_fe_peak_of_the_hottest_slice(point):
+    """
+    The hot spot within 0.5 K of the 2-D FE's peak in the hottest slice, never lower by more.
+
+    The FE solves that slice's section (the network's losses, axial heat flows, h and oil);
+    the hot spot comes from the network's temperatures (model/hot_spot.py). The block mean
+    alone sits several K below the peak at 45 A: the test fails on it.
+    """
+    cfg = load_config()
+    oil = get_oil(cfg.fluid.grade)
+    motor = WetMotor(cfg.motor, oil)
+    u = fem.map_inputs(cfg.maps, *point)
+    motor.steady_state(u)
+    means = [motor.temperature(m) for m in motor.parts['winding'].mean]
+    i = int(np.argmax(means)) + 1
+    _, fe = fem.slot_pitch(cfg.motor, fem.slice_problem(motor, u, i), H_PEAK_M)
+    hot = motor.outputs()['winding_hotspot']
+    assert hot == pytest.approx(fe['winding_peak'], abs=0.5)
+    # the FE's section is the network's slice: their means agree (check 8's 5 %, or 0.5 K)
+    oil = motor.temperature(f'gap_oil.s{i}')
+    assert means[i - 1] - oil == pytest.approx(fe['winding_mean'] - oil, rel=0.05, abs=0.5)
+
+
 def _rz_targets(pc):
     fe, net = pc.fe, pc.network
     return {'winding_mean': abs(fe['winding_mean'] - net['winding_mean']) <= 1.0,
-            'winding_hotspot': abs(fe['winding_hotspot'] - net['winding_hotspot']) <= 2.0,
+            'winding_hottest_block': abs(fe['winding_hottest_block']
+                                         - net['winding_hottest_block']) <= 2.0,
             'magnet': abs(fe['magnet'] - net['magnet']) <= 3.0}
 
 
 @pytest.mark.parametrize('point', POINTS)
 def test_rz_motor_against_network(checks, point):
-    """Winding mean within 1 K, hot spot within 2 K, magnet within 3 K; energy closes."""
+    """Winding mean within 1 K, hottest block within 2 K, magnet within 3 K; energy closes."""
     pc = checks[point]
     met = _rz_targets(pc)
     assert all(met.values()), {k: (pc.fe[k], pc.network[k]) for k in met}

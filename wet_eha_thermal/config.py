@@ -104,7 +104,7 @@ class AlertLevels:
 class Alerts:
     """Alert thresholds of the estimated temperatures (limits: docs/model.md, reference rig)."""
 
-    winding_hotspot: AlertLevels = spec(doc='the hottest winding node')
+    winding_hotspot: AlertLevels = spec(doc='the hottest point in the slot winding')
     magnet: AlertLevels = spec(doc='the hottest magnet slice')
     oil: AlertLevels = spec(doc="the hottest oil volume, the motor's or the circuit's")
 

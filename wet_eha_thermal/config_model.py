@@ -91,8 +91,9 @@ class Winding:
     phase_resistance_20C_ohm: float = positive('line to neutral')
     copper_tempco_1_K: float = spec(0.0, 0.01, doc=(
         'temperature coefficient of the resistance: R = R_20 (1 + a (T - 20 degC))'))
-    copper_fill: float = fraction('copper share of the slot area')
-    k_radial_W_mK: float = positive('slot-equivalent transverse conductivity')
+    k_radial_W_mK: float = positive(
+        'slot-equivalent transverse conductivity (copper, enamel, impregnation; est. on the '
+        'reference rig: measure it, or fit it with calibrate)')
     k_axial_W_mK: float = positive('along the conductors')
     copper_density_kg_m3: float = positive('of the conductors, for the heat capacity')
     copper_specific_heat_J_kgK: float = positive('of the conductors')
@@ -108,9 +109,23 @@ class Winding:
         'insulation class limit: the winding hot-spot limit of the reports, the forecast and '
         'the margin current'))
     conductor_diameter_m: float = spec(0.0, 0.01, low_open=True, doc=(
-        "bare diameter of the round wire: Dowell's AC resistance of the copper"))
-    layers_per_slot_side: int = spec(1, 50, doc=(
-        'conductor layers of one coil side, from the slot bottom to the opening (Dowell p)'))
+        'bare diameter of the round wire: the copper area, the resistance and the AC factor'))
+    insulated_diameter_m: float = spec(0.0, 0.01, low_open=True, doc=(
+        'overall diameter over the enamel: how many rows of wire the slot depth holds'))
+    strands_in_hand: int = spec(1, 1000, default=1, doc='parallel wires wound as one turn')
+    turns_per_coil: int = spec(1, 10000, doc='turns of each tooth coil')
+    coil_sides_per_slot: int = spec(1, 2, default=2, doc=(
+        '2: double-layer tooth-coil winding (a coil on every tooth); 1: single-layer (every '
+        'other tooth)'))
+    parallel_paths: int = spec(1, 100, default=1, doc='parallel paths of each phase')
+
+    #: keys this section had, and what replaces them (a clear error instead of "unknown")
+    RETIRED = {'copper_fill': 'the fill is derived from the wire, the turns and the slot: '
+                              'give conductor_diameter_m, insulated_diameter_m, '
+                              'strands_in_hand, turns_per_coil, coil_sides_per_slot',
+               'layers_per_slot_side': 'the rows of the AC factor are derived from the wire, '
+                                       'the turns and the slot: give the keys that describe '
+                                       'them (turns_per_coil, insulated_diameter_m, ...)'}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -282,6 +297,10 @@ class Motor:
         check_below(key + '.rotor' if key else 'rotor', 'core_inner_radius_m',
                     self.rotor.core_inner_radius_m, 'bearings.seat_radius_m',
                     self.bearings.seat_radius_m + 1e-12)
+        # the winding against its slot, its resistance and the torque constant (the model
+        # package reads this module: imported here)
+        from .model.winding import check_winding
+        check_winding(self, key or 'motor')
 
 
 @dataclass(frozen=True, kw_only=True)

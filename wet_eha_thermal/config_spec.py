@@ -126,6 +126,10 @@ def from_dict(cls, data: Any, key: str = ''):
     hints = typing.get_type_hints(cls)
     names = {f.name for f in dataclasses.fields(cls)}
     unknown = sorted(set(data) - names)
+    retired = getattr(cls, 'RETIRED', {})
+    for k in unknown:
+        if k in retired:
+            raise ConfigError(f'{key + "." if key else ""}{k}: no longer a key; {retired[k]}')
     if unknown:
         raise ConfigError(f'{key + "." if key else ""}{unknown[0]}: unknown key in {where}; '
                           f'allowed: {", ".join(sorted(names))}')

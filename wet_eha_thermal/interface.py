@@ -124,9 +124,9 @@ DIAGNOSTICS_TOPIC = '/diagnostics'
 #: 850 MiB an hour a file is about 140 MiB.
 LIVE_SPLIT_DURATION_S = 600.0
 LIVE_SPLIT_BYTES = 2 ** 30
-ESTIMATES = ('winding_mean', 'winding_hotspot', 'frame', 'magnet', 'airgap_oil_outlet',
-             'motor_oil_outlet', 'pump_case', 'pump_outlet', 'chamber_a', 'chamber_b',
-             'accumulator', 'oil')
+ESTIMATES = ('winding_mean', 'winding_hotspot', 'end_winding_hotspot', 'frame', 'magnet',
+             'airgap_oil_outlet', 'motor_oil_outlet', 'pump_case', 'pump_outlet', 'chamber_a',
+             'chamber_b', 'accumulator', 'oil')
 #: thermocouples of the reference rig (docs/model.md) and the estimate each one measures
 #: (an output of :mod:`wet_eha_thermal.model.quantities`)
 THERMOCOUPLES = {'winding': 'winding_mean', 'frame': 'frame', 'pump_inlet': 'pump_outlet',

@@ -23,9 +23,10 @@ import numpy as np
 from scipy.interpolate import RegularGridInterpolator
 
 from .compiled import jit
-from .losses import copper_ac_factor, copper_resistance, electrical_frequency, layer_porosity
+from .losses import copper_ac_factor, copper_resistance, electrical_frequency
 from .rotor_losses import rotor_eddy_loss_table
 from .validity import ValidityLog
+from .winding import winding_layout
 from ..config import Motor
 from ..loss_map import read_loss_map
 from ..units import C_TO_K, RPM
@@ -84,7 +85,8 @@ def build_loss_table(cfg: Motor) -> LossTable:
     Tabulate the electromagnetic losses of ``cfg``: from its loss map, or analytically.
 
     The analytical table (:func:`~.rotor_losses.rotor_eddy_loss_table`, and
-    Dowell's factor of the copper at the fundamental and the PWM ripple)
+    the copper's AC factor at the fundamental and the PWM ripple, at 20 degC:
+    :func:`~.losses.copper_ac_factor`)
     covers 0 to 1.5 times the top speed and the peak current; a map's table
     its own grid, resampled with scipy linearly in speed and in I^2 (exact
     for losses that grow as I^2). Motors that differ only in what the losses
@@ -97,7 +99,7 @@ def build_loss_table(cfg: Motor) -> LossTable:
            cfg.torque_constant_Nm_A, cfg.max_speed_rpm, cfg.peak_current_A, st.bore_radius_m,
            ro.outer_radius_m, ro.sleeve_thickness_m, ro.magnet_thickness_m,
            ro.core_inner_radius_m, wd.phases, wd.phase_resistance_20C_ohm,
-           wd.conductor_diameter_m, wd.layers_per_slot_side, wd.copper_fill)
+           wd.conductor_diameter_m, winding_layout(cfg))
     table = _TABLES.get(key)
     if table is None:
         if len(_TABLES) >= 16:
@@ -116,14 +118,14 @@ def _analytical_table(cfg: Motor) -> LossTable:
     w = np.linspace(0.0, 1.5 * cfg.max_speed_rpm * RPM, n_w)
     isq = np.linspace(0.0, (1.5 * cfg.peak_current_A) ** 2, n_i)
     rotor = rotor_eddy_loss_table(cfg, w, np.sqrt(isq))
-    wd = cfg.winding
+    wd, lay = cfg.winding, winding_layout(cfg)
     fr1 = copper_ac_factor(electrical_frequency(w, cfg.pole_pairs), wd.conductor_diameter_m,
-                           wd.layers_per_slot_side, layer_porosity(wd.copper_fill))
+                           lay.rows, lay.porosity)
     values = np.zeros((n_w, n_i, len(COLUMNS)))
     values[..., MAGNET] = rotor['magnet_W']
     values[..., SLEEVE] = rotor['sleeve_W']
     values[..., ROTOR_CORE] = rotor['core_W']
-    # Dowell's excess at the fundamental on I^2, and the ripple's copper loss
+    # the AC excess at the fundamental on I^2, and the ripple's copper loss, at 20 degC
     values[..., COPPER_EXCESS] = ((fr1[:, None] - 1.0) * isq[None, :]
                                   + rotor['ripple_ac_factor'] * rotor['ripple_rms_A'] ** 2)
     return LossTable((0.0, float(w[1] - w[0]), 0.0, float(isq[1] - isq[0])), values, False,
@@ -149,10 +151,11 @@ def _map_table(cfg: Motor) -> LossTable:
     values[..., SLEEVE] = resample('sleeve_W')
     values[..., ROTOR_CORE] = resample('rotor_core_W')
     values[..., IRON] = resample('stator_iron_W')
-    # the map's copper at its temperature, as phases R(T_map) (I^2 + excess)
-    r_map = copper_resistance(wd.phase_resistance_20C_ohm, wd.copper_tempco_1_K,
-                              lm.copper_temperature_C + C_TO_K)
-    values[..., COPPER_EXCESS] = resample('copper_W') / (wd.phases * r_map) - points[..., 1]
+    # the map's copper at its temperature, as phases (R(T_map) I^2 + R_20^2 / R(T_map) excess)
+    r_20 = wd.phase_resistance_20C_ohm
+    r_map = copper_resistance(r_20, wd.copper_tempco_1_K, lm.copper_temperature_C + C_TO_K)
+    values[..., COPPER_EXCESS] = ((resample('copper_W') / wd.phases - r_map * points[..., 1])
+                                  * r_map / r_20 ** 2)
     return LossTable((float(w[0]), float(w[1] - w[0]), float(isq[0]), float(isq[1] - isq[0])),
                      values, True, f'map {lm.file}')
 

@@ -386,8 +386,8 @@ class WetMotor(MotorNetworkBuilder):
         """
         Return the electromagnetic losses but the DC copper loss (W) at each sample.
 
-        Stator iron, the rotor's eddy currents and the copper's AC excess (at
-        the winding's mean resistance, from ``T``, default the model's), at
+        Stator iron, the rotor's eddy currents and the copper's AC excess (as
+        1 / R at the winding's mean resistance, from ``T``, default the model's), at
         the samples' speeds (rad/s) and RMS currents (A): with phases I^2 R_dc
         what the drive's electrical input pays besides the shaft's work.
         """
@@ -405,8 +405,8 @@ class WetMotor(MotorNetworkBuilder):
             iron = self.yoke_mass.sum() * d_yoke + self.teeth_mass.sum() * d_teeth
         T_w = float(np.dot(self.copper_share, T[self.idx_copper]) / self.copper_share.sum())
         r_phase = copper_resistance(self._copper_law.r_20C_ohm, self._copper_law.tempco_1_K, T_w)
-        return (iron + v[:, MAGNET] + v[:, SLEEVE] + v[:, ROTOR_CORE]
-                + self.cfg.winding.phases * r_phase * v[:, COPPER_EXCESS])
+        return (iron + v[:, MAGNET] + v[:, SLEEVE] + v[:, ROTOR_CORE] + self.cfg.winding.phases
+                * self._copper_law.r_20C_ohm ** 2 / r_phase * v[:, COPPER_EXCESS])
 
     def airgap_friction_W(self, speed_rad_s, T: Optional[np.ndarray] = None) -> np.ndarray:
         """

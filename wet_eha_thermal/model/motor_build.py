@@ -13,6 +13,7 @@ import numpy as np
 
 from .mellor import add_cylinder
 from .motor_kernels import END_CAP, END_ROTOR_FACE, END_SHAFT, END_STATOR, EndSurfaces
+from .winding import winding_layout
 from ..units import C_TO_K
 
 #: the motor's loss groups in the order of its sources (:meth:`WetMotor.losses`)
@@ -91,10 +92,11 @@ class MotorNetworkBuilder:
         yoke = cyl('yoke', st.outer_radius_m, st.yoke_inner_radius_m, stack, st.material)
         teeth = cyl('teeth', st.yoke_inner_radius_m, st.bore_radius_m, stack, st.material,
                     st.tooth_fraction, outer=yoke.inner)
-        # slot winding: copper + insulation mixture
-        rc_wind = (wd.copper_fill * wd.copper_density_kg_m3 * wd.copper_specific_heat_J_kgK
-                   + (1 - wd.copper_fill) * wd.insulation_density_kg_m3
-                   * wd.insulation_specific_heat_J_kgK)
+        # slot winding: copper + insulation mixture, the fill from the winding's description
+        self.winding_layout = winding_layout(c)
+        fill = self.winding_layout.copper_fill
+        rc_wind = (fill * wd.copper_density_kg_m3 * wd.copper_specific_heat_J_kgK
+                   + (1 - fill) * wd.insulation_density_kg_m3 * wd.insulation_specific_heat_J_kgK)
         winding = add_cylinder(self.net, 'winding', st.yoke_inner_radius_m, g.tip, stack,
                                wd.k_radial_W_mK, wd.k_axial_W_mK, rc_wind,
                                1.0 - st.tooth_fraction)
@@ -132,6 +134,16 @@ class MotorNetworkBuilder:
         gap_h = st.contact_gap_conductivity_W_mK / st.frame_contact_gap_m
         tooth_pitch = 2 * np.pi * 0.5 * (st.yoke_inner_radius_m + g.tip) / c.slots
         slot_depth = st.yoke_inner_radius_m - g.tip
+        # slot sides to the teeth: liner in series with the mean-to-wall resistance of a
+        # slab with uniform generation (w / (6 k A_walls)), the slot's and the tooth's
+        walls = 2 * c.slots * slot_depth * dz
+        r_tooth = st.tooth_fraction * tooth_pitch / (6 * st.material.k_radial_W_mK * walls)
+        r_lat = (1 / (liner_h * walls) + slot_frac * tooth_pitch / (6 * wd.k_radial_W_mK * walls)
+                 + r_tooth)
+        #: the slot's radii (m), tip and bottom, and its lateral link (K/W): whole and
+        #: the tooth's part of it (the hot spot reads the flanks' temperature from them)
+        self.slot_radii_m = (g.tip, st.yoke_inner_radius_m)
+        self.slot_lateral_R = (r_lat, r_tooth)
         for i in range(c.slices):
             self._to_ambient(frame.outer[i], fr.outer_radius_m * ring)
             net.add_conductance(frame.inner[i], yoke.outer[i],
@@ -140,13 +152,6 @@ class MotorNetworkBuilder:
                                 liner_h * slot_frac * st.yoke_inner_radius_m * ring)
             net.add_conductance(winding.inner[i], teeth.inner[i],
                                 liner_h * slot_frac * g.tip * ring)
-            # slot sides to the teeth: liner in series with the mean-to-wall
-            # resistance of a slab with uniform generation (w / (6 k A_walls))
-            walls = 2 * c.slots * slot_depth * dz
-            r_lat = (1 / (liner_h * walls)
-                     + slot_frac * tooth_pitch / (6 * wd.k_radial_W_mK * walls)
-                     + st.tooth_fraction * tooth_pitch / (6 * st.material.k_radial_W_mK
-                                                          * walls))
             net.add_resistance(winding.mean[i], teeth.mean[i], r_lat)
             self.gap_links_stator.append(net.add_conductance(teeth.inner[i], self.gap[i]))
             self.gap_links_rotor.append(net.add_conductance(sleeve.outer[i], self.gap[i]))
@@ -204,7 +209,7 @@ class MotorNetworkBuilder:
         # end turns hold copper volume fill * A_slots * l_end_turn / 2
         a_slots = slot_frac * np.pi * (st.yoke_inner_radius_m ** 2 - g.tip ** 2)
         v_block = a_slots * wd.end_overhang_m
-        v_cu = wd.copper_fill * a_slots * wd.end_turn_length_m / 2
+        v_cu = self.winding_layout.copper_fill * a_slots * wd.end_turn_length_m / 2
         if v_cu > v_block:
             v_cu = v_block  # tightly packed end turns: the block is all copper
         rc_end = (v_cu * wd.copper_density_kg_m3 * wd.copper_specific_heat_J_kgK

@@ -397,8 +397,8 @@ def motor_losses(current_sq_mean_A2, current_sq_A2, speed_rad_s, T_K, case_press
     ``constants``: the :class:`MotorLossConstants` (its plain tuple), whose
     nodes index ``T_K`` (K). The loss table at each speed sample (rad/s) and
     its current squared ``current_sq_A2`` (A^2). Copper: ``current_sq_mean_A2``
-    (A^2) plus the table's AC excess, x ``copper_weight`` x R(T) of each
-    copper node; iron: the yoke's and the teeth's masses (kg) x their
+    (A^2) x R(T) of each copper node plus the table's AC excess (A^2 at 20 degC)
+    x R_20^2 / R(T), x ``copper_weight``; iron: the yoke's and the teeth's masses (kg) x their
     Steinmetz loss per kg (:func:`core_loss_density`), or with ``from_map``
     the table's iron loss shared by ``iron_split``; friction
     (:func:`gap_friction`, :func:`end_drag`) at ``case_pressure_Pa``;
@@ -415,8 +415,10 @@ def motor_losses(current_sq_mean_A2, current_sq_A2, speed_rad_s, T_K, case_press
     power = np.empty(n_cu + 6 * n + 4)
     em, outside = table_values(c.table, c.grid, w, current_sq_A2)
     em_mean = em.sum(axis=0) / n_s
-    power[:n_cu] = (current_sq_mean_A2 + em_mean[COPPER_EXCESS]) * c.copper_weight \
-        * copper_resistance(c.copper.r_20C_ohm, c.copper.tempco_1_K, T_K[idx_copper])
+    # the AC excess is eddy currents, resistance limited: its loss goes as 1 / rho(T)
+    r_cu = copper_resistance(c.copper.r_20C_ohm, c.copper.tempco_1_K, T_K[idx_copper])
+    power[:n_cu] = (current_sq_mean_A2 * r_cu
+                    + em_mean[COPPER_EXCESS] * c.copper.r_20C_ohm ** 2 / r_cu) * c.copper_weight
     k = n_cu
     if c.from_map:
         power[k:k + 2 * n] = em_mean[IRON] * c.iron_split

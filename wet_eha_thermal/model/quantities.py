@@ -10,8 +10,11 @@ those names, as one of:
 - ``mean``: a weighted mean of states, e.g. ``winding_mean``, the copper
   nodes weighted by their share of the conductor length (what a resistance
   measurement sees), or ``frame``, the frame over the stack by volume;
-- ``max``: the hottest of a set of states (``winding_hotspot``, ``magnet``,
-  ``oil``);
+- ``max``: the hottest of a set of states (``magnet``, ``oil``);
+- ``peak``: the hottest point of a set of blocks, each point a linear form
+  in a few node temperatures (:class:`~.hot_spot.PeakForms`): the winding's
+  hot spot in the slot (``winding_hotspot``) and in the end windings
+  (``end_winding_hotspot``); the state it takes is the hottest block's mean;
 - ``state``: one state;
 - ``port``: ``pump_outlet``, the pump port at the higher pressure (port A on
   a tie).
@@ -29,11 +32,12 @@ from typing import Callable, Dict, Optional, Sequence, Tuple
 import numpy as np
 
 from .compiled import jit
+from .hot_spot import end_winding_peak_forms, PeakForms, slot_peak_forms
 
 
-MEAN, MAX, STATE, PORT = 'mean', 'max', 'state', 'port'
-#: the kinds' codes in :func:`evaluate_outputs`
-_KIND_CODE = {MEAN: 0, MAX: 1, STATE: 2, PORT: 3}
+MEAN, MAX, STATE, PORT, PEAK = 'mean', 'max', 'state', 'port', 'peak'
+#: the kinds' codes in :func:`evaluate_outputs` (a peak is evaluated beside it)
+_KIND_CODE = {MEAN: 0, MAX: 1, STATE: 2, PORT: 3, PEAK: 4}
 #: the outputs that are one hydraulic node: output -> node of :data:`~.hydraulics.NODES`
 HYDRAULIC_OUTPUTS = {'pump_case': 'case', 'pump_port_a': 'port_a', 'pump_port_b': 'port_b',
                      'chamber_a': 'chamber_a', 'chamber_b': 'chamber_b',
@@ -52,22 +56,28 @@ class Quantity:
     states: Tuple[str, ...]
     #: a mean's weights, one per state (shares of the conductor length, frame volumes in m^3)
     weights: Optional[np.ndarray] = None
+    #: a peak's blocks, one per state (in the order of ``states``)
+    peaks: Tuple[PeakForms, ...] = ()
 
 
 def motor_outputs(motor) -> Dict[str, Quantity]:
     """
     Return the outputs of a built :class:`~.motor.WetMotor` over its node names.
 
-    The hot spot is the hottest winding node (slot slices and end windings; the
-    peak inside a block is not resolved); the magnet the hottest magnet slice;
+    The hot spot is the hottest point in the slot (:func:`~.hot_spot.slot_peak_forms`),
+    the end windings' apart (:func:`~.hot_spot.end_winding_peak_forms`); the
+    magnet the hottest magnet slice;
     ``airgap_oil_outlet`` the last airgap section; ``motor_oil_outlet`` the rear
     end space, where the oil leaves the motor.
     """
     copper = tuple(motor.copper_nodes)
     frame, magnet = motor.parts['frame'], motor.parts['magnet']
+    slots = tuple(slot_peak_forms(motor))
+    ends = tuple(end_winding_peak_forms(motor, side) for side in ('front', 'rear'))
     return {
         'winding_mean': Quantity(MEAN, copper, motor.copper_share),
-        'winding_hotspot': Quantity(MAX, copper),
+        'winding_hotspot': Quantity(PEAK, tuple(p.state for p in slots), peaks=slots),
+        'end_winding_hotspot': Quantity(PEAK, tuple(p.state for p in ends), peaks=ends),
         'frame': Quantity(MEAN, tuple(frame.mean), np.array(frame.volume_m3)),
         'magnet': Quantity(MAX, tuple(magnet.mean)),
         'airgap_oil_outlet': Quantity(STATE, (motor.gap[-1],)),
@@ -117,6 +127,27 @@ class QuantityMap:
         self._weights = np.concatenate([q.weights if q.kind == MEAN else np.zeros(len(q.states))
                                         for q in qs])
         self._weight_sums = np.array([q.weights.sum() if q.kind == MEAN else 1.0 for q in qs])
+        # a peak's blocks (its states): the values each weighs, and its parts (the rows of
+        # ``_rows`` between ``_part_rows`` offsets), for the same compiled pass
+        width = max([len(p.values) for q in qs for p in q.peaks], default=1)
+        self._peak_at = np.zeros((self._value_at.size, width), np.int64)
+        self._part_of = np.zeros((self._value_at.size, 2), np.int64)
+        parts, rows, starts = [], [], {}
+        i = 0
+        for q in qs:
+            for k in range(len(q.states)):
+                if q.kind == PEAK:
+                    p = q.peaks[k]
+                    self._peak_at[i, :len(p.values)] = [value_index(v) for v in p.values]
+                    self._part_of[i] = (len(parts), len(parts) + len(p.parts))
+                    for f in p.parts:
+                        if id(f) not in starts:      # blocks that share their forms
+                            starts[id(f)] = sum(len(r) for r in rows)
+                            rows.append(np.pad(f, ((0, 0), (0, width - f.shape[1]))))
+                        parts.append((starts[id(f)], starts[id(f)] + len(f)))
+                i += 1
+        self._part_rows = np.array(parts, np.int64).reshape(-1, 2)
+        self._rows = np.concatenate(rows) if rows else np.zeros((0, width))
 
     def __deepcopy__(self, memo) -> 'QuantityMap':
         """Return the map itself: it never changes, so a copied model (a forecast's) shares it."""
@@ -132,7 +163,8 @@ class QuantityMap:
         """
         return evaluate_outputs(v, -1 if port_a_high is None else int(port_a_high),
                                 self._kinds, self._offsets, self._value_at, self._state_at,
-                                self._weights, self._weight_sums)
+                                self._weights, self._weight_sums, self._peak_at,
+                                self._part_of, self._part_rows, self._rows)
 
     def values(self, v: np.ndarray, port_a_high: Optional[bool] = None) -> Dict[str, float]:
         """Return every output (in the unit of ``v``); a ``port`` one only with ``port_a_high``."""
@@ -165,7 +197,8 @@ class QuantityMap:
 
 
 @jit
-def evaluate_outputs(v, port_a_high, kinds, offsets, value_at, state_at, weights, weight_sums):
+def evaluate_outputs(v, port_a_high, kinds, offsets, value_at, state_at, weights, weight_sums,
+                     peak_at, part_of, part_rows, rows):
     """
     Return the outputs' values and the states they take (:meth:`QuantityMap.evaluate`).
 
@@ -173,7 +206,10 @@ def evaluate_outputs(v, port_a_high, kinds, offsets, value_at, state_at, weights
     positions of its states in ``v``), ``state_at`` the same states in the
     state vector; ``kinds`` 0 mean (by ``weights``, which sum to
     ``weight_sums[k]``), 1 max, 2 state, 3 port
-    (A then B; ``port_a_high`` 1 A, 0 B, -1 unknown).
+    (A then B; ``port_a_high`` 1 A, 0 B, -1 unknown); 4 peak: state ``i``'s
+    block weighs the values ``v[peak_at[i]]``, its value is the sum over its
+    parts ``part_of[i, 0] <= j < part_of[i, 1]`` of the largest of the rows
+    ``rows[part_rows[j, 0]:part_rows[j, 1]]`` applied to them.
     """
     n = kinds.size
     vals = np.empty(n)
@@ -186,7 +222,10 @@ def evaluate_outputs(v, port_a_high, kinds, offsets, value_at, state_at, weights
         if kinds[k] == 0:
             vals[k] = np.dot(weights[a:b], g) / weight_sums[k]
             continue
-        if kinds[k] == 1:
+        if kinds[k] == 4:
+            for i in range(a, b):
+                g[i - a] = _block_peak(v[peak_at[i]], part_of[i], part_rows, rows)
+        if kinds[k] == 1 or kinds[k] == 4:
             j = np.argmax(g)              # the first NaN, if any, as numpy's max
         elif kinds[k] == 2:
             j = 0
@@ -198,3 +237,18 @@ def evaluate_outputs(v, port_a_high, kinds, offsets, value_at, state_at, weights
         vals[k] = g[j]
         taken[k] = state_at[a + j]
     return vals, taken
+
+
+@jit
+def _block_peak(g, parts, part_rows, rows):
+    """Return a block's peak: the sum over its parts of each part's largest row . ``g``."""
+    total = 0.0
+    for j in range(parts[0], parts[1]):
+        top = -np.inf
+        for r in range(part_rows[j, 0], part_rows[j, 1]):
+            s = 0.0
+            for c in range(g.size):         # a loop: a BLAS call per row costs more
+                s += rows[r, c] * g[c]
+            top = max(top, s)
+        total += top
+    return total

@@ -27,7 +27,8 @@ LIMITED = tuple(LIMIT_KEYS)
 LIMIT_LABELS = {'winding_hotspot': 'insulation limit', 'magnet': 'magnet limit',
                 'oil': 'oil limit'}
 #: How tables and plots name an output, where not its name with spaces (:func:`label`)
-LABELS = {'winding_hotspot': 'winding hot-spot', 'magnet': 'magnet (hottest)',
+LABELS = {'winding_hotspot': 'winding hot-spot', 'end_winding_hotspot': 'end-winding hot-spot',
+          'magnet': 'magnet (hottest)',
           'oil': 'oil (hottest node)', 'chamber_a': 'chamber A', 'chamber_b': 'chamber B'}
 #: How tables and plots name the motor's losses (:data:`~.motor.LOSS_NAMES`)
 LOSS_LABELS = {'copper_slot': 'copper, slots', 'copper_end': 'copper, end windings',

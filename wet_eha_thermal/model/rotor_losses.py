@@ -46,9 +46,10 @@ from typing import Dict, Optional
 
 import numpy as np
 
-from .losses import copper_ac_factor, layer_porosity
+from .losses import copper_ac_factor
 from .stator_harmonics import pwm_current_harmonics, winding_coefficients, winding_harmonics
 from .validity import check, ValidityLog
+from .winding import winding_layout
 
 MU0 = 4.0e-7 * math.pi
 
@@ -645,9 +646,9 @@ def rotor_eddy_loss_table(motor, speeds_rad_s, currents_A,
     if not geo.solid_core:
         out['core_W'] = np.zeros_like(out['core_W'])     # not the interpolation's 1e-300
     out['ripple_rms_A'] = np.sqrt(np.sum(ih2, axis=-1))
-    wdg = motor.winding
+    wdg, lay = motor.winding, winding_layout(motor)
     fr = copper_ac_factor(np.abs(wh) / (2.0 * np.pi), wdg.conductor_diameter_m,
-                          wdg.layers_per_slot_side, layer_porosity(wdg.copper_fill), log=log)
+                          lay.rows, lay.porosity, log=log)
     tot = np.sum(ih2, axis=-1)
     out['ripple_ac_factor'] = np.where(
         tot > 0, np.einsum('sch,sh->sc', ih2, fr) / np.where(tot > 0, tot, 1.0), 1.0)

@@ -17,8 +17,9 @@ from typing import Optional
 import numpy as np
 from scipy.special import jv
 
-from .losses import copper_ac_factor, layer_porosity
+from .losses import copper_ac_factor
 from .validity import check, ValidityLog
+from .winding import winding_layout
 
 #: PWM carrier groups kept (m = 1..PWM_CARRIER_GROUPS); the rotor loss of group m falls
 #: about as 1/m^2 before skin effect and faster after it. On the reference rig, 8 groups
@@ -204,9 +205,9 @@ def pwm_ripple_ac_factor(motor, speed_rad_s, current_A, log: Optional[ValidityLo
     (F_R at the switching frequency alone misses the sidebands of 2 f_sw).
     """
     h = pwm_current_harmonics(motor, speed_rad_s, current_A, log)
-    wdg = motor.winding
+    wdg, lay = motor.winding, winding_layout(motor)
     fr = copper_ac_factor(np.abs(h['omega_rad_s']) / (2.0 * np.pi), wdg.conductor_diameter_m,
-                          wdg.layers_per_slot_side, layer_porosity(wdg.copper_fill), log=log)
+                          lay.rows, lay.porosity, log=log)
     sq = h['current_A'] ** 2
     total = np.sum(sq, axis=-1)
     return np.where(total > 0, np.sum(fr * sq, axis=-1) / np.where(total > 0, total, 1.0), 1.0)

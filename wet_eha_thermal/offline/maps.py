@@ -25,8 +25,8 @@ from ..model.validity import ValidityLog
 from ..output_files import atomic, save_figure
 from ..units import C_TO_K, RPM
 
-TEMPERATURES = ('winding_mean', 'winding_hotspot', 'frame', 'magnet', 'airgap_oil_outlet',
-                'motor_oil_outlet')
+TEMPERATURES = ('winding_mean', 'winding_hotspot', 'end_winding_hotspot', 'frame', 'magnet',
+                'airgap_oil_outlet', 'motor_oil_outlet')
 #: the heat paths of :meth:`~.model.motor.WetMotor.heat_balance` a map reports
 PATHS = ('bore', 'end_spaces', 'to_ambient', 'to_oil')
 
@@ -81,16 +81,17 @@ def compute_maps(cfg: Config, progress: Optional[Callable[[int, int, str], None]
 def format_table(points: List[MapPoint], sweep: str) -> str:
     """Return fixed-width text tables of one sweep: temperatures, then losses and heat paths."""
     pts = [p for p in points if p.sweep == sweep]
-    head = (f'{"speed":>7} {"current":>7} | {"wind.mean":>9} {"hot-spot":>8} {"frame":>6} '
-            f'{"magnet":>6} {"gap out":>7} {"oil out":>7}')
-    units = (f'{"r/min":>7} {"A":>7} | {"degC":>9} {"degC":>8} {"degC":>6} {"degC":>6} '
-             f'{"degC":>7} {"degC":>7}')
+    head = (f'{"speed":>7} {"current":>7} | {"wind.mean":>9} {"hot-spot":>8} {"end h-s":>7} '
+            f'{"frame":>6} {"magnet":>6} {"gap out":>7} {"oil out":>7}')
+    units = (f'{"r/min":>7} {"A":>7} | {"degC":>9} {"degC":>8} {"degC":>7} {"degC":>6} '
+             f'{"degC":>6} {"degC":>7} {"degC":>7}')
     lines = [head, units, '-' * len(head)]
     for p in pts:
         t = p.temperatures_C
         lines.append(
             f'{p.speed_rpm:7.0f} {p.current_A:7.1f} | {t["winding_mean"]:9.1f} '
-            f'{t["winding_hotspot"]:8.1f} {t["frame"]:6.1f} {t["magnet"]:6.1f} '
+            f'{t["winding_hotspot"]:8.1f} {t["end_winding_hotspot"]:7.1f} {t["frame"]:6.1f} '
+            f'{t["magnet"]:6.1f} '
             f'{t["airgap_oil_outlet"]:7.1f} {t["motor_oil_outlet"]:7.1f}')
     # where the heat is made, then where it goes (W)
     made = (('copper', ('copper_slot', 'copper_end')), ('iron', ('core_yoke', 'core_teeth')),
@@ -138,7 +139,8 @@ def plot_maps(points: List[MapPoint], path: Path, title: str) -> None:
         x = [getattr(p, xkey) for p in pts]
         width = (x[1] - x[0]) * 0.7 if len(x) > 1 else 1.0
         ax = axes[0, col]
-        for key in ('winding_mean', 'winding_hotspot', 'frame', 'magnet', 'motor_oil_outlet'):
+        for key in ('winding_mean', 'winding_hotspot', 'end_winding_hotspot', 'frame', 'magnet',
+                    'motor_oil_outlet'):
             ax.plot(x, [p.temperatures_C[key] for p in pts], marker='o', ms=3,
                     label=quantity_table.label(key))
         ax.set_ylabel('temperature (degC)')

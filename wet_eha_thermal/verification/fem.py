@@ -41,8 +41,8 @@ from .fe_grid import annulus_check, annulus_exact, Block, GridFE, SIDES  # noqa:
 from .network_nodes import oil_nodes, source_names, split_name  # noqa: F401
 from .rz_model import (bearing_conductance, end_space_box, fit_coupling,  # noqa: F401
                        motor_rz, PERFECT_HTC, rz_blocks)
-from .slot_section import (slice_motor, slot_coupling, slot_network, slot_pitch,  # noqa: F401
-                           slot_problem, SlotProblem)
+from .slot_section import (slice_motor, slice_problem, slot_coupling,  # noqa: F401
+                           slot_network, slot_pitch, slot_problem, SlotProblem)
 from ..model.motor import MotorInputs, WetMotor
 from ..units import C_TO_K, RPM
 
@@ -61,7 +61,7 @@ def map_inputs(maps, rpm: float, amps: float) -> MotorInputs:
 ROTOR_PARTS = ('sleeve', 'magnet', 'rotor_core', 'shaft', 'bearing')
 
 # ------------------------------------------------------------------ comparisons
-TEMPERATURES = ('winding_mean', 'winding_hotspot', 'magnet', 'yoke', 'teeth', 'frame',
+TEMPERATURES = ('winding_mean', 'winding_hottest_block', 'magnet', 'yoke', 'teeth', 'frame',
                 'rotor_core', 'shaft', 'airgap_oil_outlet', 'motor_oil_outlet')
 HEAT_PATHS = ('bore', 'rotor_to_gap', 'end_spaces', 'frame_to_ambient', 'caps_to_ambient')
 
@@ -81,12 +81,15 @@ def network_figures(motor: WetMotor, u: MotorInputs) -> Dict[str, float]:
     Return the network's temperatures (degC) and heat paths (W) at its solved state.
 
     Winding mean, hot spot, magnet, frame and the oil outlets as its outputs
-    (conductor-length mean; hottest winding block; hottest magnet slice; frame
-    volume mean over the stack); yoke, teeth, rotor core and shaft the volume
-    means of their stack slices. Heat paths: the sum over the links of each path.
+    (conductor-length mean; the peak in the slot; hottest magnet slice; frame
+    volume mean over the stack); the hottest winding block (slot slice or end
+    winding: what the r-z field resolves); yoke, teeth, rotor core and shaft
+    the volume means of their stack slices. Heat paths: the sum over the links
+    of each path.
     """
     T, net = motor.T, motor.net
     out = {k: v - C_TO_K for k, v in motor.outputs(T).items()}
+    out['winding_hottest_block'] = float(T[motor.idx_copper].max()) - C_TO_K
     for part in ('yoke', 'teeth', 'rotor_core', 'shaft'):
         cyl = motor.parts[part]
         out[part] = float(np.dot([T[net.index(m)] for m in cyl.mean], cyl.volume_m3)
@@ -110,8 +113,9 @@ def fe_figures(fe: GridFE, motor: WetMotor) -> Dict[str, float]:
     Return the r-z model's figures formed as :func:`network_figures` forms the network's.
 
     Winding mean: the block means of the slot slices and end windings weighted
-    by the network's conductor-length shares; hot spot: the hottest of those
-    block means (``winding_peak``: the hottest point of the winding continua);
+    by the network's conductor-length shares; the hottest of those block means
+    (``winding_peak``: the hottest point of the winding continua: the r-z
+    field averages the slot across the pitch, so it is not the slot's peak);
     magnet: the hottest magnet slice mean; the other parts their stack means;
     the oil outlets the lumped oil unknowns.
     """
@@ -121,7 +125,7 @@ def fe_figures(fe: GridFE, motor: WetMotor) -> Dict[str, float]:
     wind = np.array([block_mean(m) for m in motor.copper_nodes])
     share = np.asarray(motor.copper_share)
     out = {'winding_mean': float(wind @ share / share.sum()),
-           'winding_hotspot': float(wind.max()),
+           'winding_hottest_block': float(wind.max()),
            'winding_peak': max(fe.peak(fe.blocks_of(p)) for p in
                                {split_name(m)[0] for m in motor.copper_nodes}),
            'magnet': max(fe.mean([k]) for k in fe.blocks_of('magnet'))}

@@ -4,11 +4,14 @@ The 2-D cross-section of one slot pitch, against a one-slice network of the same
 Frame, contact gap, yoke, tooth with its tip, slot liner and winding,
 axially adiabatic, per metre of stack (:func:`slot_pitch`); the same problem
 built by the production builder (:func:`slice_motor`, :func:`slot_network`);
-and the winding-to-teeth coupling the r-z model takes from it
-(:func:`slot_coupling`).
+the problem of one slice of the full network, its axial heat flows as
+sources (:func:`slice_problem`: the FE peak the published hot spot is
+checked against); and the winding-to-teeth coupling the r-z model takes
+from it (:func:`slot_coupling`).
 """
 
 from dataclasses import dataclass, replace
+import re
 from typing import Dict, Tuple
 
 import numpy as np
@@ -25,7 +28,8 @@ class SlotProblem:
     The 2-D problem of one operating point: losses of the whole machine per metre of stack.
 
     Copper, yoke and teeth losses (W/m); h (W/(m^2 K)) of the frame barrel to
-    ambient and of the bore to the airgap oil; the ambient and oil temperatures (K).
+    ambient and of the bore to the airgap oil; the ambient and oil temperatures (K);
+    heat into the frame (W/m: a slice's axial inflow, spread over the frame).
     """
 
     copper_W_m: float
@@ -35,6 +39,7 @@ class SlotProblem:
     h_bore_W_m2K: float
     ambient_K: float
     oil_K: float
+    frame_W_m: float = 0.0
 
 
 def slot_problem(motor: WetMotor, u: MotorInputs) -> SlotProblem:
@@ -53,6 +58,52 @@ def slot_problem(motor: WetMotor, u: MotorInputs) -> SlotProblem:
               / (2 * np.pi * c.stator.bore_radius_m * c.stack_length_m))
     return SlotProblem(per_m['winding'], per_m['yoke'], per_m['teeth'], float(h_amb),
                        float(h_bore), u.ambient_K, float(motor.T[motor.idx_gap].mean()))
+
+
+#: the parts of the slot pitch, as the network names them
+PITCH_PARTS = ('frame', 'yoke', 'teeth', 'winding')
+
+
+def slice_problem(motor: WetMotor, u: MotorInputs, i: int) -> SlotProblem:
+    """
+    Return the 2-D problem of slice ``i`` (1-based) of a network solved at ``u``.
+
+    Each part's sources in the slice plus the heat it gains along the stack
+    (through its blocks' axial junctions, from the neighbouring slices, end
+    windings and frame ends), spread over the part as the FE spreads its loss;
+    the frame's and the bore's h of the slice; the slice's airgap oil. With
+    the axial flows as sources the slice is a 2-D problem (exact when they
+    are uniform over each part's section).
+    """
+    net, T = motor.net, motor.T
+    names = net.node_names + net.boundary_names
+    own = re.compile(rf'({"|".join(PITCH_PARTS)})\.s{i}(\.(outer|inner|ja|jr))?')
+
+    def part(name):
+        m = own.fullmatch(name)
+        return m.group(1) if m else None
+
+    heat = dict.fromkeys(PITCH_PARTS, 0.0)
+    for name, w in zip(source_names(motor), motor.power_W):
+        if part(name):
+            heat[part(name)] += float(w)
+    flows = net.link_heat_flows(T, motor.boundaries(u))
+    cut = {'ambient', f'gap_oil.s{i}'}         # the 2-D problem's own boundaries
+    for k, (a, b) in enumerate(net.link_ends(np.arange(flows.size))):
+        pa, pb = part(names[a]), part(names[b])
+        if pa and not pb and names[b] not in cut:
+            heat[pa] -= float(flows[k])
+        elif pb and not pa and names[a] not in cut:
+            heat[pb] += float(flows[k])
+    c, dz = motor.cfg, motor.dz
+    G = net.coefficients_in_use()[0]
+    frame = [k for k, (a, _) in zip(motor.ambient_links, net.link_ends(motor.ambient_links))
+             if names[a] == f'frame.s{i}.outer']
+    h_amb = G[frame].sum() / (2 * np.pi * c.frame.outer_radius_m * dz)
+    h_bore = G[motor.gap_links_stator[i - 1]] / (2 * np.pi * c.stator.bore_radius_m * dz)
+    return SlotProblem(heat['winding'] / dz, heat['yoke'] / dz, heat['teeth'] / dz,
+                       float(h_amb), float(h_bore), u.ambient_K,
+                       float(T[net.index(f'gap_oil.s{i}')]), heat['frame'] / dz)
 
 
 def slot_pitch(c, prob: SlotProblem, h_m: float) -> Tuple[GridFE, Dict[str, float]]:
@@ -92,6 +143,8 @@ def slot_pitch(c, prob: SlotProblem, h_m: float) -> Tuple[GridFE, Dict[str, floa
     fe.add_source([5], prob.copper_W_m / c.slots)
     fe.add_source([1], prob.yoke_W_m / c.slots)
     fe.add_source([2, 3, 4], prob.teeth_W_m / c.slots)
+    if prob.frame_W_m:
+        fe.add_source([0], prob.frame_W_m / c.slots)
     outer, bore = fe.face([0], 'outer'), fe.face([2], 'inner')
     fe.add_link('frame', outer, prob.h_ambient_W_m2K * fe.area(outer), prob.ambient_K)
     fe.add_link('bore', bore, prob.h_bore_W_m2K * fe.area(bore), prob.oil_K)
