@@ -130,8 +130,9 @@ def test_balance_holds_with_turbulent_plates(motor):
     swirl, regime, face = end_space_swirl(0, w, rho, nu, tuple(s), tuple(geo))
     assert regime == 4
     m = c.DAILY_NECE_SHEAR_EXPONENT[regime - 1]
-    torques = np.array([surface_torque(i, swirl, w, rho, nu, s, geo.disc_radius_m, m, regime,
-                                       face) for i in range(s.kind.size)])
+    torques = np.array([surface_torque(k, r, L, A, swirl, w, rho, nu, geo.disc_radius_m, m,
+                                       regime, face)
+                        for k, r, L, A in zip(s.kind, s.radius_m, s.length_m, s.area_m2)])
     # some plates turbulent, and the balance holds across them
     speed = [c.end_space_swirl_speed(w, geo.disc_radius_m, r, swirl) for r in s.radius_m]
     assert np.any((np.array(speed) * s.length_m / nu > 5.0e5) & (s.kind == END_STATOR))
@@ -203,10 +204,11 @@ def test_one_rotor_stator_pair_turns_the_core_at_daily_and_neces_ratio(re, regim
     assert swirl == pytest.approx(K_PAIR[regime - 1], abs=1e-9)
     m = c.DAILY_NECE_SHEAR_EXPONENT[regime - 1]
     s = EndSurfaces(*surfaces)
-    rotor = surface_torque(0, swirl, w, rho, nu, s, A, m, regime, face)
+    rotor, wall = (surface_torque(s.kind[i], s.radius_m[i], s.length_m[i], s.area_m2[i], swirl,
+                                  w, rho, nu, A, m, regime, face) for i in (0, 1))
     cm = c.daily_nece_moment_coefficient(re, S / A)[0]
     assert rotor == pytest.approx(0.25 * cm * rho * w * w * A ** 5, rel=0.10)
-    assert surface_torque(1, swirl, w, rho, nu, s, A, m, regime, face) == pytest.approx(-rotor)
+    assert wall == pytest.approx(-rotor)
 
 
 @pytest.mark.parametrize('re, regime', REGIME_RE)

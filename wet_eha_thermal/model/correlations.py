@@ -1079,11 +1079,11 @@ DAILY_NECE_GAP_RATIO = (0.0127, 0.217)
 # Their four laws C_M = c G^e Re^-n (both faces), regimes I to IV.
 _DN_COEF = np.array([2.0 * np.pi, 3.70, 0.080, 0.102])
 _DN_G_EXPO = np.array([-1.0, 0.1, -1.0 / 6.0, 0.1])
-_DN_RE_EXPO = np.array([1.0, 0.5, 0.25, 0.2])
+_DN_RE_EXPO = (1.0, 0.5, 0.25, 0.2)     # tuples: compile-time constants in the kernels
 #: Wall shear tau ~ r^m of each regime (laminar: m = 1, exact for the free disc and for
 #: Couette flow; turbulent: 8/5, the 1/7-power-law boundary layer of von Karman), as
 #: :func:`enclosed_disc_nusselt` integrates it.
-DAILY_NECE_SHEAR_EXPONENT = np.array([1.0, 1.0, 1.6, 1.6])
+DAILY_NECE_SHEAR_EXPONENT = (1.0, 1.0, 1.6, 1.6)
 #: Core swirl ratio K0 of Daily and Nece's cavity, one disc face and the wall facing it,
 #: in regimes I-IV: 0.5 where the boundary layers merge (the mid-gap speed of plane Couette
 #: flow, laminar or turbulent, by its symmetry); 0.4 where they are separate (Daily and
@@ -1091,7 +1091,7 @@ DAILY_NECE_SHEAR_EXPONENT = np.array([1.0, 1.0, 1.6, 1.6])
 #: Batchelor flow, gives 0.31, Poncet, Chauve and Schiestel, Phys. Fluids 17, 075110,
 #: 2005, 0.44 in turbulent flow; one value for both keeps K continuous where the regimes
 #: meet). Their C_M is the disc's torque with the core at K0. See :func:`disc_shear_factor`.
-DAILY_NECE_CORE_SWIRL = np.array([0.5, 0.4, 0.5, 0.4])
+DAILY_NECE_CORE_SWIRL = (0.5, 0.4, 0.5, 0.4)
 #: Laminar-turbulent transition of a flat plate's boundary layer (Incropera, 7th ed., 7.2).
 PLATE_RE_CRITICAL = 5.0e5
 

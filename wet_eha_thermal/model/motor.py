@@ -28,9 +28,9 @@ from .loss_table import build_loss_table, COPPER_EXCESS, IRON, MAGNET, ROTOR_COR
 from .losses import copper_resistance
 from .motor_build import LOSS_GROUPS, LOSS_NAMES, MotorNetworkBuilder  # noqa: F401 (importers)
 from .motor_kernels import AmbientLedger, CopperLaw, core_loss_density, end_drag, \
-    end_space_htc, end_space_swirl, end_space_torques, EndDrag, EndGeometry, FILTER_CASCADE, \
-    filter_coefficient_point, FILTER_RUNNING_MEAN, FILTER_START, gap_friction, GapFriction, \
-    IronLaw, motor_losses, MotorLossConstants, step_energies
+    END_ROTOR_FACE, END_SHAFT, end_space_htc, end_space_swirl, end_space_torques, EndDrag, \
+    EndGeometry, FILTER_CASCADE, filter_coefficient_point, FILTER_RUNNING_MEAN, FILTER_START, \
+    gap_friction, GapFriction, IronLaw, motor_losses, MotorLossConstants, step_energies
 from .network import ThermalNetwork
 from .oil import Oil
 from .quantities import motor_outputs, QuantityMap
@@ -137,11 +137,14 @@ class WetMotor(MotorNetworkBuilder):
                 e, 0.5 * cfg.max_speed_rpm * RPM, float(oil.density(T0, 0.0)),
                 float(oil.kinematic_viscosity(T0, 0.0)), tuple(self.end_surfaces),
                 tuple(self._end_geometry))[0]
-        self._ends = EndDrag(
-            tuple(self.end_surfaces), tuple(self._end_geometry), self.end_swirl_ratio,
-            float(bg.mean_diameter_m), float(bg.lubrication_factor_f0),
+        es = self.end_surfaces
+        turning = (es.kind == END_ROTOR_FACE) | (es.kind == END_SHAFT)
+        self._ends = tuple(EndDrag(
+            float(ro.outer_radius_m), self._end_geometry.disc_laws,
+            np.column_stack([es.side, es.kind, es.radius_m, es.length_m, es.area_m2])[turning],
+            self.end_swirl_ratio, float(bg.mean_diameter_m), float(bg.lubrication_factor_f0),
             float(corr.deep_groove_ball_f1(bg.radial_load_N, bg.static_load_rating_N)),
-            float(bg.radial_load_N), float(bg.friction_factor))
+            float(bg.radial_load_N), float(bg.friction_factor)))
         #: the electromagnetic losses over speed and current (rotor, AC copper; a map's all)
         self.loss_table = build_loss_table(cfg)
         lt = self.loss_table

@@ -16,6 +16,7 @@ import numpy as np
 
 from . import correlations as corr
 from .compiled import jit
+from .correlations import DAILY_NECE_CORE_SWIRL as DAILY_NECE_K0
 from .loss_table import COPPER_EXCESS, IRON, MAGNET, ROTOR_CORE, SLEEVE, table_values
 from .losses import copper_resistance, electrical_frequency, steinmetz_loss_density
 from .oil import conductivity as oil_conductivity, density as oil_density, \
@@ -103,8 +104,9 @@ class EndDrag(NamedTuple):
     the last coefficient refresh (:func:`end_space_htc`), moved in place.
     """
 
-    surfaces: tuple             #: the :class:`EndSurfaces` (a plain tuple)
-    geometry: tuple             #: the :class:`EndGeometry` (a plain tuple)
+    disc_radius_m: float        #: the rotor's end face as a disc, its radius a
+    disc_laws: np.ndarray       #: :func:`~.correlations.daily_nece_laws` at the clearance
+    rotating: np.ndarray        #: rotating surfaces, a row each: side, kind, radius, length, area
     swirl: np.ndarray           #: K of each end space, front and rear
     bearing_mean_diameter_m: float
     bearing_f0: float           #: Palmgren's lubrication factor
@@ -189,31 +191,32 @@ def gap_friction(speed_abs_rad_s, T_gap_K, p_Pa, gap, laws):
 
 
 @jit
-def surface_torque(i, swirl, w, rho, nu, s, a, m, regime, face_Nm):
+def surface_torque(kind, radius_m, length_m, area_m2, swirl, w, rho, nu, a, m, regime, face_Nm):
     """
-    Return the torque (N m) surface ``i`` of the :class:`EndSurfaces` ``s`` puts on the oil.
+    Return the torque (N m) one end-space surface puts on the oil (floats; compiled).
 
     Positive from a rotating surface, negative on a stationary one, with the
     end space's core at K = ``swirl`` and |speed| ``w`` (rad/s), the oil's
-    ``rho`` (kg/m^3) and ``nu`` (m^2/s). An annulus of the disc or of the wall
-    facing it: its :func:`~.correlations.disc_annulus_share` (shear exponent
-    ``m``) of the one-face torque ``face_Nm`` of Daily and Nece's cavity
-    (:func:`~.correlations.enclosed_disc_friction` over w) times
+    ``rho`` (kg/m^3) and ``nu`` (m^2/s). The surface: its ``kind``
+    (END_*), mean radius, length and area as in :class:`EndSurfaces`. An
+    annulus of the disc or of the wall facing it: its
+    :func:`~.correlations.disc_annulus_share` (shear exponent ``m``) of the
+    one-face torque ``face_Nm`` of Daily and Nece's cavity
+    (:func:`~.correlations.enclosed_disc_friction` over w, disc radius ``a``) times
     :func:`~.correlations.disc_shear_factor` of the ``regime``; a surface in
     the swirl: :func:`~.correlations.flat_plate_shear` at its speed relative
     to the swirl (:func:`~.correlations.end_space_swirl_speed`) times its
     area and radius.
     """
-    kind, r, L = s.kind[i], s.radius_m[i], s.length_m[i]
     if kind == END_ROTOR_FACE or kind == END_CAP:
-        share = corr.disc_annulus_share(r - 0.5 * L, r + 0.5 * L, a, m)
+        share = corr.disc_annulus_share(radius_m - 0.5 * length_m, radius_m + 0.5 * length_m, a, m)
         rotating = kind == END_ROTOR_FACE
         torque = face_Nm * share * corr.disc_shear_factor(swirl, regime, rotating)
         return torque if rotating else -torque
-    v = corr.end_space_swirl_speed(w, a, r, swirl)
+    v = corr.end_space_swirl_speed(w, a, radius_m, swirl)
     if kind == END_SHAFT:
-        return corr.flat_plate_shear(rho, nu, w * r - v, L) * s.area_m2[i] * r
-    return -corr.flat_plate_shear(rho, nu, v, L) * s.area_m2[i] * r
+        return corr.flat_plate_shear(rho, nu, w * radius_m - v, length_m) * area_m2 * radius_m
+    return -corr.flat_plate_shear(rho, nu, v, length_m) * area_m2 * radius_m
 
 
 @jit
@@ -237,12 +240,26 @@ def end_space_swirl(side, w, rho, nu, surfaces, geometry):
         return 0.0, regime, 0.0
     face = power / w
     m = corr.DAILY_NECE_SHEAR_EXPONENT[regime - 1]
-    rows = np.flatnonzero(s.side == side)
+    # the annuli of the disc and of the wall facing it share one factor of K: their torques
+    # at Daily and Nece's K0 are summed once; the plates are evaluated at each K
+    kind, radius, length, area = s.kind, s.radius_m, s.length_m, s.area_m2
+    disc = 0.0
+    wall = 0.0
+    plates = np.flatnonzero((s.side == side) & (kind != END_ROTOR_FACE) & (kind != END_CAP))
+    for i in np.flatnonzero(s.side == side):
+        if kind[i] == END_ROTOR_FACE:
+            disc += surface_torque(kind[i], radius[i], length[i], area[i],
+                                   DAILY_NECE_K0[regime - 1], w, rho, nu, a, m, regime, face)
+        elif kind[i] == END_CAP:
+            wall -= surface_torque(kind[i], radius[i], length[i], area[i],
+                                   DAILY_NECE_K0[regime - 1], w, rho, nu, a, m, regime, face)
 
     def balance(k):
-        total = 0.0
-        for i in rows:
-            total += surface_torque(i, k, w, rho, nu, s, a, m, regime, face)
+        total = (disc * corr.disc_shear_factor(k, regime, True)
+                 - wall * corr.disc_shear_factor(k, regime, False))
+        for i in plates:
+            total += surface_torque(kind[i], radius[i], length[i], area[i], k, w, rho, nu, a,
+                                    m, regime, face)
         return total
     lo, hi = 0.0, 1.0
     f_lo, f_hi = balance(lo), balance(hi)
@@ -344,7 +361,8 @@ def end_space_torques(T_K, surfaces, w, p_Pa, geometry, laws, swirl):
                                                         geo.disc_laws)
         m = corr.DAILY_NECE_SHEAR_EXPONENT[regime - 1]
         for i in np.flatnonzero(s.side == e):
-            out[i] = surface_torque(i, swirl[e], w, rho[e], nu[e], s, a, m, regime, power / w)
+            out[i] = surface_torque(s.kind[i], s.radius_m[i], s.length_m[i], s.area_m2[i],
+                                    swirl[e], w, rho[e], nu[e], a, m, regime, power / w)
     return out
 
 
@@ -357,10 +375,11 @@ def end_drag(speed_abs_rad_s, T_end_K, p_Pa, ends, laws):
     the rotating surfaces' torques (:func:`surface_torque`: the rotor's end
     face and the shaft end) at each end space's core swirl ``ends.swirl``,
     times the speed; the bearing, :func:`~.correlations.palmgren_bearing_torque`
-    times the speed and the calibration factor. ``ends``: the :class:`EndDrag`.
+    times the speed and the calibration factor. ``ends``: the :class:`EndDrag` (a plain
+    tuple).
     """
-    s, geo = EndSurfaces(*ends.surfaces), EndGeometry(*ends.geometry)
-    a = geo.disc_radius_m
+    ends = EndDrag(*ends)
+    a, laws_disc, rows = ends.disc_radius_m, ends.disc_laws, ends.rotating
     dm, f0, f1, load, factor = (ends.bearing_mean_diameter_m, ends.bearing_f0,
                                 ends.bearing_f1, ends.bearing_load_N, ends.bearing_factor)
     rho = oil_density(T_end_K, p_Pa, laws)
@@ -368,19 +387,19 @@ def end_drag(speed_abs_rad_s, T_end_K, p_Pa, ends, laws):
     n = speed_abs_rad_s.size
     face = np.zeros((n, 2))
     bearing = np.empty((n, 2))
-    rotating = np.flatnonzero((s.kind == END_ROTOR_FACE) | (s.kind == END_SHAFT))
     for e in range(2):
         mu = nu[e] * rho[e]
         for k in range(n):
             w = speed_abs_rad_s[k]
             if w > 0.0:
-                power, regime, re = corr.enclosed_disc_friction(rho[e], mu, w, a, geo.disc_laws)
+                power, regime, re = corr.enclosed_disc_friction(rho[e], mu, w, a, laws_disc)
                 m = corr.DAILY_NECE_SHEAR_EXPONENT[regime - 1]
                 torque = 0.0
-                for i in rotating:
-                    if s.side[i] == e:
-                        torque += surface_torque(i, ends.swirl[e], w, rho[e], nu[e], s, a, m,
-                                                 regime, power / w)
+                for j in range(rows.shape[0]):
+                    if rows[j, 0] == e:
+                        torque += surface_torque(int(rows[j, 1]), rows[j, 2], rows[j, 3],
+                                                 rows[j, 4], ends.swirl[e], w, rho[e], nu[e], a,
+                                                 m, regime, power / w)
                 face[k, e] = torque * w
             bearing[k, e] = factor * w * corr.palmgren_bearing_torque(nu[e], w, dm, f0, f1, load)
     return face, bearing
