@@ -13,7 +13,7 @@ from wet_eha_thermal.units import C_TO_K
 #: a loaded pump (8 MPa) at 15 A: the winding warms by about 10 K in a minute
 DUTY = {'current_A': 15.0, 'speed_rad_s': 800.0, 'p_a_Pa': 3e6, 'p_b_Pa': 1e6,
         'p_acc_Pa': 1e6, 'position_m': 0.0}
-#: limits low enough that the winding binds, the others far: at 40 degC over 10 s and 60 s,
+#: limits low enough that the winding binds, the others far: at 40 degC over 10 s (44 over 60 s),
 #: at 80 degC over 600 s (the pump's heat alone takes it past 52 degC in 10 minutes)
 LOW_LIMITS = {'motor.winding.insulation_limit_C': 40.0, 'motor.rotor.magnet_limit_C': 120.0,
               'fluid.oil_limit_C': 120.0}
@@ -70,7 +70,9 @@ def peak_excess(est, limits_C, current_A, horizon_s, k_sigma):
     return worst
 
 
-@pytest.mark.parametrize('winding_C, horizon_s, tol_K', [(40.0, 10.0, 0.5), (40.0, 60.0, 0.5),
+# (over a minute at no current the held speed's friction and iron loss take the slot's peak
+# 2.6 K up from 31.1 degC: with 2 sigma of 8 K a 40 degC limit is already lost there)
+@pytest.mark.parametrize('winding_C, horizon_s, tol_K', [(40.0, 10.0, 0.5), (44.0, 60.0, 0.5),
                                                          (80.0, 600.0, 3.0)])
 def test_a_limit_takes_the_model_to_its_limit_and_no_further(warm, winding_C, horizon_s, tol_K):
     est = warm

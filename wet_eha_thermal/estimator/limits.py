@@ -45,6 +45,7 @@ from scipy.optimize import brentq
 from .correction import filter_layout
 from .kalman import copper_gain, coupled_transition
 from ..model.eha import EHAModel, SampleBlock
+from ..model.quantities import PEAK
 from ..units import C_TO_K
 
 #: names of the limits, as in the drive's message: the steady one, then each horizon
@@ -169,15 +170,22 @@ class LimitProblem:
     the hottest of; ``ceiling_K`` each quantity's limit minus k sigma (K).
     """
 
-    def __init__(self, A, K, c0, c1, x0, rows: Dict[str, np.ndarray],
+    def __init__(self, A, K, c0, c1, peaks: Dict[str, tuple], x0, rows: Dict[str, np.ndarray],
                  ceiling_K: Dict[str, float]) -> None:
         self.A, self.K, self.c0, self.c1, self.x0 = A, K, c0, c1, x0
-        self.rows, self.ceiling_K = rows, ceiling_K
+        self.rows, self.ceiling_K, self.peaks = rows, ceiling_K, peaks
         self.n = x0.size
 
     def _excess(self, X: np.ndarray) -> Tuple[float, str]:
         """Return the largest excess over its ceiling (K) among states ``X`` (n x k), and whose."""
-        worst = {q: float(np.max(X[idx])) - self.ceiling_K[q] for q, idx in self.rows.items()}
+        worst = {q: float(np.max(X[idx])) - self.ceiling_K[q] for q, idx in self.rows.items()
+                 if q not in self.peaks}
+        for q, (L, c, parts) in self.peaks.items():
+            # a peak: per block, the sum over its parts of each part's largest form
+            tops = np.maximum.reduceat(L @ X + c[:, None], parts[:, 0], axis=0)
+            blocks = np.zeros((parts[-1, 1] + 1, X.shape[1]))
+            np.add.at(blocks, parts[:, 1], tops)
+            worst[q] = float(blocks.max()) - self.ceiling_K[q]
         q = max(worst, key=worst.get)
         return worst[q], q
 
@@ -267,10 +275,12 @@ def probe(model: EHAModel, held: HeldDuty, current_A: float, dt_s: float, ambien
 
 
 def linearise(saved: bytes, shift_K: Optional[np.ndarray], held: HeldDuty, dt_s: float,
-              ambient_K: float, peak_A: float, layout, alpha_copper: float
-              ) -> Tuple[np.ndarray, ...]:
+              ambient_K: float, peak_A: float, layout, alpha_copper: float,
+              peaks: Sequence[str] = ()) -> tuple:
     """
-    Return (A, K, c0, c1) of one probe step from the pickled model ``saved``.
+    Return (A, K, c0, c1, forms) of one probe step from the pickled model ``saved``.
+
+    ``forms``: each of the ``peaks`` outputs as :func:`peak_forms` at the start.
 
     Its state moved first by ``shift_K`` (K; None: as it is), the held duty
     taken as its last sample (:meth:`~..model.eha.EHAModel.hold_from`: no
@@ -283,11 +293,44 @@ def linearise(saved: bytes, shift_K: Optional[np.ndarray], held: HeldDuty, dt_s:
         if shift_K is not None:
             m.correct(shift_K)
     x_start = cold.state
+    forms = {name: peak_forms(cold, name) for name in peaks}
     A, x_cold = probe(cold, held, 0.0, dt_s, ambient_K, layout, alpha_copper)
     Phi, x_hot = probe(hot, held, peak_A, dt_s, ambient_K, layout, alpha_copper)
     i2 = peak_A ** 2
     c0 = x_cold - A @ x_start
-    return A, (Phi - A) / i2, c0, (x_hot - Phi @ x_start - c0) / i2
+    return A, (Phi - A) / i2, c0, (x_hot - Phi @ x_start - c0) / i2, forms
+
+
+def peak_forms(model: EHAModel, name: str) -> tuple:
+    """
+    Return the peak output ``name`` as linear forms of the model's state, at its present point.
+
+    (forms R x n, constants R, parts P x 2: each part's first form and its block):
+    the peak is the largest over blocks of the sum over a block's parts of the
+    largest form of the part (:class:`~..model.hot_spot.PeakForms`). A value on
+    an algebraic node is its sensitivity to the motor's states plus a constant,
+    what the rest (boundaries) gives it now.
+    """
+    q, mo = model.quantities, model.motor
+    a, out_x = mo.net.algebraic_map()
+    row_of = {int(k): i for i, k in enumerate(a)}
+    state_of = {s: i for i, s in enumerate(q.state_names)}
+    n, m = model.state.size, mo.x.size
+    forms, consts, parts = [], [], []
+    for b, p in enumerate(q.outputs[name].peaks):
+        V, c = np.zeros((len(p.values), n)), np.zeros(len(p.values))
+        for k, v in enumerate(p.values):
+            if v in state_of:
+                V[k, state_of[v]] = 1.0
+            else:
+                i = mo.net.index(v)
+                V[k, :m] = out_x[row_of[i]]
+                c[k] = mo.T[i] - out_x[row_of[i]] @ mo.x
+        for f in p.parts:
+            parts.append((sum(len(g) for g in forms), b))
+            forms.append(f @ V)
+            consts.append(f @ c)
+    return np.concatenate(forms), np.concatenate(consts), np.array(parts)
 
 
 class Probing(NamedTuple):
@@ -296,13 +339,15 @@ class Probing(NamedTuple):
     layout: object                 # the couplings (:func:`~.correction.filter_layout`)
     rows: Dict[str, np.ndarray]    # the states each limited quantity is the hottest of
     alpha_copper: float            # the copper's temperature coefficient (1/K)
+    peaks: Tuple[str, ...] = ()    # the limited quantities that are peaks (:func:`peak_forms`)
 
 
 def probing(model: EHAModel, limited: Sequence[str]) -> Probing:
     """Return the :class:`Probing` of ``model`` for the ``limited`` quantities."""
     q = model.quantities
     return Probing(filter_layout(model), {name: q.state_indices(name) for name in limited},
-                   model.cfg.motor.winding.copper_tempco_1_K)
+                   model.cfg.motor.winding.copper_tempco_1_K,
+                   tuple(name for name in limited if q.outputs[name].kind == PEAK))
 
 
 def limit_steps(saved: bytes, x0: np.ndarray, setup: Probing, held: HeldDuty,
@@ -328,7 +373,7 @@ def limit_steps(saved: bytes, x0: np.ndarray, setup: Probing, held: HeldDuty,
     def problem_at(shift_K: Optional[np.ndarray]) -> LimitProblem:
         """Return the problem linearised at the state moved by ``shift_K`` (None: as it is)."""
         return LimitProblem(*linearise(saved, shift_K, held, dt_s, ambient_K, peak_A,
-                                       setup.layout, setup.alpha_copper),
+                                       setup.layout, setup.alpha_copper, setup.peaks),
                             x0, setup.rows, ceiling)
 
     problem = problem_at(None)

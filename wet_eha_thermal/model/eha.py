@@ -99,9 +99,11 @@ class Linearisation:
     nodes (K), as :attr:`EHAModel.state`. The motor's inputs
     (``motor_input_names``) are its network's boundaries (K) and sources (W);
     the circuit takes the motor outlet (K) and a heat into the case (W). The
-    copper losses depend on their temperatures (R(T)): ``copper_K`` and
-    ``copper_power_W`` give the operating point of that feedback, without a
-    heat the caller added (:attr:`WetMotor.extra_power_W`).
+    copper losses depend on their temperatures: ``copper_K`` and
+    ``copper_power_W`` give the operating point of that feedback, the DC part
+    (as R(T)) less the AC excess (as 1 / R(T)), without a heat the caller
+    added (:attr:`WetMotor.extra_power_W`): dP/dT = alpha copper_power_W /
+    (1 + alpha (T - 20 degC)).
     """
 
     state_names: Tuple[str, ...]
@@ -243,6 +245,9 @@ class EHAModel:
         p_cu = mo.power_W[mo.src_copper]
         if mo.extra_power_W is not None:          # a learned heat does not follow R(T)
             p_cu = p_cu - mo.extra_power_W[mo.src_copper]
+        # the DC part grows as R(T), the AC excess falls as 1 / R(T): dP/dT weighs their
+        # difference
+        p_cu = p_cu - 2.0 * mo.copper_ac_W
         Phi, g_acc, g_case, C = self.circuit.last_transition()
         return Linearisation(
             state_names=self.quantities.state_names,

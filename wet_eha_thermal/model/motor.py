@@ -163,6 +163,8 @@ class WetMotor(MotorNetworkBuilder):
         self.x: Optional[np.ndarray] = None
         self.T: Optional[np.ndarray] = None
         self.power_W = np.zeros(self.net.ns)
+        #: the AC part of each copper source's loss (W) at the last losses
+        self.copper_ac_W = np.zeros(self.idx_copper.size)
         # heat (W) per source added to the losses of every step: a state estimator's learned
         # correction (None: nothing added, the losses are the model's own)
         self.extra_power_W: Optional[np.ndarray] = None
@@ -362,8 +364,13 @@ class WetMotor(MotorNetworkBuilder):
             i_sq_samples = np.asarray(u.current_A, dtype=float).reshape(-1)
             i_sq_samples = i_sq_samples * i_sq_samples
         lt = self.loss_table
-        power, re_bb_max, outside = motor_losses(i_sq, i_sq_samples, w, T, self._case_pressure_Pa,
-                                                 self._loss_constants)
+        power, re_bb_max, outside, excess = motor_losses(
+            i_sq, i_sq_samples, w, T, self._case_pressure_Pa, self._loss_constants)
+        # the copper sources' AC part (W): it falls as R(T) rises (a filter's dP/dT needs it)
+        law = self._copper_law
+        self.copper_ac_W = (excess * law.r_20C_ohm ** 2 * self.cfg.winding.phases
+                            * self.copper_share / copper_resistance(
+                                law.r_20C_ohm, law.tempco_1_K, T[self.idx_copper]))
         if re_bb_max > corr.BILGEN_BOULOS_RE_MAX or not self._gap_in_data:
             self.airgap_friction_W(w, T)     # the friction again, to flag it in the log
         if outside:

@@ -411,7 +411,8 @@ def motor_losses(current_sq_mean_A2, current_sq_A2, speed_rad_s, T_K, case_press
     """
     Return the source powers (W), the largest Bilgen-Boulos Re_d, whether the table ran out.
 
-    The powers of :meth:`WetMotor.losses`; whether the loss table was extrapolated.
+    The powers of :meth:`WetMotor.losses`; whether the loss table was extrapolated; and
+    the copper's AC excess (A^2 at 20 degC) the powers hold.
 
     ``constants``: the :class:`MotorLossConstants` (its plain tuple), whose
     nodes index ``T_K`` (K). The loss table at each speed sample (rad/s) and
@@ -459,7 +460,7 @@ def motor_losses(current_sq_mean_A2, current_sq_A2, speed_rad_s, T_K, case_press
     for i in range(re.size):
         if regime.flat[i] != 0 and re.flat[i] > re_bb_max:
             re_bb_max = re.flat[i]
-    return power, re_bb_max, outside
+    return power, re_bb_max, outside, em_mean[COPPER_EXCESS]
 
 
 @jit
