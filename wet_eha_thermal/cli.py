@@ -291,6 +291,10 @@ def _add_live_parser(sub) -> None:
                    help="the rig's simulated drive honours the current limit the estimator "
                         'publishes (the load yields where the duty asks for more); the status '
                         'line and the summary show when it binds')
+    p.add_argument('--rig-as-built', type=int, default=1, metavar='SEED',
+                   help="the rig's truth is the configuration with its uncertain parameters "
+                        'drawn with SEED (docs/live.md); 0: the configuration itself '
+                        '(default: %(default)d)')
     p.set_defaults(func=_live)
 
 
@@ -311,6 +315,9 @@ def _check_live_args(args: argparse.Namespace) -> None:
     if not (math.isfinite(args.max_bag_duration) and args.max_bag_duration >= 0.0):
         raise BadArgument(f'--max-bag-duration {args.max_bag_duration:g}: must be a number of '
                           'seconds >= 0 (0: no time split)')
+    if not 0 <= args.rig_as_built < 2 ** 31:
+        raise BadArgument(f'--rig-as-built {args.rig_as_built}: must be a seed 0..2^31-1 '
+                          '(0: the rig is the configuration)')
 
 
 def _foxglove_address(text: str) -> Tuple[str, int]:
@@ -351,7 +358,7 @@ def _live(args: argparse.Namespace) -> int:
                             executor=args.executor, record=not args.no_record,
                             record_path=args.record, max_bag_size_B=args.max_bag_size,
                             max_bag_duration_s=args.max_bag_duration, foxglove=foxglove,
-                            closed_loop=args.closed_loop)
+                            closed_loop=args.closed_loop, as_built_seed=args.rig_as_built)
     return live.run(opts, domain=domain)
 
 
