@@ -51,8 +51,8 @@ def plot(c, stage: int, seed: int, path: Path) -> None:
         ax.grid(True, alpha=0.3)
     axes[0].legend(fontsize=8)
     axes[-1].set_xlabel('time (min)')
-    fig.suptitle(f'Stage {stage} from ambient: the open-loop estimate, its propagated 2-sigma '
-                 'band and a rig drawn from the stated sigmas')
+    fig.suptitle(f'Stage {stage} from ambient: the open-loop estimate, its 2-sigma band\n'
+                 'and a rig drawn from the stated sigmas')
     save_figure(fig, path)
 
 
@@ -85,7 +85,7 @@ def main() -> None:
         prop = made[-1].propagation
         print(f'\nstage {stage}, {args.seconds:g} s from ambient, draws {seeds}: {cpu:.0f} s '
               f'CPU in all, of which the {prop.copies} copies {prop.work_s:.0f} s '
-              f'({prop.periods} periods)')
+              f'({prop.periods} periods; the rest the estimator, the truths and the rig)')
         print(f'  {"quantity":<18} {"inside 2 sigma per draw":<26} {"pooled":>7} '
               f'{"sigma/rms":>9} {"sigma 1 min":>11} {"sigma end":>9} {"rise end":>8}')
         per_draw = c.inside(2.0)

@@ -61,8 +61,8 @@ def test_a_bad_uncertain_parameter_stops_with_one_message_naming_it(key, entry, 
 
 def test_a_period_that_is_not_whole_steps_is_refused():
     data = reference_data()
-    data['uncertainty']['period_s'] = 0.51
-    with pytest.raises(ConfigError, match='uncertainty.period_s = 0.51'):
+    data['uncertainty']['copy_period_s'] = 0.51
+    with pytest.raises(ConfigError, match='uncertainty.copy_period_s = 0.51'):
         load(data)
 
 
@@ -110,7 +110,7 @@ def feed(est, t0, seconds, rate_Hz=1000.0, take=False, budget_s=0.0):
 def short_period():
     """Return the reference configuration with the copies stepped every 0.5 s."""
     data = reference_data()
-    data['uncertainty']['period_s'] = 0.5
+    data['uncertainty']['copy_period_s'] = 0.5
     return load(data)
 
 

@@ -466,10 +466,10 @@ class Config:
             if p.relative_sigma is not None and nominal == 0.0:
                 raise ConfigError(f'{where}.relative_sigma: {name} = 0, so a relative sigma '
                                   'is zero; give sigma in its unit instead')
-        per_step = u.period_s / self.estimator.step_s
+        per_step = u.copy_period_s / self.estimator.step_s
         if abs(per_step - round(per_step)) > 1e-9 * per_step:
-            raise ConfigError(f'uncertainty.period_s = {u.period_s!r}: not a whole number of '
-                              f'estimator.step_s = {self.estimator.step_s!r}')
+            raise ConfigError(f'uncertainty.copy_period_s = {u.copy_period_s!r}: not a whole '
+                              f'number of estimator.step_s = {self.estimator.step_s!r}')
         if self.motor.slices * u.structural.slices_factor > 50:
             raise ConfigError(f'uncertainty.structural.slices_factor = '
                               f'{u.structural.slices_factor!r}: times motor.slices = '

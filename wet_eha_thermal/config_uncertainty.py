@@ -64,7 +64,7 @@ class Uncertainty:
     constant ``estimator.model_uncertainty_K``.
     """
 
-    period_s: float = spec(0.02, 600.0, default=10.0, doc=(
+    copy_period_s: float = spec(0.02, 600.0, default=10.0, doc=(
         'the perturbed copies of the model are stepped over each period of this much '
         "sample time (a whole number of estimator steps) on the estimator's duty; the "
         'uncertainty published until the next period ends is the one at its start'))

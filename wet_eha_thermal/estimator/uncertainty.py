@@ -17,7 +17,7 @@ part is the same difference for the copies of
 each other law the configuration can select, taken as one sigma), plus
 ``rise_fraction`` of each temperature's rise above ambient.
 
-Cost and time: the copies step once per ``period_s`` of sample time, one
+Cost and time: the copies step once per ``copy_period_s`` of sample time, one
 model step over the period's duty (the estimator's steps, as their means:
 the current as the RMS), so 31 copies of the reference rig cost about 31
 model steps per 10 s. They are worked in the background between estimates
@@ -53,7 +53,7 @@ class Propagation:
         s = cfg.estimator
         self.settings = u
         self.names = list(names)
-        self.period_steps = max(1, int(round(u.period_s / s.step_s)))
+        self.period_steps = max(1, int(round(u.copy_period_s / s.step_s)))
         self.params = parameter_perturbations(cfg)
         self.structural = structural_perturbations(cfg)
         self._cfgs = [cfg] + [p.cfg for p in self.params] + [p.cfg for p in self.structural]
@@ -77,7 +77,7 @@ class Propagation:
         #: the covariance of their change over the last period (K^2; None: no change yet)
         self.growth: Optional[np.ndarray] = None
         self.periods = 0
-        self.work_s = 0.0                     # wall time spent stepping copies (s)
+        self.work_s = 0.0                     # CPU time spent stepping copies (s)
 
     @property
     def copies(self) -> int:
@@ -156,7 +156,7 @@ class Propagation:
 
     def _step_next(self) -> None:
         """Step the next copy over the waiting period."""
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         job = self._job
         k = self._next
         m = self.models[k]
@@ -167,7 +167,7 @@ class Propagation:
         if k <= len(self.params):
             self._x[k] = m.state
         self._next += 1
-        self.work_s += time.perf_counter() - t0
+        self.work_s += time.process_time() - t0
         if self._next == len(self.models):
             self._job = None
 

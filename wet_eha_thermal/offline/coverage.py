@@ -41,7 +41,7 @@ def coarse(cfg: Config, step_s: float, period_s: float) -> Config:
                              'estimator.pressure_inputs': 'ports',
                              'estimator.limits.period_s': step_s,
                              'estimator.limits.horizons_s': (10.0 * step_s,),
-                             'uncertainty.period_s': period_s})
+                             'uncertainty.copy_period_s': period_s})
 
 
 @dataclass
