@@ -57,9 +57,15 @@ class Propagation:
         self.params = parameter_perturbations(cfg)
         self.structural = structural_perturbations(cfg)
         self._cfgs = [cfg] + [p.cfg for p in self.params] + [p.cfg for p in self.structural]
-        self._filter_s = s.coefficient_filter_s
-        self._substep_s = s.forecast_substep_s
+        # built now, with the estimator: at its first sample they would stall a live node
+        # for the seconds their construction takes
         self.models: List[EHAModel] = []
+        for c in self._cfgs:
+            m = EHAModel(c, coefficient_filter_s=s.coefficient_filter_s)
+            m.circuit.keep_transition = False
+            m.motor.check_rotor_validity = False     # the copies' validity is not reported
+            m.oil_substep_s = s.forecast_substep_s
+            self.models.append(m)
         self._samples: List[tuple] = []       # this period's step means
         self._job: Optional[SampleBlock] = None
         self._last_s = 0.0                    # the last step's end (model time s)
@@ -85,15 +91,9 @@ class Propagation:
         return len(self._cfgs)
 
     def start(self, ambient_K: float, first: SampleBlock) -> None:
-        """Build the copies and start them where the estimator's model starts."""
-        self.models = []
-        for c in self._cfgs:
-            m = EHAModel(c, coefficient_filter_s=self._filter_s)
-            m.circuit.keep_transition = False
-            m.motor.check_rotor_validity = False     # the copies' validity is not reported
-            m.oil_substep_s = self._substep_s
+        """Start the copies where the estimator's model starts."""
+        for m in self.models:
             m.initialise(ambient_K, first)
-            self.models.append(m)
         self._samples = []
         self._job = None
         self._pending = False
