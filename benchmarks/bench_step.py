@@ -4,6 +4,7 @@ Wall time of the estimator's model step, as the offline replay drives it, and a 
 Run: OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_step.py
      [--seconds 300] [--stage 6] [--pressure ports|differential] [--no-noise]
      [--save FILE.npy] [--compare FILE.npy] [--profile [FILE.prof]] [--correction]
+     [--uncertainty]
 
 The inputs are the kinetic model's signals of a reference stage
 (:class:`~wet_eha_thermal.model.kinetics.KineticModel`, oil at 40 degC) at
@@ -27,10 +28,16 @@ same process: a run with it off (the figures above, and what ``--save`` and
 thermocouple at 10 Hz (the off run's estimates plus 1 K, with 0.2 K of seeded
 noise, so that the filter corrects all along), and prints both medians and
 their ratio.
+
+``--uncertainty`` times the propagated uncertainty (``estimator/uncertainty.py``):
+the run above has the configuration's ``uncertainty`` section, a second the
+same without it (the constant sigma, no copies); it prints the copies' share
+and both per-step figures.
 """
 
 import argparse
 import cProfile
+import dataclasses
 import math
 import pstats
 import time
@@ -172,6 +179,9 @@ def main() -> None:
     p.add_argument('--correction', action='store_true',
                    help='also time the live correction (frame and pump case thermocouples at '
                    '10 Hz) against the run without it')
+    p.add_argument('--uncertainty', action='store_true',
+                   help='also time the run without the uncertainty section (the constant '
+                   'sigma, no copies) against the one with it')
     args = p.parse_args()
     cfg = load_config(overrides={'estimator.pressure_inputs': args.pressure,
                                  'estimator.correction.enabled': False})
@@ -231,6 +241,19 @@ def main() -> None:
               f'{np.mean(blocks_on):.4f} ms ({np.mean(blocks_on) / np.mean(blocks):.2f}x off); '
               f'Estimator._step alone: median {np.median(st_on):.4f} ms '
               f'({np.median(st_on) / np.median(st):.2f}x off)')
+    if args.uncertainty:
+        prop = result['estimator'].propagation
+        off = run(dataclasses.replace(cfg, uncertainty=None), stamps, values)
+        blocks_off = off['block_per_step'] * 1e3
+        st_off = off['step_times'] * 1e3
+        ratio = np.median(blocks) / np.median(blocks_off)
+        print(f'uncertainty: {prop.copies} copies, {prop.periods} periods; their steps '
+              f'{prop.work_s:.2f} s of the {result["total"]:.2f} s (at the ends of the periods, '
+              'as a replay makes them). Without the section: per step, all included: median '
+              f'{np.median(blocks_off):.4f} ms (with it {ratio:.2f}x), mean '
+              f'{np.mean(blocks_off):.4f} ms (with it {np.mean(blocks) / np.mean(blocks_off):.2f}'
+              f'x); Estimator._step alone: median {np.median(st_off):.4f} ms (with it '
+              f'{np.median(st) / np.median(st_off):.2f}x)')
 
 
 if __name__ == '__main__':

@@ -1,5 +1,6 @@
 """The estimator core without ROS: averaging, sensor health, fallbacks, alerts, forecast."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -166,6 +167,8 @@ def test_forecast_matches_a_simulated_run_to_the_limit(cfg):
 
 
 def test_margin_current_brings_the_hotspot_to_its_limit_less_k_sigma(cfg):
+    # with the constant sigma (no uncertainty section): a known k sigma below the limit
+    cfg = dataclasses.replace(cfg, uncertainty=None)
     est = Estimator(cfg, outlook='inline')
     feed(est, 0.0, 2.0, rate_Hz=200.0)
     amps = est.outlook._margins[1][0]    # the first tick's continuous limit

@@ -1,6 +1,7 @@
 """The current limits for the drive: against the model itself, determinism, fallbacks."""
 
 import copy
+import dataclasses
 import math
 import pickle
 
@@ -43,8 +44,13 @@ def run(gen):
 
 @pytest.fixture(scope='module')
 def warm():
-    """Return an estimator after 60 s of the duty."""
-    est = Estimator(load_config())
+    """
+    Return an estimator after 60 s of the duty, with the constant 4 K sigma.
+
+    Without the uncertainty section: the limits below are set for a ceiling 8 K under
+    them (the propagated sigma is a few tenths of a kelvin after a minute).
+    """
+    est = Estimator(dataclasses.replace(load_config(), uncertainty=None))
     feed(est, 0.0, 60.0)
     return est
 
@@ -185,8 +191,10 @@ def test_fallbacks_wait_behind_the_ticks_still_worked_on_so_stamps_never_go_back
 
 
 def test_too_uncertain_an_estimate_drops_the_limits_to_the_fallback():
-    cfg = load_config(overrides={'estimator.limits.max_sigma_K': 1.0,
-                                 'estimator.correction.enabled': False})
+    # the constant sigma of a configuration without the uncertainty section, 4 K > 1 K
+    cfg = dataclasses.replace(load_config(overrides={'estimator.limits.max_sigma_K': 1.0,
+                                                     'estimator.correction.enabled': False}),
+                              uncertainty=None)
     est = Estimator(cfg, outlook='inline')
     feed(est, 0.0, 1.0)
     last = est.outlook.limits

@@ -77,6 +77,11 @@ def test_live_runs_and_cleans_up(tmp_path):
     out = res.stdout
     assert 'winding hot-spot' in out and 'margin' in out and 'alerts' in out, out
     assert 'Live twin summary' in out, out
+    # the rig is built as a draw of the configured uncertainty, and says so; the summary
+    # tells how often its truth stayed inside the estimate's 2-sigma band
+    assert re.search(r'truth in band   winding hot-spot \d+ %.* of \d+ rig reports inside '
+                     r'estimate \+- 2 sigma; the rig is built as draw 1 of', out), out
+    assert re.search(r'\| vs truth [+-]\d+\.\d K, (inside|OUTSIDE) 2 sigma', out), out
     m = re.search(r'estimates\s+(\d+) received', out)
     assert m and int(m.group(1)) > 100, out
     assert 'rig             exited cleanly' in out, out
@@ -186,6 +191,38 @@ def test_live_summary_counts_come_from_the_reports_not_the_log_text(tmp_path):
     assert any(ln.startswith('  stale events    2 (during the duty): speed_rad_s 2;')
                for ln in lines), text
     assert '  rig figures     1.0 s, 1000 samples x 1 topics (1 skipped)' in text, text
+
+
+def test_the_rig_is_built_as_a_draw_and_the_status_says_how_far_its_truth_is():
+    from wet_eha_thermal import cli
+    opts = LiveOptions()
+    assert opts.as_built_seed == 1
+    assert 'as_built_seed:=1' in child_commands(opts, 'rig')['rig']
+    assert 'as_built_seed:=0' in child_commands(LiveOptions(as_built_seed=0), 'rig')['rig']
+    assert cli.main(['live', '--rig-as-built', '-1', '--no-foxglove']) == 2
+    state = TwinState(estimates=1)
+    for name, value, sigma in (('winding_hotspot', 60.0, 1.5), ('winding_mean', 50.0, 1.0),
+                               ('magnet', 70.0, 2.0), ('oil', 45.0, 1.0)):
+        state.on_estimate(name, value, sigma ** 2, 1.0, 1.0)
+    assert '| truth pending |' in status_line(state, 1.0, 10.0)
+    rig = {'truth_winding_hotspot_C': '62.5', 'truth_winding_mean_C': '50.5',
+           'truth_magnet_C': '69.0', 'truth_oil_C': '45.2', 'as_built_seed': '1'}
+    state.check_truth(rig)
+    state.rig = rig
+    # 60 - 62.5 = -2.5 K, inside 2 sigma = 3.0 K
+    assert '| vs truth -2.5 K, inside 2 sigma (3.0 K) |' in status_line(state, 1.0, 10.0)
+    state.on_estimate('winding_hotspot', 58.0, 1.5 ** 2, 2.0, 2.0)
+    state.check_truth(rig)
+    assert '| vs truth -4.5 K, OUTSIDE 2 sigma (3.0 K) |' in status_line(state, 2.0, 10.0)
+    text = '\n'.join(summary(LiveOptions(record=False, foxglove=None), state, [], 2.0, 0,
+                             'test'))
+    assert ('  truth in band   winding hot-spot 50 %, winding mean 100 %, magnet (hottest) '
+            '100 %, oil (hottest node) 100 % of 2 rig reports inside estimate +- 2 sigma; the '
+            'rig is built as draw 1 of the configured uncertainty') in text, text
+    state.rig = dict(rig, as_built_seed='0')
+    text = '\n'.join(summary(LiveOptions(record=False, foxglove=None), state, [], 2.0, 0,
+                             'test'))
+    assert "the rig's truth is the estimator's own configuration (--rig-as-built 0)" in text
 
 
 # ------------------------------------------------------------- the closed loop

@@ -121,6 +121,46 @@ def _maps(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_sensitivity_parser(sub) -> None:
+    """Add the ``sensitivity`` command: which uncertain parameter moves the hot spot most."""
+    p = sub.add_parser('sensitivity', help='which uncertain parameter moves the steady hot spot '
+                       'and magnet most, at the map points',
+                       description="Solve the motor maps' steady states with each uncertain "
+                                   'parameter of the configuration (its uncertainty section) '
+                                   'moved by its one sigma, and with each structural '
+                                   'alternative; rank them by the largest move of the winding '
+                                   'hot spot and of the magnets: what to measure first on the '
+                                   'rig. Prints a table, writes a CSV and a tornado PNG.')
+    p.add_argument('--config', type=Path, default=None,
+                   help='YAML configuration (default: the reference rig)')
+    p.add_argument('--out', default='out/sensitivity',
+                   help='output folder (default: %(default)s)')
+    p.set_defaults(func=_sensitivity)
+
+
+def _sensitivity(args: argparse.Namespace) -> int:
+    from .offline import sensitivity
+
+    cfg = load_config(args.config)
+    if cfg.uncertainty is None:
+        raise BadArgument('the configuration has no uncertainty section: nothing to rank')
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    result = sensitivity.compute_sensitivity(cfg, Progress())
+    print(f'\nLargest move over the map points ({cfg.maps.oil_inlet_C:g} degC oil in at '
+          f'{cfg.maps.oil_flow_L_min:g} L/min), largest first:')
+    print(sensitivity.format_table(result))
+    if result.not_ranked:
+        print('\nNot ranked (they move the oil inlet, which a motor map holds; their effect is '
+              'in the uncertainty a coupled run propagates): ' + ', '.join(result.not_ranked))
+    csv_path, png_path = out / 'sensitivity.csv', out / 'sensitivity.png'
+    sensitivity.write_csv(result, csv_path)
+    sensitivity.plot_tornado(result, png_path, 'Which unknown matters: steady moves at one '
+                             'sigma, largest over the map points')
+    print(f'\nwrote {csv_path} and {png_path}')
+    return 0
+
+
 def _add_simulate_parser(sub) -> None:
     """Add the ``simulate`` command: a duty cycle run offline."""
     p = sub.add_parser('simulate', help='temperatures over a duty cycle (a stage or a duty file)',
@@ -291,6 +331,10 @@ def _add_live_parser(sub) -> None:
                    help="the rig's simulated drive honours the current limit the estimator "
                         'publishes (the load yields where the duty asks for more); the status '
                         'line and the summary show when it binds')
+    p.add_argument('--rig-as-built', type=int, default=1, metavar='SEED',
+                   help="the rig's truth is the configuration with its uncertain parameters "
+                        'drawn with SEED (docs/live.md); 0: the configuration itself '
+                        '(default: %(default)d)')
     p.set_defaults(func=_live)
 
 
@@ -311,6 +355,9 @@ def _check_live_args(args: argparse.Namespace) -> None:
     if not (math.isfinite(args.max_bag_duration) and args.max_bag_duration >= 0.0):
         raise BadArgument(f'--max-bag-duration {args.max_bag_duration:g}: must be a number of '
                           'seconds >= 0 (0: no time split)')
+    if not 0 <= args.rig_as_built < 2 ** 31:
+        raise BadArgument(f'--rig-as-built {args.rig_as_built}: must be a seed 0..2^31-1 '
+                          '(0: the rig is the configuration)')
 
 
 def _foxglove_address(text: str) -> Tuple[str, int]:
@@ -351,7 +398,7 @@ def _live(args: argparse.Namespace) -> int:
                             executor=args.executor, record=not args.no_record,
                             record_path=args.record, max_bag_size_B=args.max_bag_size,
                             max_bag_duration_s=args.max_bag_duration, foxglove=foxglove,
-                            closed_loop=args.closed_loop)
+                            closed_loop=args.closed_loop, as_built_seed=args.rig_as_built)
     return live.run(opts, domain=domain)
 
 
@@ -774,8 +821,9 @@ def build_parser() -> argparse.ArgumentParser:
         prog='wet-eha-thermal',
         description='Thermal digital twin of a wet electro-hydrostatic actuator.')
     sub = parser.add_subparsers(dest='command', required=True)
-    for add in (_add_maps_parser, _add_simulate_parser, _add_live_parser, _add_replay_parser,
-                _add_calibrate_parser, _add_whatif_parser, _add_play_parser):
+    for add in (_add_maps_parser, _add_sensitivity_parser, _add_simulate_parser,
+                _add_live_parser, _add_replay_parser, _add_calibrate_parser, _add_whatif_parser,
+                _add_play_parser):
         add(sub)
     return parser
 

@@ -31,6 +31,8 @@ from .config_model import (  # noqa: F401
 from .config_spec import (  # noqa: F401
     check_below, check_value, ConfigError, fraction, from_dict, OIL_GRADE_NAMES, positive,
     range_text, spec)
+from .config_uncertainty import (  # noqa: F401
+    LAW_KEYS, Structural, UncertainParameter, Uncertainty)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -228,7 +230,10 @@ class EstimatorSettings:
     coefficient_filter_s: float = spec(0.0, 600.0, doc=(
         "the speed, oil flow and temperatures that set the motor's coefficients pass two "
         'low-pass stages of this time constant; the losses do not'))
-    model_uncertainty_K: float = spec(0.0, 50.0, doc='1-sigma model uncertainty (est.)')
+    model_uncertainty_K: float = spec(0.0, 50.0, doc=(
+        "1 sigma (K) of every temperature when the live correction's filter starts; also "
+        'of every open-loop estimate when the configuration has no uncertainty section '
+        '(with one, it is propagated: docs/model.md, Uncertainty)'))
     stale_uncertainty_K_per_s: float = spec(0.0, 10.0,
                                             doc='added per second an input is on fallback')
     forecast_window_s: float = spec(1.0, 3600.0, doc='recent duty repeated by the forecast')
@@ -432,9 +437,13 @@ class Config:
     maps: MapsJob
     estimator: EstimatorSettings
     calibration: Calibration = field(default_factory=Calibration)
+    uncertainty: Optional[Uncertainty] = spec(default=None, doc=(
+        'the stated 1 sigma of the uncertain parameters, propagated to every estimate; '
+        'null: the constant estimator.model_uncertainty_K'))
 
     def check(self, key: str) -> None:
-        """Check each calibration bound names a model parameter and holds its present value."""
+        """Check the calibration bounds and the uncertain parameters name model parameters."""
+        self._check_uncertainty()
         for name, (low, high) in self.calibration.bounds.items():
             where = f'calibration.bounds.{name}'
             meta = model_parameter(name, where)
@@ -444,6 +453,27 @@ class Config:
             if not low <= nominal <= high:
                 raise ConfigError(f'{where} = [{low!r}, {high!r}]: does not hold the configured '
                                   f'value {name} = {nominal!r}')
+
+    def _check_uncertainty(self) -> None:
+        """Check each uncertain key names a model parameter, and the period fits the steps."""
+        u = self.uncertainty
+        if u is None:
+            return
+        for name, p in u.parameters.items():
+            where = f'uncertainty.parameters.{name}'
+            model_parameter(name, where)
+            nominal = config_value(self, name)
+            if p.relative_sigma is not None and nominal == 0.0:
+                raise ConfigError(f'{where}.relative_sigma: {name} = 0, so a relative sigma '
+                                  'is zero; give sigma in its unit instead')
+        per_step = u.copy_period_s / self.estimator.step_s
+        if abs(per_step - round(per_step)) > 1e-9 * per_step:
+            raise ConfigError(f'uncertainty.copy_period_s = {u.copy_period_s!r}: not a whole '
+                              f'number of estimator.step_s = {self.estimator.step_s!r}')
+        if self.motor.slices * u.structural.slices_factor > 50:
+            raise ConfigError(f'uncertainty.structural.slices_factor = '
+                              f'{u.structural.slices_factor!r}: times motor.slices = '
+                              f'{self.motor.slices!r} exceeds the 50 slices allowed')
 
 
 def config_dir() -> Path:

@@ -196,6 +196,17 @@ def _section(cls: type, key: str, values: List[Any], names: List[str], optional:
     for kind, sub_key, sub_values, sub_optional in later:
         if kind is dict:
             name, entries = sub_values
+            item = next(iter(entries.values()))
+            if dataclasses.is_dataclass(item):      # a mapping of sections: one column each
+                cols = [g.name for g in dataclasses.fields(item)]
+                out += ['', f'`{sub_key}` in {name} (each a section `{type(item).__name__}`: '
+                        + '; '.join(f'`{g.name}`: {_meaning(g)}'
+                                    for g in dataclasses.fields(item)) + '):', '',
+                        '| key | ' + ' | '.join(f'`{c}`' for c in cols) + ' |',
+                        '| --- ' * (1 + len(cols)) + '|']
+                out += [f'| `{k}` | ' + ' | '.join(_value_text(getattr(v, c)) for c in cols)
+                        + ' |' for k, v in entries.items()]
+                continue
             out += ['', f'`{sub_key}` in {name}:', '', '| key | value |', '| --- | --- |']
             out += [f'| `{k}` | {_value_text(v)} |' for k, v in entries.items()]
         else:
@@ -215,8 +226,10 @@ def config_reference(folder: Optional[Path] = None) -> str:
     out = [INTRO, f'Across sections, loading also checks {_checks(Config)}.']
     hints = typing.get_type_hints(Config)
     for f in dataclasses.fields(Config):
-        _section(hints[f.name], f.name, [getattr(c, f.name) for c in configs], files,
-                 _optional(f), out)
+        tp = hints[f.name]
+        tp = tp if dataclasses.is_dataclass(tp) else \
+            [t for t in typing.get_args(tp) if t is not type(None)][0]     # Optional[section]
+        _section(tp, f.name, [getattr(c, f.name) for c in configs], files, _optional(f), out)
     return '\n'.join(out) + '\n'
 
 

@@ -38,6 +38,7 @@ comes from the filter's covariance.
 from dataclasses import dataclass, field
 import math
 import sys
+import time
 from typing import Any, Callable, Dict, List, Optional, Tuple
 
 import numpy as np
@@ -47,6 +48,7 @@ from .correction import ThermalCorrection
 from .intake import ChannelHealth, DataGaps, DIFFERENTIAL_INPUTS, INPUTS, Intake
 from .limits import CurrentLimits
 from .outlook import Outlook
+from .uncertainty import Propagation
 from ..config import Config
 from ..model import quantity_table
 from ..model.compiled import jit
@@ -134,6 +136,10 @@ class Estimator:
         #: 'background' (a live node), or 'inline' at each tick (offline)
         self.outlook_mode = outlook
         self.outlook = Outlook(cfg, self.model, self.limits_C, inline=outlook == 'inline')
+        #: the uncertainty propagated from the configuration's stated sigmas (None: the
+        #: constant ``model_uncertainty_K``)
+        self.propagation = Propagation(cfg, self.model.quantities.names) \
+            if cfg.uncertainty is not None else None
         self._t_origin = 0.0
         self.t_model: Optional[float] = None
         #: sample time at which the next step ends (-inf before the start): a sample
@@ -439,6 +445,8 @@ class Estimator:
         # only ~0.2 us of resolution, which would make every step length differ
         first = SampleBlock(np.array([0.0]), *(values[n] for n in INPUTS))
         self.model.initialise(self.ambient_K, first)
+        if self.propagation is not None:
+            self.propagation.start(self.ambient_K, first)
         for n in self.inputs:
             self.intake.drop_until(n, t0)
 
@@ -492,6 +500,11 @@ class Estimator:
             # many steps of them as the block held
             self.outlook.record(SampleBlock(self.settings.step_s * self._frac, *(
                 np.full(self.n_grid, values[n][-1]) for n in INPUTS)), m)
+        if self.propagation is not None:
+            taken = self.propagation.record(since_start[-1], block, self.steps - m,
+                                            self.steps, self.ambient_K)
+            if taken and self.correction is not None and self.propagation.growth is not None:
+                self.correction.add_parameter_growth(self.propagation.growth)
         implausible = self._plausibility(values, t1 - t0)
         outputs = corrected if corrected is not None else self.model.outputs()
         temps = {k: v - C_TO_K for k, v in outputs.items()}
@@ -499,14 +512,18 @@ class Estimator:
         worst_stale = max((t1 - self.health[n].stale_since_s for n in stale
                            if self.health[n].stale_since_s is not None), default=0.0)
         on_fallback = self.settings.stale_uncertainty_K_per_s * max(worst_stale, 0.0)
-        sigma = self.settings.model_uncertainty_K + on_fallback
+        if self.propagation is not None:
+            sigma = self.propagation.sigma_K() + on_fallback
+        else:
+            sigma = np.full(len(temps), self.settings.model_uncertainty_K + on_fallback)
         if corrected is not None:
             uncertainty = self._filtered_uncertainty(on_fallback, sigma)
         else:
-            uncertainty = {k: sigma for k in temps}
+            uncertainty = dict(zip(self.model.quantities.names, sigma.tolist()))
         if self.outlook_mode != 'off':
             self.outlook.tick(self.steps - m, self.steps, t1, self.ambient_K, temps,
-                              uncertainty, stale)
+                              uncertainty, stale, self.propagation.relative()
+                              if self.propagation is not None else None)
         notices, self.intake.notices = self.intake.notices, []
         est = Estimate(
             stamp_s=t1, temperatures_C=temps, uncertainty_K=uncertainty,
@@ -550,7 +567,8 @@ class Estimator:
         self.held_blocks += 1
         return est
 
-    def _filtered_uncertainty(self, on_fallback: float, open_loop: float) -> Dict[str, float]:
+    def _filtered_uncertainty(self, on_fallback: float,
+                              open_loop: np.ndarray) -> Dict[str, float]:
         """
         Return each output's 1 sigma (K) from the filter's covariance.
 
@@ -605,8 +623,17 @@ class Estimator:
 
     # ----------------------------------------------------------- background
     def background(self, budget_s: float = 0.005) -> None:
-        """Work on the limits and the forecast (:class:`~.outlook.Outlook`) for ``budget_s``."""
-        self.outlook.background(budget_s)
+        """
+        Work on the uncertainty's copies, the limits and the forecast for about ``budget_s``.
+
+        A waiting period of the uncertainty's copies (:mod:`.uncertainty`) gets
+        one copy's step first, then the outlook (:class:`~.outlook.Outlook`)
+        the rest of the budget.
+        """
+        start = time.perf_counter()
+        if self.propagation is not None:
+            self.propagation.work(0.0)
+        self.outlook.background(budget_s - (time.perf_counter() - start))
 
 
 #: how ``grid_rows`` treats each input: interval means, the root of the mean square

@@ -502,6 +502,23 @@ class ThermalCorrection:
             P[nt:, nt:] = np.diag(self._d_prior)
         self.P = P
 
+    def add_parameter_growth(self, growth_K2: np.ndarray) -> None:
+        """
+        Add the growth of the parameter uncertainty over a period (K^2, over the model's states).
+
+        The uncertain parameters are constants: Schmidt's consider filter
+        would carry their cross-covariance with the state. Here their effect
+        enters as process noise, the covariance of the change of the state
+        sensitivities over the period (:mod:`.uncertainty`): a filter that
+        sees thermocouples corrects the state each step, so what a parameter
+        adds between corrections is its recent change, not its whole effect.
+        Nothing before the filter starts (it starts from its prior).
+        """
+        if self.P is None:
+            return
+        nt = self.m + self.nh
+        self.P[:nt, :nt] += growth_K2
+
     def _predict(self, model: EHAModel, dt: float) -> None:
         """Propagate the covariance through the step just made (``dt`` s)."""
         lin = model.linearize()

@@ -30,8 +30,17 @@ itself): the coefficients that move with temperature (convection,
 viscosities, friction) stay as they are at the tick, or for a horizon of
 minutes as they are half-way along it; the held duty has the
 recent root-mean-square speed and the pressures (the high side as its RMS)
-but no motion, so no flow work; the uncertainty stays as it is at the tick;
-a peak between two checked times of a horizon is not seen.
+but no motion, so no flow work; a peak between two checked times of a
+horizon is not seen.
+
+The uncertainty at the horizon: with a propagated uncertainty
+(:mod:`.uncertainty`) a quantity's 1 sigma grows with its rise above
+ambient, about in proportion (``relative``: sigma per K of rise, at the
+tick). Holding T + k f (T - T_amb) <= T_lim is holding T below
+(T_lim + k f T_amb) / (1 + k f): the ceiling is that, or the limit less k
+times the tick's sigma if lower (:func:`ceiling_K`). Without a relative
+figure (a quantity less than a few K above ambient, or the constant
+uncertainty) the tick's sigma stands.
 """
 
 from dataclasses import dataclass
@@ -350,9 +359,26 @@ def probing(model: EHAModel, limited: Sequence[str]) -> Probing:
                    tuple(name for name in limited if q.outputs[name].kind == PEAK))
 
 
+def ceiling_K(limit_C: float, sigma_K: float, k_sigma: float, relative: Optional[float],
+              ambient_K: float) -> float:
+    """
+    Return the temperature (K) a quantity may reach so that it plus k sigma stays at its limit.
+
+    ``sigma_K`` its 1 sigma now; ``relative`` (None: unknown) its 1 sigma per
+    K of rise above ``ambient_K``, which carries the sigma to a hotter state
+    (module docstring).
+    """
+    lim = limit_C + C_TO_K
+    now = lim - k_sigma * sigma_K
+    if relative is None:
+        return now
+    return min(now, (lim + k_sigma * relative * ambient_K) / (1.0 + k_sigma * relative))
+
+
 def limit_steps(saved: bytes, x0: np.ndarray, setup: Probing, held: HeldDuty,
                 ambient_K: float, sigma_K: Dict[str, float], limits_C: Dict[str, float],
-                k_sigma: float, horizons_s: Sequence[float], dt_s: float, peak_A: float
+                k_sigma: float, horizons_s: Sequence[float], dt_s: float, peak_A: float,
+                relative: Optional[Dict[str, float]] = None
                 ) -> Generator[None, None, List[Tuple[float, str]]]:
     """
     Compute a tick's limit for each horizon from the pickled model ``saved``, in slices.
@@ -363,12 +389,15 @@ def limit_steps(saved: bytes, x0: np.ndarray, setup: Probing, held: HeldDuty,
     :class:`Probing`, ``sigma_K`` the tick's 1-sigma uncertainty of each
     limited quantity (K), ``limits_C`` their limits (degC), ``dt_s`` the
     probe step (s; each horizon a whole number of them), ``peak_A`` the
-    search's top. A horizon longer than ``RELINEARISE_AFTER_S`` is solved
+    search's top; ``relative`` each quantity's sigma per K of rise, where known
+    (:func:`ceiling_K`). A horizon longer than ``RELINEARISE_AFTER_S`` is solved
     again on the linearisation at the middle of the first solution's path:
     over minutes the oil's viscosity, and with it the friction and the
     leakage heat, move far from the tick's.
     """
-    ceiling = {name: lim + C_TO_K - k_sigma * sigma_K[name] for name, lim in limits_C.items()}
+    relative = relative or {}
+    ceiling = {name: ceiling_K(lim, sigma_K[name], k_sigma, relative.get(name), ambient_K)
+               for name, lim in limits_C.items()}
 
     def problem_at(shift_K: Optional[np.ndarray]) -> LimitProblem:
         """Return the problem linearised at the state moved by ``shift_K`` (None: as it is)."""

@@ -30,8 +30,8 @@ from typing import Deque, Dict, Generator, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from .limits import (current_limits, CurrentLimits, fallback_limits, HeldDuty, limit_steps,
-                     probing, RATING, step_statistics)
+from .limits import (ceiling_K, current_limits, CurrentLimits, fallback_limits, HeldDuty,
+                     limit_steps, probing, RATING, step_statistics)
 from ..config import Config
 from ..model.eha import EHAModel, SampleBlock
 from ..model.motor import MotorInputs, WetMotor
@@ -154,12 +154,15 @@ class Outlook:
 
     # ---------------------------------------------------------------- ticks
     def tick(self, steps_before: int, steps_after: int, stamp_s: float, ambient_K: float,
-             now_C: Dict[str, float], sigma_K: Dict[str, float], stale: Sequence[str]) -> None:
+             now_C: Dict[str, float], sigma_K: Dict[str, float], stale: Sequence[str],
+             relative: Optional[Dict[str, float]] = None) -> None:
         """
         Start the work of a tick if the step from ``steps_before`` to ``steps_after`` made one.
 
         ``stamp_s`` the step's end (sample time), ``now_C`` and ``sigma_K``
-        its estimate and 1-sigma uncertainty, ``stale`` its stale inputs.
+        its estimate and 1-sigma uncertainty, ``stale`` its stale inputs,
+        ``relative`` each quantity's 1 sigma per K of rise where the
+        propagated uncertainty knows it (:func:`~.limits.ceiling_K`).
         Call it after the model's step and its correction: the tick's state
         is the model's as it stands.
         """
@@ -177,8 +180,9 @@ class Outlook:
             # at every forecast tick and at the first tick of the run
             self._forecast_tick_numbers.append(tick)
             self._start_forecast(saved, stamp_s, ambient_K, now_C)
-            target = (self.limits_C['winding_hotspot'] - self.lim.k_sigma
-                      * sigma_K['winding_hotspot'] + C_TO_K)
+            target = ceiling_K(self.limits_C['winding_hotspot'], sigma_K['winding_hotspot'],
+                               self.lim.k_sigma, (relative or {}).get('winding_hotspot'),
+                               ambient_K)
             self._margin_jobs.append((tick, self._margin_steps(
                 saved, held.speed_rad_s, ambient_K, target)))
         if why:
@@ -192,7 +196,7 @@ class Outlook:
             return
         steps = limit_steps(saved, self.model.state, self._probing, held, ambient_K, sigma_K,
                             self.limits_C, self.lim.k_sigma, self.lim.horizons_s,
-                            self.lim.period_s, self.cfg.motor.peak_current_A)
+                            self.lim.period_s, self.cfg.motor.peak_current_A, relative)
         delay = int(round(MARGIN_DELAY_S / self.lim.period_s))
         margin_tick = max((f for f in self._forecast_tick_numbers if f <= tick - delay),
                           default=None)

@@ -13,7 +13,7 @@ off by the oil) at each point.
 import csv
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Dict, List, Optional
+from typing import Callable, Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -52,13 +52,19 @@ class MapPoint:
         return r
 
 
+def map_points(cfg: Config) -> List[Tuple[str, float, float]]:
+    """Return the operating points of both sweeps: (sweep, r/min, A RMS)."""
+    job = cfg.maps
+    return ([('speed', s, job.sweep_current_A) for s in job.speeds_rpm]
+            + [('current', job.sweep_speed_rpm, i) for i in job.currents_A])
+
+
 def compute_maps(cfg: Config, progress: Optional[Callable[[int, int, str], None]] = None,
                  log: Optional[ValidityLog] = None) -> List[MapPoint]:
     """Solve every operating point of both sweeps; call ``progress(done, total, label)``."""
     job = cfg.maps
     motor = WetMotor(cfg.motor, get_oil(cfg.fluid.grade), log)
-    points = ([('speed', s, job.sweep_current_A) for s in job.speeds_rpm]
-              + [('current', job.sweep_speed_rpm, i) for i in job.currents_A])
+    points = map_points(cfg)
     out = []
     for k, (sweep, rpm, amps) in enumerate(points):
         if progress is not None:

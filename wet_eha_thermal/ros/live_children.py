@@ -50,6 +50,7 @@ class LiveOptions:
     max_bag_duration_s: float = interface.LIVE_SPLIT_DURATION_S
     foxglove: Optional[Tuple[str, int]] = ('127.0.0.1', 8765)    # None: no Foxglove view
     closed_loop: bool = False       # the rig's drive honours the estimator's current limit
+    as_built_seed: int = 1          # the rig's truth: a draw of the stated uncertainty (0: none)
 
 
 def child_commands(opts: LiveOptions, hardware_id: str,
@@ -71,7 +72,8 @@ def child_commands(opts: LiveOptions, hardware_id: str,
            '-p', f'wait_for:=[{", ".join(waits)}]',
            '-p', f'wait_for_subscribers:={len(waits)}',
            '-p', f'start_timeout_s:={START_TIMEOUT_S!r}',
-           '-p', f'honour_limit:={"true" if opts.closed_loop else "false"}']
+           '-p', f'honour_limit:={"true" if opts.closed_loop else "false"}',
+           '-p', f'as_built_seed:={int(opts.as_built_seed)}']
     if opts.duty is not None:
         rig += ['-p', f'duty_file:={Path(opts.duty).resolve()}']
     else:

@@ -37,6 +37,8 @@ ESTIMATE_STATUS = 'wet_eha_thermal: estimate'
 RECORDER_STATUS = 'wet_eha_thermal: recorder'
 INPUT_STATUS = 'wet_eha_thermal: input '
 RIG_STATUS = 'eha_sim_rig: rig'
+#: the band the truth is checked against: the one the drive's limits hold (k sigma)
+TRUTH_BAND_SIGMA = 2.0
 
 
 def domain_from_env() -> Optional[int]:
@@ -91,6 +93,12 @@ class TwinState:
     temps: Dict[str, float] = field(default_factory=dict)
     peaks: Dict[str, float] = field(default_factory=dict)
     sigma_K: Optional[float] = None
+    sigmas_K: Dict[str, float] = field(default_factory=dict)     # each estimate's 1 sigma
+    # the rig's truth against the estimate at each rig report: the last error (K), and
+    # how many reports had the truth inside the 2-sigma band, of how many
+    truth_error_K: Dict[str, float] = field(default_factory=dict)
+    truth_inside: Dict[str, int] = field(default_factory=dict)
+    truth_checks: int = 0
     estimates: int = 0
     first_rx: Optional[float] = None
     last_rx: Optional[float] = None
@@ -123,6 +131,7 @@ class TwinState:
                     rx: float) -> None:
         """Take one estimate message."""
         self.temps[name] = temperature_C
+        self.sigmas_K[name] = math.sqrt(variance) if variance >= 0.0 else math.nan
         if math.isfinite(temperature_C):
             self.peaks[name] = max(self.peaks.get(name, -math.inf), temperature_C)
         if name == WATCHED[0]:
@@ -173,8 +182,23 @@ class TwinState:
                         pass
             elif st.name == RIG_STATUS:
                 self.rig = kv
+                self.check_truth(kv)
             elif st.name == RECORDER_STATUS:
                 self.on_recorder(level_name(st.level), st.message, kv)
+
+    def check_truth(self, rig: Dict[str, str]) -> None:
+        """Compare the rig's truth with the latest estimates and their 2-sigma band."""
+        errors = {}
+        for q in WATCHED:
+            try:
+                errors[q] = self.temps[q] - float(rig[f'truth_{q}_C'])
+            except (KeyError, ValueError):
+                return
+        self.truth_error_K = errors
+        self.truth_checks += 1
+        for q, e in errors.items():
+            inside = abs(e) <= TRUTH_BAND_SIGMA * self.sigmas_K.get(q, math.nan)
+            self.truth_inside[q] = self.truth_inside.get(q, 0) + inside
 
     def on_recorder(self, level: str, message: str, values: Dict[str, str]) -> None:
         """Take the recorder's status: level (OK, WARN, ERROR), message and values."""

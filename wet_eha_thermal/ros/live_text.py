@@ -9,6 +9,7 @@ as data (their human summary lines are for people reading their logs).
 their wording, or change it there too.
 """
 
+import math
 from pathlib import Path
 import shutil
 from typing import Dict, List, Optional, TextIO
@@ -18,7 +19,7 @@ from wet_eha_thermal.interface import ESTIMATOR_NODE, NodeReport
 from wet_eha_thermal.live_view import address_text, app_url
 from wet_eha_thermal.model.quantity_table import label
 from wet_eha_thermal.ros.live_children import Child, LiveOptions
-from wet_eha_thermal.ros.live_monitor import TwinState, WATCHED
+from wet_eha_thermal.ros.live_monitor import TRUTH_BAND_SIGMA, TwinState, WATCHED
 from wet_eha_thermal.ros.sim_rig_node import clamp_text, figures_text
 
 #: Seconds between status lines: on a terminal (updated in place) and in a log.
@@ -83,9 +84,20 @@ def status_line(state: TwinState, elapsed_s: float, duration_s: float) -> str:
     return (f't {elapsed_s:5.1f}/{duration_s:g} s | '
             f'{label("winding_hotspot")} {t("winding_hotspot")}'
             f' mean {t("winding_mean")} | magnet {t("magnet")} | oil {t("oil")} degC | '
-            f'margin {margin} | limit: {limit_text(state)} | drive {drive_text(state)} | '
+            f'{truth_text(state)} | margin {margin} | limit: {limit_text(state)} | '
+            f'drive {drive_text(state)} | '
             f'alerts {alert} | '
             f'stale: {state.fallback}' + _recorder_part(state))
+
+
+def truth_text(state: TwinState) -> str:
+    """Return the hot-spot's error against the rig's truth and whether its band holds it."""
+    err = state.truth_error_K.get('winding_hotspot')
+    if err is None:
+        return 'truth pending'
+    sigma = state.sigmas_K.get('winding_hotspot', math.nan)
+    where = 'inside' if abs(err) <= TRUTH_BAND_SIGMA * sigma else 'OUTSIDE'
+    return f'vs truth {err:+.1f} K, {where} 2 sigma ({TRUTH_BAND_SIGMA * sigma:.1f} K)'
 
 
 def drive_text(state: TwinState) -> str:
@@ -260,9 +272,24 @@ def _estimate_lines(state: TwinState) -> List[str]:
                          if n in state.temps)
         out.append(f'  rig truth       {diff} degC (estimate - truth in brackets; last '
                    'rig report)')
+    if state.truth_checks:
+        share = {n: 100.0 * state.truth_inside.get(n, 0) / state.truth_checks for n in WATCHED}
+        held = ', '.join(f'{label(n)} {share[n]:.0f} %' for n in WATCHED)
+        out.append(f'  truth in band   {held} of {state.truth_checks} rig reports inside '
+                   f'estimate +- {TRUTH_BAND_SIGMA:g} sigma; {_as_built_text(state)}')
     out.append(f'  margin, limits  margin current {state.margin} A RMS; time to limit: '
                f'{limit_text(state)}')
     return out
+
+
+def _as_built_text(state: TwinState) -> str:
+    """Return what the rig's truth is: a draw of the configured uncertainty, or the model."""
+    seed = state.rig.get('as_built_seed', '')
+    if not _is_number(seed):
+        return 'the rig did not say what its truth is'
+    if float(seed) == 0.0:
+        return "the rig's truth is the estimator's own configuration (--rig-as-built 0)"
+    return f'the rig is built as draw {float(seed):.0f} of the configured uncertainty'
 
 
 def _drive_lines(opts: LiveOptions, state: TwinState, rig: Optional[NodeReport]) -> List[str]:

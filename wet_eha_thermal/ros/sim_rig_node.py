@@ -89,6 +89,7 @@ from wet_eha_thermal.interface import (AMBIENT_TOPIC, CURRENT_LIMITS_TOPIC, DIAG
                                        prefixed, PRESSURE_INPUTS, READY_TOPIC, RIG_NODE,
                                        THERMOCOUPLES)
 from wet_eha_thermal.model.kinetics import DutyError, load_duty_csv, stage_duty, STAGES
+from wet_eha_thermal.model.uncertainty import as_built
 from wet_eha_thermal.offline.simulated_rig import (AMBIENT_SIGMA_K, NOISE_SIGMA, SimulatedRig,
                                                    THERMOCOUPLE_SIGMA_K)
 from wet_eha_thermal.ros.runtime import (accept_whole_numbers, descriptor, prepare_model_step,
@@ -186,12 +187,16 @@ class SimRigNode(Node):
         super().__init__(NODE_NAME, **kwargs)
         p = self._declare_parameters()
         self.cfg = load_config(p['config_file'] or None)
+        # the rig "as built": its truth drawn from the configuration's stated sigmas, so that
+        # the estimator meets a rig it is not (0: the configuration itself)
+        self.as_built_seed = p['as_built_seed']
+        self.truth_cfg = as_built(self.cfg, self.as_built_seed or None)
         act = self.cfg.hydraulics.actuator
         if p['duty_file']:
             duty = load_duty_csv(p['duty_file'], act.area_m2, act.half_stroke_m)
         else:
             duty = stage_duty(self.cfg, p['stage'])
-        self.rig = SimulatedRig(self.cfg, duty, rate_Hz=p['rate_Hz'], noise=p['noise'],
+        self.rig = SimulatedRig(self.truth_cfg, duty, rate_Hz=p['rate_Hz'], noise=p['noise'],
                                 seed=p['seed'], ambient_C=p['ambient_C'],
                                 thermocouple_lag_s=p['thermocouple_lag_s'],
                                 block_s=p['block_s'])
@@ -201,7 +206,7 @@ class SimRigNode(Node):
         self.limit_fallback_s = 0.0         # duty time the drive spent on a fallback limit
         # before any subscription or publisher: a first step that compiled would keep
         # samples waiting for half a minute
-        prepare_model_step(self, self.cfg)
+        prepare_model_step(self, self.truth_cfg)
         self.n_block = self.rig.n_block
         self.period_s = self.rig.period_s
         self.period_ns = int(round(self.period_s * 1e9))
@@ -268,7 +273,10 @@ class SimRigNode(Node):
         self.get_logger().info(
             f'rig: {what} at {1.0 / self.period_s:g} Hz ({self.n_block} samples per '
             f'{self.rig.block_s * 1e3:g} ms block), noise {"on" if self.noise else "off"}, '
-            f'ambient {p["ambient_C"]:g} degC, qos {p["qos"]}, topics under {prefix}'
+            f'ambient {p["ambient_C"]:g} degC, qos {p["qos"]}, topics under {prefix}; '
+            + (f'the truth is a rig as built (draw {self.as_built_seed} of the configured '
+               'uncertainty)' if self.truth_cfg is not self.cfg else
+               'the truth is the configuration itself')
             + (f'; the drive honours the current limit (watchdog {p["limit_watchdog_s"]:g} s, '
                f'fallback {self.drive.fallback_A:g} A)' if self.drive is not None else ''))
 
@@ -290,6 +298,10 @@ class SimRigNode(Node):
                 'samples are computed (kinetics, truth model step) in blocks this long, s',
                 0.005, 1.0)),
             ('config_file', '', descriptor('YAML configuration; empty: the reference rig')),
+            ('as_built_seed', 1, descriptor(
+                'the truth model is the configuration with every uncertain parameter (and '
+                'structural choice) of its uncertainty section drawn with this seed: a rig '
+                'as built, not as configured; 0: the configuration itself', 0, 2 ** 31 - 1)),
             ('topic_prefix', PREFIX, descriptor('namespace of the rig topics')),
             ('qos', 'sensor_data', descriptor('QoS of the inputs: sensor_data or reliable')),
             ('wait_for_subscribers', 0, descriptor(
@@ -478,6 +490,8 @@ class SimRigNode(Node):
                 'block_p50_ms': b50, 'block_p99_ms': b99,
                 'cpu_percent': 100.0 * cpu / wall if wall > 0 else 0.0,
                 'truth_winding_hotspot_peak_C': self.rig.peak_hotspot_K - C_TO_K,
+                'as_built_seed': float(self.as_built_seed if self.truth_cfg is not self.cfg
+                                       else 0),
                 **self.limit_figures()}
 
     def limit_figures(self) -> Dict[str, float]:

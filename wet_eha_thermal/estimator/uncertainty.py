@@ -1,0 +1,202 @@
+"""
+The uncertainty of every estimate, propagated from the configuration's stated sigmas.
+
+First order, as the GUM does it (JCGM 100:2008, 5.1.2): the variance of a
+temperature T is sum_j (dT/dp_j s_j)^2 over the uncertain parameters p_j of
+the ``uncertainty`` section, each with its stated 1 sigma s_j. The
+sensitivities dT/dp_j s_j are finite differences of whole models: one copy
+of the model per parameter, built with that parameter moved by one sigma
+(:func:`~..model.uncertainty.parameter_perturbations`), stepped on the
+estimator's own duty beside an unperturbed copy stepped the same way; the
+difference of their outputs is that parameter's contribution. Whole copies
+carry the sensitivity along the run exactly as the model carries heat (no
+linearisation about a state), so the result starts at zero at ambient,
+where no parameter moves anything, and grows with the heat. The structural
+part is the same difference for the copies of
+:func:`~..model.uncertainty.structural_perturbations` (finer axial slices;
+each other law the configuration can select, taken as one sigma), plus
+``rise_fraction`` of each temperature's rise above ambient.
+
+Cost and time: the copies step once per ``copy_period_s`` of sample time, one
+model step over the period's duty (the estimator's steps, as their means:
+the current as the RMS), so 31 copies of the reference rig cost about 31
+model steps per 10 s. They are worked in the background between estimates
+(:meth:`Propagation.work`) and any still pending when the next period ends
+are stepped there and then, so the uncertainty depends on the samples alone:
+a replay gives the live sigmas bit for bit. The sigmas published during a
+period are those of the copies at its start (one period late).
+
+With the live correction on, the filter (:mod:`.correction`) takes the
+parameter part as process noise: at each period, the covariance of the
+change of the parameter sensitivities over it (:attr:`Propagation.growth`).
+"""
+
+import math
+import time
+from typing import Dict, List, Optional
+
+import numpy as np
+
+from ..config import Config
+from ..model.eha import EHAModel, SampleBlock
+from ..model.uncertainty import parameter_perturbations, structural_perturbations
+
+#: the copies' duty: the estimator's grid samples averaged over about this long (s)
+SAMPLE_S = 0.02
+
+
+class Propagation:
+    """The sensitivity copies of the model, stepped each period; the sigmas they give."""
+
+    def __init__(self, cfg: Config, names: List[str]) -> None:
+        u = cfg.uncertainty
+        s = cfg.estimator
+        self.settings = u
+        self.names = list(names)
+        self.period_steps = max(1, int(round(u.copy_period_s / s.step_s)))
+        self.params = parameter_perturbations(cfg)
+        self.structural = structural_perturbations(cfg)
+        self._cfgs = [cfg] + [p.cfg for p in self.params] + [p.cfg for p in self.structural]
+        # built now, with the estimator: at its first sample they would stall a live node
+        # for the seconds their construction takes
+        self.models: List[EHAModel] = []
+        for c in self._cfgs:
+            m = EHAModel(c, coefficient_filter_s=s.coefficient_filter_s)
+            m.circuit.keep_transition = False
+            m.motor.check_rotor_validity = False     # the copies' validity is not reported
+            m.oil_substep_s = s.forecast_substep_s
+            self.models.append(m)
+        self._samples: List[tuple] = []       # this period's step means
+        self._job: Optional[SampleBlock] = None
+        self._last_s = 0.0                    # the last step's end (model time s)
+        self._pending = False                 # a period stepped (or being) but not taken
+        self._next = 0                        # next copy the job steps
+        self._ambient_K = math.nan
+        self._rise_fraction = u.structural.rise_fraction
+        n, q = len(self._cfgs), len(self.names)
+        self._y = np.zeros((n, q))            # each copy's outputs at the job's end (K)
+        self._x: List[Optional[np.ndarray]] = [None] * n
+        #: each quantity's variance from the copies (K^2), at the last period's end
+        self.variance_K2 = np.zeros(q)
+        #: the parameter sensitivities of the states at the last period's end (params x n, K)
+        self.sensitivity_K: Optional[np.ndarray] = None
+        #: the covariance of their change over the last period (K^2; None: no change yet)
+        self.growth: Optional[np.ndarray] = None
+        self.periods = 0
+        self.work_s = 0.0                     # CPU time spent stepping copies (s)
+
+    @property
+    def copies(self) -> int:
+        """Return how many models are stepped: the unperturbed one and the perturbed ones."""
+        return len(self._cfgs)
+
+    def start(self, ambient_K: float, first: SampleBlock) -> None:
+        """Start the copies where the estimator's model starts."""
+        for m in self.models:
+            m.initialise(ambient_K, first)
+        self._samples = []
+        self._job = None
+        self._pending = False
+        self._last_s = float(first.t_s[-1])
+
+    def record(self, since_start_s: float, block: SampleBlock, steps_before: int,
+               steps_after: int, ambient_K: float) -> bool:
+        """
+        Add a step's (or a held block's) duty; at a period's end, start stepping the copies.
+
+        ``since_start_s`` the step's end in model time, ``block`` its inputs
+        (one sample for a held block); the step took the step count from
+        ``steps_before`` to ``steps_after``. At a period's end the copies of
+        the period before are finished (if the background has not) and their
+        sigmas taken: returns True then. The sigmas change there only, at a
+        step fixed by the sample times.
+        """
+        n = block.current_A.size
+        span = since_start_s - self._last_s
+        self._last_s = since_start_s
+        # the grid's samples, in groups of about SAMPLE_S: a bidirectional duty's speed and
+        # pressures alternate within a long step, and their means would cancel the pump's heat
+        per = max(1, int(round(SAMPLE_S * n / span))) if span > 0.0 else n
+        groups = max(1, n // per)
+        ends = np.linspace(0, n, groups + 1).round().astype(int)[1:]
+        starts = np.concatenate([[0], ends[:-1]])
+        for a, b in zip(starts, ends):
+            self._samples.append((self._last_s - span * (n - b) / n,
+                                  math.sqrt(float(np.mean(block.current_A[a:b] ** 2))),
+                                  *(float(np.mean(x[a:b])) for x in (
+                                      block.speed_rad_s, block.p_a_Pa, block.p_b_Pa,
+                                      block.p_acc_Pa)),
+                                  float(block.position_m[b - 1])))
+        p = self.period_steps
+        if steps_after // p == steps_before // p:
+            return False
+        taken, self._pending = self._pending, True
+        self.finish()
+        if taken:
+            self._take()
+        cols = np.array(self._samples).T
+        self._job = SampleBlock(*cols)
+        self._samples = []
+        self._next = 0
+        self._ambient_K = ambient_K
+        return taken
+
+    def work(self, budget_s: float) -> None:
+        """Step copies of the waiting period for about ``budget_s`` of wall time (at least one)."""
+        deadline = time.perf_counter() + budget_s
+        while self._job is not None:
+            self._step_next()
+            if time.perf_counter() >= deadline:
+                break
+
+    def finish(self) -> None:
+        """Step every copy the waiting period still has."""
+        while self._job is not None:
+            self._step_next()
+
+    def _step_next(self) -> None:
+        """Step the next copy over the waiting period."""
+        t0 = time.process_time()
+        job = self._job
+        k = self._next
+        m = self.models[k]
+        span = float(job.t_s[-1] - m.time_s)
+        m.step(job, self._ambient_K, max_substep_s=span)
+        out = m.outputs()
+        self._y[k] = [out[n] for n in self.names]
+        if k <= len(self.params):
+            self._x[k] = m.state
+        self._next += 1
+        self.work_s += time.process_time() - t0
+        if self._next == len(self.models):
+            self._job = None
+
+    def _take(self) -> None:
+        """Form the variances and the parameter sensitivities from the copies' outputs."""
+        d = self._y[1:] - self._y[0]
+        rise = np.maximum(self._y[0] - self._ambient_K, 0.0)
+        self.variance_K2 = np.sum(d * d, axis=0) + (self._rise_fraction * rise) ** 2
+        x0 = self._x[0]
+        S = np.array([x - x0 for x in self._x[1:len(self.params) + 1]])
+        if self.sensitivity_K is not None:
+            dS = S - self.sensitivity_K
+            self.growth = dS.T @ dS
+        self.sensitivity_K = S
+        self.periods += 1
+
+    def sigma_K(self) -> np.ndarray:
+        """Return each quantity's 1 sigma (K) at the last period's end, in ``names`` order."""
+        return np.sqrt(self.variance_K2)
+
+    def relative(self, min_rise_K: float = 5.0) -> Dict[str, float]:
+        """
+        Return each quantity's 1 sigma per K of rise above ambient, where it has risen.
+
+        From the last period's sigmas over the rise of the unperturbed copy
+        then, for a quantity at least ``min_rise_K`` above ambient; the limits
+        carry the uncertainty to their horizons with it (:mod:`.limits`).
+        """
+        rise = self._y[0] - self._ambient_K
+        sig = self.sigma_K()
+        return {n: float(sig[i] / rise[i]) for i, n in enumerate(self.names)
+                if self.periods and rise[i] >= min_rise_K}
