@@ -31,7 +31,7 @@ def feed(est, t0, seconds, rate_Hz=1000.0, current=lambda t: 15.0, skip=(), adva
         for ch in INPUTS:
             if ch in skip:
                 continue
-            est.intake.push(ch, t, current(t) if ch == 'current_A' else values[ch])
+            est.push(ch, t, current(t) if ch == 'current_A' else values[ch])
         if advance and k % 20 == 0:
             out += est.advance()
     return t0 + n / rate_Hz, out
@@ -113,7 +113,7 @@ def test_implausible_combinations_are_counted(cfg):
         t = 1.0 + k / 1000
         sample = dict(STEADY, current_A=5.0, speed_rad_s=0.0, position_m=0.02 * (t - 1.0))
         for ch in INPUTS:
-            est2.intake.push(ch, t, sample[ch])
+            est2.push(ch, t, sample[ch])
         if k % 20 == 0:
             est2.advance()
     assert est2.implausible_counts['flow_without_speed'] >= 20
@@ -152,26 +152,26 @@ def test_forecast_matches_a_simulated_run_to_the_limit(cfg):
         s = kin.sample(duty, ts, fb)
         for i in range(ts.size):
             for ch in INPUTS:
-                est.intake.push(ch, ts[i], float(getattr(s, ch)[i]))
+                est.push(ch, ts[i], float(getattr(s, ch)[i]))
         est.advance_all()
-    start = est.outlook.stamp_s       # the forecast tick at 60 s, done at once (inline)
+    start = est._outlook.stamp_s       # the forecast tick at 60 s, done at once (inline)
     assert start == pytest.approx(60.0, abs=0.1)
     for q in ('oil', 'magnet'):
-        predicted = start + est.outlook.result[q]
+        predicted = start + est._outlook.result[q]
         # the forecast repeats the first minute's sensor duty, while in the run the oil
         # thins, the leakage grows and the speed (and its friction) with it: the forecast
         # crosses late, by 3-4 % whatever its step (2 s: 4.0 %, 10 s: 3.1 %)
         assert truth[q] < predicted < 1.045 * truth[q], q
-    assert est.outlook.failures == 0
+    assert est._outlook.failures == 0
 
 
 def test_margin_current_brings_the_hotspot_to_its_limit_less_k_sigma(cfg):
     est = Estimator(cfg, outlook='inline')
     feed(est, 0.0, 2.0, rate_Hz=200.0)
-    amps = est.outlook._margins[1][0]    # the first tick's continuous limit
+    amps = est._outlook._margins[1][0]    # the first tick's continuous limit
     assert 10.0 < amps < 200.0
     # independent check: the motor alone in steady state at that current
-    mot = est.outlook._margin_motor
+    mot = est._outlook._margin_motor
     lim = cfg.estimator.limits
     assert mot.outputs()['winding_hotspot'] - C_TO_K == pytest.approx(
         cfg.motor.winding.insulation_limit_C - lim.k_sigma * cfg.estimator.model_uncertainty_K,
@@ -192,9 +192,9 @@ def test_differential_pressure_matches_ports_with_the_low_side_at_the_accumulato
         common = {'current_A': 20.0, 'speed_rad_s': 900.0, 'position_m': x}
         for ch, v in dict(common, p_a_Pa=p_acc + max(dp, 0.0), p_b_Pa=p_acc + max(-dp, 0.0),
                           p_acc_Pa=p_acc).items():
-            ports.intake.push(ch, t, v)
+            ports.push(ch, t, v)
         for ch, v in dict(common, dp_Pa=dp).items():
-            diff.intake.push(ch, t, v)
+            diff.push(ch, t, v)
         ports.advance()
         diff.advance()
     assert ports.steps == diff.steps > 900
@@ -208,7 +208,7 @@ def test_differential_pressure_matches_ports_with_the_low_side_at_the_accumulato
         t = k / 1000.0
         for ch, v in {'current_A': 20.0, 'speed_rad_s': 900.0, 'dp_Pa': 0.0,
                       'position_m': 0.01 * math.sin(2 * math.pi * t / 4.0)}.items():
-            flat.intake.push(ch, t, v)
+            flat.push(ch, t, v)
         flat.advance()
     assert diff.latest.temperatures_C['pump_port_a'] \
         - flat.latest.temperatures_C['pump_port_a'] > 0.3
@@ -226,7 +226,7 @@ def test_deferred_rediscretisation_is_deterministic_and_lags_harmlessly(cfg):
         prepared = 0
         for i in range(t.size):
             for ch, v in cols:
-                est.intake.push(ch, t[i], float(v[i]))
+                est.push(ch, t[i], float(v[i]))
             if i % 20 == 19:
                 est.advance()
                 if prepare:
@@ -284,7 +284,7 @@ def test_add_many_counts_and_keeps_the_same_in_blocks_as_one_by_one(cfg):
     assert vars(h1) == vars(h2)
     assert h1.non_finite >= 30 and h1.out_of_range >= 25 and h1.backwards >= 20
     kept = [(b.stamps().tolist(), b.v[b.lo:b.hi].tolist())
-            for b in (one.intake.buffers['current_A'], many.intake.buffers['current_A'])]
+            for b in (one._intake.buffers['current_A'], many._intake.buffers['current_A'])]
     assert kept[0] == kept[1]
     late = Estimator(cfg)
     late.t_model = 1.0
@@ -305,16 +305,16 @@ def test_a_burst_of_bunched_position_stamps_is_rate_limited(cfg):
             t = k / 1000.0
             x = 0.02 * math.sin(2 * math.pi * t / 2.0)       # 63 mm/s peak
             for ch in INPUTS[:-1]:
-                est.intake.push(ch, t, 15.0 if ch == 'current_A' else STEADY[ch])
+                est.push(ch, t, 15.0 if ch == 'current_A' else STEADY[ch])
             if burst and 4000 < k <= 4400:
                 held.append(x)                                 # stalled receiver
             elif held:
                 for j, xj in enumerate(held):                  # stamped on arrival
-                    est.intake.push('position_m', t - 0.001 + (j + 1) * 1e-6, xj)
+                    est.push('position_m', t - 0.001 + (j + 1) * 1e-6, xj)
                 held = []
-                est.intake.push('position_m', t, x)
+                est.push('position_m', t, x)
             else:
-                est.intake.push('position_m', t, x)
+                est.push('position_m', t, x)
             est.advance()
         return est
 

@@ -58,7 +58,7 @@ class Rig(NodeAndProbe):
         in_qos = topics.input_qos('sensor_data', 100)
         self.pubs = {name: self.probe.create_publisher(
             FluidPressure if name in interface.PRESSURE_INPUTS else Float64,
-            interface.INPUT_TOPICS[name], in_qos) for name in self.node.est.inputs}
+            interface.INPUT_TOPICS[name], in_qos) for name in self.node.session.inputs}
         self.clock_pub = self.probe.create_publisher(Clock, '/clock', 10)
         self.ack_pub = self.probe.create_publisher(String, interface.ACK_TOPIC,
                                                    QoSProfile(depth=10))
@@ -225,7 +225,7 @@ def test_latched_alert_and_acknowledge(context, tmp_path):
     path.write_text(yaml.safe_dump(cfg))
     rig = Rig(context, [Parameter('config_file', value=str(path))])
     try:
-        assert rig.feed(8.0, until=lambda: rig.node.est.alerts.worst() >= WARN)
+        assert rig.feed(8.0, until=lambda: rig.node.session.alert_level >= WARN)
         assert rig.feed(2.0, until=lambda: rig.level('estimate') == WARN)
         # a subscriber created after the alert still gets it (transient local)
         late = []
@@ -379,8 +379,8 @@ def test_model_failure_keeps_publishing_and_reports_error(rig):
     def broken_push(*args):
         raise RuntimeError('injected')
 
-    rig.node.est.advance = broken
-    rig.node.est.intake.push = broken_push
+    rig.node.session._est.advance = broken
+    rig.node.session._est.push = broken_push
     n = len(rig.estimates['oil'])
     assert rig.feed(3.0, until=lambda: rig.level('estimate') == ERROR
                     and len(rig.estimates['oil']) > n + 10)
@@ -444,7 +444,7 @@ def test_foxglove_view_shows_the_published_estimates(context):
     rig = Rig(context, overrides=[Parameter('foxglove_address', value='127.0.0.1:0')])
     client = None
     try:
-        view = rig.node.view
+        view = rig.node.view.view           # the node's Foxglove glue, and its LiveView
         assert view is not None and view.port > 0
         client = Client(view.port)
         client.read(lambda: len(client.channels) == len(CHANNELS))
@@ -481,7 +481,7 @@ def test_foxglove_view_shows_the_published_estimates(context):
             Parameter('foxglove_address', value=f'127.0.0.1:{view.port}'),
             Parameter('topic_prefix', value='/eha_taken_port')])
         try:
-            assert other.view is None and 'in use' in other.view_error
+            assert other.view.view is None and 'in use' in other.view.error
         finally:
             other.destroy_node()
     finally:
@@ -566,3 +566,82 @@ def test_whatif_command_says_when_no_estimator_answers(tmp_path, capsys, monkeyp
     assert cli.main(['whatif', '--stage', '6', '--topic-prefix', '/nobody_here',
                      '--out', str(tmp_path)]) == 2
     assert 'no estimator subscribes to /nobody_here/whatif/request' in capsys.readouterr().err
+
+
+def test_a_replay_writes_what_the_node_published_for_the_same_samples(
+        context, record_rig_log, tmp_path):
+    # a recording of the rig (the topics a live run records) goes through the node, each
+    # sample on its callback with the clock at its log time (the stamp a Float64 got live),
+    # and through replay: every estimator topic the same, message by message
+    from collections import defaultdict
+    import functools
+
+    from mcap.reader import make_reader
+    from rclpy.serialization import deserialize_message
+    from wet_eha_thermal.bag.reader import iter_raw
+    from wet_eha_thermal.offline import replay as rp
+
+    bag = record_rig_log(tmp_path / 'rig.mcap', 6.0, seed=5)
+    plan = rp.plan_replay(bag)
+    first = rp.replay(plan, output_rate_Hz=50.0)
+    # an alert raised half-way (the winding's warning at its temperature then)
+    data = yaml.safe_load(plan.config_yaml)
+    data['estimator']['alerts']['winding_hotspot'].update(
+        warn_C=float(first.temperatures_C['winding_hotspot'][len(first.stamp_s) // 2]),
+        critical_C=400.0, min_duration_s=0.1)
+    cfg_file = tmp_path / 'rig.yaml'
+    cfg_file.write_text(yaml.safe_dump(data))
+    plan = rp.plan_replay(bag, config_path=cfg_file)
+    result = rp.replay(plan, output_rate_Hz=50.0)
+    mcap = rp.write_mcap(result, tmp_path / 'estimates.mcap')
+    replayed = defaultdict(list)
+    with open(mcap, 'rb') as f:
+        for _, channel, message in make_reader(f).iter_messages(log_time_order=False):
+            replayed[channel.topic].append(message.data)
+
+    node = EstimatorNode(context=context, parameter_overrides=[
+        Parameter('config_file', value=str(cfg_file))])
+    try:
+        published = defaultdict(list)
+        for topic, pub in node.pubs.items():
+            pub.publish = functools.partial(lambda t, msg: published[t].append(msg), topic)
+        by_topic = {topic: name for name, topic in plan.inputs.items()}
+        by_tc = {topic: tc for tc, topic in plan.thermocouples.items()}
+        clock = {'ns': 0}
+        node.clock.now_ns = lambda: clock['ns']
+        for m in iter_raw(bag, list(by_topic) + [plan.ambient] + list(by_tc)):
+            clock['ns'] = m.log_time_ns
+            if m.topic in by_topic:
+                name = by_topic[m.topic]
+                if name in interface.PRESSURE_INPUTS:
+                    node._on_pressure(name, m.data)
+                else:
+                    node._on_float(name, m.data)
+            elif m.topic in by_tc:
+                node._on_measured(by_tc[m.topic], deserialize_message(m.data, Temperature))
+            else:
+                node._on_ambient(deserialize_message(m.data, Temperature))
+            while node.session.work(1.0):       # the limits never wait (replay's are inline)
+                pass
+        assert not node.callback_errors and node.session.model_errors == 0
+    finally:
+        node.destroy_node()
+    for topic in [f'{interface.ESTIMATE_PREFIX}/{n}' for n in interface.ESTIMATES] + [
+            interface.STATE_TOPIC, interface.CURRENT_LIMITS_TOPIC, interface.CURRENT_LIMIT_TOPIC]:
+        assert len(published[topic]) == len(replayed[topic]) > 0, topic
+        assert published[topic] == replayed[topic], topic
+    assert len(published[interface.STATE_TOPIC]) == len(result.stamp_s) > 250
+    assert len(replayed[interface.CURRENT_LIMITS_TOPIC]) >= 10
+    # the alert summaries: the node's since its first (published at its start), a
+    # replay's since its own first; the same levels, acknowledgements and events, in the
+    # same order (one summary per call: each at the last estimate of its call)
+
+    def key(data):
+        s = json.loads(deserialize_message(data, String).data)
+        return (s['level'], s['events'], s['data_gaps'], s['clock_jumps'],
+                {q: (d['reported'], d['active'], d['acknowledged'])
+                 for q, d in s['quantities'].items()})
+
+    live = [key(d) for d in published[interface.ALERT_TOPIC]]
+    replay = [key(d) for d in replayed[interface.ALERT_TOPIC][1:]]
+    assert live == replay and live[-1][0] == 1 and live[0][1], live

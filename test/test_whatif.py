@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from wet_eha_thermal import interface
 from wet_eha_thermal.config import load_config
-from wet_eha_thermal.estimator.core import Estimator
+from wet_eha_thermal.estimator.session import EstimatorSession
 from wet_eha_thermal.model.eha import EHAModel, SampleBlock
 from wet_eha_thermal.model.kinetics import L_MIN, MPA, stage_duty, TableDuty
 from wet_eha_thermal.offline.simulation import SENSORS, SensorTable, simulate
@@ -95,15 +95,14 @@ def test_from_the_live_estimator_it_follows_what_the_estimator_then_does(cfg, kn
     default step of 1 s within 30 mK, the step's own error in the fast
     oil volumes. The what-if starts at the estimator's state.
     """
-    est = Estimator(cfg)
+    est = EstimatorSession(cfg)
 
     def feed(k0, k1):
         for k in range(k0, k1):
             t = 0.02 * k + np.arange(1, 21) / 1000.0
             for name in est.inputs:
-                est.add_many(name, t, np.full(t.size, SIGNALS[name]), now_s=float(t[-1]))
-            est.advance(float(t[-1]))
-            est.prepare()
+                est.add(name, t, np.full(t.size, SIGNALS[name]), now_s=float(t[-1]))
+            est.step(float(t[-1]))
 
     feed(0, 750)
     start = {q: est.latest.temperatures_C[q] for q in interface.ESTIMATES}

@@ -733,20 +733,19 @@ def _whatif(args: argparse.Namespace) -> int:
         text = run_request(json.dumps(_whatif_request(args, cfg)), cfg, model_outputs(cfg),
                            None, 20.0, 'cold', None)
     else:
-        from .estimator.core import Estimator
+        from .estimator.session import EstimatorSession
         from .offline import replay as rp
-        from .units import C_TO_K
 
         try:
             plan = rp.ReplayOptions(config_path=args.config).plan(args.bag)
-            est = Estimator(plan.cfg)
+            session = EstimatorSession(plan.cfg)
             print(f'replaying {args.bag} for its last state ...', flush=True)
-            rp.replay(plan, estimator=est)
+            rp.replay(plan, session=session)
         except (rp.ReplayError, rp.BagError) as exc:
             raise BadArgument(str(exc)) from None
         text = run_request(json.dumps(_whatif_request(args, plan.cfg)), plan.cfg,
-                           est.model.quantities.names, pickle.dumps(est.model),
-                           est.ambient_K - C_TO_K, f'the last state of {args.bag}', est.t_model)
+                           session.model.quantities.names, pickle.dumps(session.model),
+                           session.ambient_C, f'the last state of {args.bag}', session.t_model)
     answer = json.loads(text)
     print(format_answer(answer))
     if not answer['ok']:

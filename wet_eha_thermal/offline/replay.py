@@ -44,9 +44,10 @@ from .. import interface
 from ..bag.reader import BagError, BagInfo, Columns, iter_column_blocks, open_bag
 from ..config import (Config, config_from_yaml, ConfigError, default_config_path, load_config,
                       with_values)
-from ..estimator.core import Estimate, Estimator
+from ..estimator.core import Estimate
 from ..estimator.intake import INPUTS, sensor_inputs
 from ..estimator.limits import CurrentLimits
+from ..estimator.session import EstimatorSession, Output, Samples
 from ..model import quantity_table
 from ..output_files import atomic, markdown_table, save_figure, write_text
 
@@ -56,18 +57,6 @@ OUTPUT_ESTIMATES = interface.ESTIMATES
 
 class ReplayError(ValueError):
     """A bag or a topic mapping that cannot be replayed; the message says why."""
-
-
-@dataclass
-class Samples:
-    """One block of a bag by what it feeds: stamps (s) and values, in SI units and degC."""
-
-    inputs: Dict[str, Tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
-    # stamps, readings (degC) and the variances the messages give (K^2)
-    thermocouples: Dict[str, Tuple[np.ndarray, np.ndarray, np.ndarray]] = field(
-        default_factory=dict)
-    ambient: Tuple[np.ndarray, np.ndarray] = (np.zeros(0), np.zeros(0))
-    first_s: Optional[float] = None            # the earliest stamp of the block
 
 
 @dataclass
@@ -235,7 +224,7 @@ class ReplayResult:
     plan: ReplayPlan
     stamp_s: np.ndarray                      # estimate stamps (sample time, s)
     temperatures_C: Dict[str, np.ndarray]
-    sigma_K: np.ndarray
+    sigma_K: np.ndarray                      # the largest uncertainty of all quantities (K)
     alert_level: np.ndarray
     stale_inputs: np.ndarray                 # number of inputs on fallback per estimate
     measured: Dict[str, tuple]               # thermocouple -> (stamps s, degC)
@@ -268,6 +257,14 @@ class ReplayResult:
     current_limits: List[CurrentLimits] = field(default_factory=list)
     limits_held_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
     limits_current_A: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    # per estimate, each output's uncertainty (K, 1 sigma) and the model's state (K, one
+    # row per estimate, columns named by ``state_names``): what the live node publishes
+    uncertainty_K: Dict[str, np.ndarray] = field(default_factory=dict)
+    state_K: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    state_names: Tuple[str, ...] = ()
+    # the alert summaries as the session published them, each with the stamp of the
+    # estimate it went out with (None: before the first)
+    alerts: List[Tuple[Optional[float], dict]] = field(default_factory=list)
 
     @property
     def speed_x(self) -> float:
@@ -297,40 +294,6 @@ class _Decimator:
         if not self.t:
             return np.zeros(0), np.zeros(0)
         return np.concatenate(self.t), np.concatenate(self.v)
-
-
-def _feed(est: Estimator, samples: Samples, advance: Callable[[], None]) -> None:
-    """Give one routed block to the estimator in stamp order, calling ``advance`` to step."""
-    series, ambient = samples.inputs, samples.ambient
-    for tc, (t, v, _) in samples.thermocouples.items():
-        # for the live correction (and the display): each reading is used by stamp, so
-        # the whole block may go in before the steps
-        for stamp, value in zip(t.tolist(), v.tolist()):
-            est.add_measured(tc, stamp, value)
-    # an ambient reading applies from its stamp on, as it does live: feed the inputs
-    # up to each reading, step, then take it
-    cuts = {name: np.searchsorted(t, ambient[0], side='right')
-            for name, (t, _) in series.items()}
-    for k in range(ambient[0].size + 1):
-        for name, (t, v) in series.items():
-            lo = cuts[name][k - 1] if k else 0
-            hi = cuts[name][k] if k < ambient[0].size else t.size
-            if hi > lo:
-                est.add_many(name, t[lo:hi], v[lo:hi])
-        advance()
-        if k < ambient[0].size:
-            est.add_ambient(float(ambient[0][k]), float(ambient[1][k]))
-
-
-def _correction_summary(est: Estimator) -> Optional[dict]:
-    """Return the live correction's learned heats and thermocouple counters; None when off."""
-    if est.correction is None:
-        return None
-    return {'active': est.correction.active, 'updates': est.correction.updates,
-            'disturbance_W': dict(zip(est.correction.disturbance_names,
-                                      est.correction.d.tolist())),
-            'thermocouples': {tc: dict(vars(h)) for tc, h in est.correction.tcs.items()
-                              if h.received}}
 
 
 class _TickCurrent:
@@ -372,7 +335,7 @@ def _outlook_row(e: Estimate, limited: Sequence[str]) -> List[float]:
 def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
            on_progress: Optional[Callable[[float, float, float], None]] = None,
            plot_interval_s: float = 0.1, prefetch: bool = True,
-           estimator: Optional[Estimator] = None, outlook: bool = True) -> ReplayResult:
+           session: Optional[EstimatorSession] = None, outlook: bool = True) -> ReplayResult:
     """
     Run the estimator over the bag of ``plan`` in sample time; return the estimates.
 
@@ -382,20 +345,23 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
     forked child on another core (the same numbers either way; see
     :class:`~.bag.reader.ColumnBlocks`). ``outlook``: compute every tick's
     current limits, the forecast and the margin, inline (``False``: none).
-    ``estimator``: the one to run (its own outlook, not ``outlook``), new on ``plan.cfg``
-    by default, kept by the caller to start from its last state (a what-if
-    from a bag).
+    ``session``: the estimator session to run (its own outlook, not ``outlook``), new on
+    ``plan.cfg`` by default, kept by the caller to start from its last state (a
+    what-if from a bag).
     """
-    est = estimator if estimator is not None else Estimator(
+    session = session if session is not None else EstimatorSession(
         plan.cfg, outlook='inline' if outlook else 'off')
-    outlook = est.outlook_mode != 'off'       # a caller's estimator has its own
-    limited = list(est.limits_C)
+    outlook = session.outlook_mode != 'off'       # a caller's session has its own
+    limited = list(session.limits_C)
     current_limits: List[CurrentLimits] = []
     tick_current = _TickCurrent()
     step_s = plan.cfg.estimator.step_s
     every = max(1, int(round(1.0 / (output_rate_Hz * step_s))))
     rows: List[np.ndarray] = []
+    sigmas: List[List[float]] = []
+    states: List[np.ndarray] = []
     events: List[tuple] = []
+    alerts: List[Tuple[Optional[float], dict]] = []
     measured = {tc: ([], []) for tc in plan.thermocouples}
     inputs_plot = {name: _Decimator(plot_interval_s) for name in plan.inputs}
     t_wall = time.perf_counter()
@@ -406,12 +372,14 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
     blocks = iter_column_blocks(plan.info.path, plan.specs, prefetch=prefetch,
                                 on_progress=lambda done, total: done_bytes.__setitem__(0, done))
 
-    def advance() -> None:
-        estimates = est.advance_all()
-        # inline, a tick's limits are done within the step that made it
-        ticks = {lim.stamp_s: lim for lim in est.outlook.take_limits()}
+    def collect(out: Output) -> None:
+        # inline, a tick's limits are done within the step that made it: they come out
+        # with its estimate
+        ticks = {lim.stamp_s: lim for lim in out.limits}
         current_limits.extend(ticks.values())
-        for e in estimates:
+        if out.alerts is not None:
+            alerts.append((out.estimates[-1].stamp_s if out.estimates else None, out.alerts))
+        for e in out.estimates:
             for ev in e.alert_events:
                 events.append((e.stamp_s, ev.message))
             if outlook:
@@ -421,7 +389,11 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
                     [e.stamp_s] + [e.temperatures_C[n] for n in OUTPUT_ESTIMATES]
                     + [max(e.uncertainty_K.values()), e.alert_level, len(e.stale)]
                     + (_outlook_row(e, limited) if outlook else [])))
+                sigmas.append([e.uncertainty_K[n] for n in OUTPUT_ESTIMATES])
+                states.append(e.state_K)
 
+    session.publish = collect
+    session.announce()            # the summary a node publishes first
     for block in blocks:
         samples = plan.route(block)
         if samples.first_s is not None:
@@ -431,10 +403,11 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
         for tc, (t, v, _) in samples.thermocouples.items():
             measured[tc][0].append(t)
             measured[tc][1].append(v)
-        _feed(est, samples, advance)
+        session.feed(samples)
         if on_progress is not None:
             wall = time.perf_counter() - t_wall
-            t_model = (est.t_model - first_s) if est.t_model is not None and first_s else 0.0
+            t_model = (session.t_model - first_s) if session.t_model is not None and first_s \
+                else 0.0
             on_progress(done_bytes[0] / size, t_model, wall)
     wall = time.perf_counter() - t_wall
     if not rows:
@@ -453,16 +426,20 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
                        np.concatenate(v) if v else np.zeros(0))
                   for tc, (t, v) in measured.items()},
         inputs={name: d.arrays() for name, d in inputs_plot.items()},
-        alert_events=events, messages=blocks.message_count, steps=est.steps,
-        sample_time_s=est.steps * step_s, wall_s=wall, truncated=blocks.truncated,
+        alert_events=events, messages=blocks.message_count, steps=session.steps,
+        sample_time_s=session.steps * step_s, wall_s=wall, truncated=blocks.truncated,
         problem=blocks.problem,
-        health={name: dict(vars(h)) for name, h in est.health.items()},
-        implausible=dict(est.implausible_counts), correction=_correction_summary(est),
-        limits_C=dict(est.limits_C), outlook=outlook,
+        health={name: dict(vars(h)) for name, h in session.health.items()},
+        implausible=session.implausible_counts, correction=session.correction_summary(),
+        limits_C=session.limits_C, outlook=outlook,
         time_to_limit_s={q: ahead[:, k] for k, q in enumerate(limited) if outlook},
         forecast_stamp_s=ahead[:, -2] if outlook else np.zeros(0),
         margin_current_A=ahead[:, -1] if outlook else np.zeros(0),
-        current_limits=current_limits, limits_held_s=held_s, limits_current_A=current_A)
+        current_limits=current_limits, limits_held_s=held_s, limits_current_A=current_A,
+        uncertainty_K={name: np.array([s[k] for s in sigmas])
+                       for k, name in enumerate(OUTPUT_ESTIMATES)},
+        state_K=np.vstack(states), state_names=tuple(session.model.quantities.state_names),
+        alerts=alerts)
 
 
 # ------------------------------------------------------------------ outputs
@@ -518,45 +495,58 @@ def write_limits_csv(result: ReplayResult, path: Path) -> Path:
 
 def write_mcap(result: ReplayResult, path: Path) -> Path:
     """
-    Write the estimates as /eha/estimate/<name> Temperature messages, with the config.
+    Write what the live estimator node publishes for these estimates, with the config.
 
-    With the outlook, every tick's limits too, as the live estimator node
-    publishes them: a JointState on CURRENT_LIMITS_TOPIC and the binding
-    limit as a Float64 on CURRENT_LIMIT_TOPIC, logged at the tick's sample time.
+    The messages of :mod:`wet_eha_thermal.messages`, the node's bytes: per
+    estimate kept, the ``/eha/estimate/<name>`` Temperatures (each with its
+    own variance) and ``/eha/state`` (its names once, latched); the alert
+    summaries the session published (JSON, on ``/eha/alerts``); with the
+    outlook, every tick's limits (a JointState on CURRENT_LIMITS_TOPIC, the
+    binding limit as a Float64 on CURRENT_LIMIT_TOPIC). Each is logged at its
+    sample time, in the order the node publishes them.
     """
-    from ..bag import cdr
+    from .. import messages
     from ..bag.writer import BagWriter, offered_qos
 
     cfg_yaml = result.plan.config_yaml
     metadata = {interface.CONFIG_METADATA: {interface.CONFIG_METADATA_KEY: cfg_yaml,
                                             'source': result.plan.config_source}}
-    stamps_ns = np.round(result.stamp_s * 1e9).astype(np.int64)
-    variance = result.sigma_K * result.sigma_K
+    stamps_ns = np.round(result.stamp_s * 1e9).astype(np.int64).tolist()
+    latched = offered_qos(durability='transient_local', depth=1)
+    topics = [(t, interface.TEMPERATURE, offered_qos(depth=10)) for t in messages.ESTIMATE_TOPICS]
+    topics += [(interface.STATE_TOPIC, interface.FLOAT64_ARRAY, offered_qos(depth=10)),
+               (interface.STATE_NAMES_TOPIC, interface.STRING, latched),
+               (interface.ALERT_TOPIC, interface.STRING, latched)]
+    if result.outlook:
+        # the live node's publishers: reliable, volatile, 10 deep
+        topics += [(interface.CURRENT_LIMITS_TOPIC, interface.JOINT_STATE, offered_qos(depth=10)),
+                   (interface.CURRENT_LIMIT_TOPIC, interface.FLOAT64, offered_qos(depth=10))]
+    # the alerts and limits in time order behind the estimates (a summary before the first
+    # estimate goes out with it)
+    later = sorted([(-math.inf if s is None else s, 0, (
+        interface.ALERT_TOPIC, messages.alerts(a), None if s is None else int(round(s * 1e9))))
+                    for s, a in result.alerts]
+                   + [(lim.stamp_s, 1, m) for lim in result.current_limits
+                      for m in messages.limits(lim)], key=lambda x: (x[0], x[1]))
+    build = messages.EstimateMessages()
+    temps = [result.temperatures_C[n].tolist() for n in interface.ESTIMATES]
+    sigma = [result.uncertainty_K[n].tolist() for n in interface.ESTIMATES]
     with atomic(path) as tmp, BagWriter(tmp, metadata=metadata, flush_interval_s=3600.0) as w:
-        messages = []
-        for name in OUTPUT_ESTIMATES:
-            topic = f'{interface.ESTIMATE_PREFIX}/{name}'
-            w.add_topic(topic, interface.TEMPERATURE, offered_qos(depth=10))
-            messages.append((topic, cdr.encode_stamped(
-                stamps_ns, 'eha', np.column_stack([result.temperatures_C[name], variance]))))
-        w.add_topic(interface.ALERT_TOPIC, interface.STRING,
-                    offered_qos(durability='transient_local', depth=1))
-        for k, ns in enumerate(stamps_ns.tolist()):
-            for topic, data in messages:
-                w.write(topic, data[k], ns)
-        for stamp, text in result.alert_events:
-            w.write(interface.ALERT_TOPIC, cdr.encode_string(text), int(round(stamp * 1e9)))
-        if result.outlook:
-            # the live node's publishers: reliable, volatile, 10 deep
-            w.add_topic(interface.CURRENT_LIMITS_TOPIC, interface.JOINT_STATE,
-                        offered_qos(depth=10))
-            w.add_topic(interface.CURRENT_LIMIT_TOPIC, interface.FLOAT64, offered_qos(depth=10))
-        for lim in result.current_limits:
-            ns = int(round(lim.stamp_s * 1e9))
-            w.write(interface.CURRENT_LIMITS_TOPIC, cdr.encode_joint_state(
-                ns, interface.limits_frame_id(lim.status, lim.reason), lim.names,
-                lim.horizons_s, (), lim.limits_A), ns)
-            w.write(interface.CURRENT_LIMIT_TOPIC, cdr.encode_float64(lim.binding_A), ns)
+        for topic, type_name, qos in topics:
+            w.add_topic(topic, type_name, qos)
+        w.write(interface.STATE_NAMES_TOPIC, messages.state_names(result.state_names),
+                stamps_ns[0])
+        j = 0
+        for k, ns in enumerate(stamps_ns):
+            for topic, data, _ in build.build(ns, [t[k] for t in temps], [s[k] for s in sigma],
+                                              result.state_K[k]):
+                w.write(topic, data, ns)
+            while j < len(later) and later[j][0] <= result.stamp_s[k]:
+                topic, data, at = later[j][2]
+                w.write(topic, data, ns if at is None else at)
+                j += 1
+        for _, _, (topic, data, at) in later[j:]:
+            w.write(topic, data, stamps_ns[-1] if at is None else at)
     return path
 
 
@@ -878,7 +868,7 @@ def _health_lines(result: ReplayResult) -> List[str]:
 
 
 def _correction_lines(c: Optional[dict]) -> List[str]:
-    """Return the report's section on the live correction (:func:`_correction_summary`)."""
+    """Return the report's section on the live correction (the session's summary of it)."""
     lines = ['', '## Live correction', '']
     if c is None:
         return lines + ['Off (`--open-loop`, or estimator.correction.enabled: false): the '
