@@ -15,20 +15,15 @@ from wet_eha_thermal import interface
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.estimator.core import Estimator
 from wet_eha_thermal.model.eha import EHAModel, SampleBlock
-from wet_eha_thermal.model.kinetics import L_MIN, MPA, stage_duty, TableDuty
+from wet_eha_thermal.model.kinetics import stage_duty, TableDuty
 from wet_eha_thermal.offline.simulation import SENSORS, SensorTable, simulate
 from wet_eha_thermal.offline.whatif import (MAX_DURATION_S, model_outputs, parse_request,
                                             RequestError, what_if)
 from wet_eha_thermal.offline.whatif_worker import run_request, WhatIfWorker
-from wet_eha_thermal.units import C_TO_K
+from wet_eha_thermal.units import C_TO_K, L_MIN, MPA
 
 SIGNALS = {'current_A': 25.0, 'speed_rad_s': 800.0, 'p_a_Pa': 3.0e6, 'p_b_Pa': 1.0e6,
            'p_acc_Pa': 1.0e6, 'position_m': 0.001}
-
-
-@pytest.fixture(scope='module')
-def cfg():
-    return load_config()
 
 
 @pytest.fixture(scope='module')

@@ -42,6 +42,7 @@ from scipy.constants import Stefan_Boltzmann as _SIGMA
 
 from .compiled import jit
 from .validity import check, ValidityLog
+from ..units import RPM_PER_RAD_S
 
 #: Specific gas constant of dry air, J/(kg K).
 R_AIR = 287.05
@@ -1411,7 +1412,7 @@ def palmgren_bearing_torque(nu_m2_s, speed_rad_s, mean_diameter_m, f0, f1, load_
     0.004424
 
     """
-    nu_n = (nu_m2_s * 1.0e6) * (np.abs(speed_rad_s) * (30.0 / np.pi))
+    nu_n = (nu_m2_s * 1.0e6) * (np.abs(speed_rad_s) * RPM_PER_RAD_S)
     dm3 = (mean_diameter_m * 1.0e3) ** 3
     m0 = f0 * dm3 * np.maximum(1.0e-7 * np.square(np.cbrt(nu_n)), 160.0e-7)
     return 1.0e-3 * (m0 + f1 * load_N * mean_diameter_m * 1.0e3)

@@ -19,7 +19,7 @@ import numpy as np
 from ..config import Config
 from ..model.eha import EHAModel, SampleBlock
 from ..model.kinetics import Duty, DutyError, KineticModel, ThermalFeedback
-from ..units import C_TO_K
+from ..units import C_TO_K, MPA, RPM_PER_RAD_S
 
 SENSORS = ('current_A', 'speed_rad_s', 'p_a_Pa', 'p_b_Pa', 'p_acc_Pa', 'position_m')
 RUNAWAY_C = 300.0   # far past every limit (oil 135, insulation 180 degC): stop, do not extrapolate
@@ -189,9 +189,9 @@ def simulate(cfg: Config, duty: Union[Duty, SensorTable], duration_s: float, dt_
             span = acc[4]
             res.append(float(t[-1]), out,
                        {'current_A_rms': float(np.sqrt(acc[0] / span)),
-                        'speed_rpm': float(acc[1] / span * 30 / np.pi),
-                        'p_a_MPa': float(acc[2] / span / 1e6),
-                        'p_b_MPa': float(acc[3] / span / 1e6),
+                        'speed_rpm': float(acc[1] / span * RPM_PER_RAD_S),
+                        'p_a_MPa': float(acc[2] / span / MPA),
+                        'p_b_MPa': float(acc[3] / span / MPA),
                         'position_mm': float(s.position_m[-1] * 1e3)},
                        motor_heat(model))
             acc[:] = 0.0

@@ -24,7 +24,7 @@ import json
 import math
 from pathlib import Path
 import time
-from typing import Any, Dict, Mapping, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -36,10 +36,10 @@ from .. import interface
 from ..config import Config
 from ..model import quantity_table
 from ..model.eha import EHAModel
-from ..model.kinetics import Duty, DutyError, L_MIN, MPA, stage_duty, STAGES, TableDuty
+from ..model.kinetics import Duty, DutyError, stage_duty, STAGES, TableDuty
 from ..model.oil import OIL_GRADES
 from ..output_files import atomic, save_figure
-from ..units import C_TO_K
+from ..units import C_TO_K, L_MIN, MPA
 
 #: The longest what-if (s): a day of model time costs minutes of a core.
 MAX_DURATION_S = 86400.0
@@ -178,6 +178,38 @@ def _check_ranges(cfg: Config, samples: Mapping[str, Tuple[float, ...]]) -> None
                                f'[{ch.low:g}, {ch.high:g}] (estimator.channels.{name})')
 
 
+def read_samples_csv(path: Path) -> Dict[str, List[float]]:
+    """
+    Return the :data:`SAMPLE_COLUMNS` of a CSV of numbers, as a request's ``samples``.
+
+    Lines starting with ``#`` are comments; ``position_m`` may be left out.
+    A file that cannot be read, a missing column or a value that is not a
+    finite number raises :class:`RequestError` naming the file, column and row.
+    """
+    try:
+        # comment lines dropped first: genfromtxt would take one before the header for it
+        lines = [ln for ln in Path(path).read_text().splitlines()
+                 if ln.strip() and not ln.lstrip().startswith('#')]
+        data = np.genfromtxt(lines, delimiter=',', names=True, ndmin=1)
+    except (OSError, ValueError) as exc:
+        raise RequestError(f'{path}: cannot read it: {exc}') from None
+    names = data.dtype.names or ()
+    table = {}
+    for name in SAMPLE_COLUMNS:
+        if name not in names:
+            if name == 'position_m':
+                continue
+            raise RequestError(f'{path}: missing column {name!r}; the header has '
+                               f'{", ".join(names)}')
+        values = np.atleast_1d(data[name])
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            raise RequestError(f'{path}: column {name!r}, data row {bad[0] + 1}: not a finite '
+                               'number')
+        table[name] = values.tolist()
+    return table
+
+
 def parse_request(text: Union[str, Mapping[str, Any]], cfg: Config,
                   known: Sequence[str]) -> WhatIfRequest:
     """
@@ -247,10 +279,7 @@ def make_duty(cfg: Config, request: WhatIfRequest,
     try:
         if request.stage is not None:
             duty = stage_duty(cfg, request.stage)
-            st = duty.stage
-            return Delayed(duty, start_s), (
-                f'stage {st.number} (load {st.load_dp_amplitude_Pa / MPA:g} MPa, flow '
-                f'{st.flow_amplitude_m3_s / L_MIN:g} L/min, {st.frequency_Hz:g} Hz)')
+            return Delayed(duty, start_s), duty.stage.describe()
         if request.table is not None:
             t = request.table
             duty = TableDuty(t['time_s'], np.array(t['flow_L_min']) * L_MIN,
