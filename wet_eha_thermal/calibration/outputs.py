@@ -14,7 +14,7 @@ from .evaluator import window_means
 from .logs import CHANNELS
 from .results import CalibrationRun, LogFit, plain
 from ..config import Config, config_from_yaml, ConfigError
-from ..output_files import markdown_table, save_figure, write_text
+from ..output_files import markdown_table, pyplot, save_figure, write_text
 
 #: Name of the calibrated configuration in the output folder.
 CALIBRATED_YAML = 'calibrated.yaml'
@@ -66,9 +66,7 @@ def _stem(run: CalibrationRun, k: int) -> str:
 
 def write_plots(run: CalibrationRun, out_dir: Path) -> List[Path]:
     """Write one PNG per log: measured, nominal and calibrated per thermocouple, and errors."""
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     images = []
     for k, log_fit in enumerate(run.logs):

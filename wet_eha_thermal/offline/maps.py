@@ -22,7 +22,7 @@ from ..model import quantity_table
 from ..model.motor import LOSS_NAMES, MotorInputs, WetMotor
 from ..model.oil import get_oil
 from ..model.validity import ValidityLog
-from ..output_files import atomic, save_figure
+from ..output_files import atomic, pyplot, save_figure
 from ..units import C_TO_K, L_MIN_PER_M3_S, RPM
 
 TEMPERATURES = ('winding_mean', 'winding_hotspot', 'frame', 'magnet', 'airgap_oil_outlet',
@@ -120,9 +120,7 @@ def write_csv(points: List[MapPoint], path: Path) -> None:
 
 def plot_maps(points: List[MapPoint], path: Path, title: str) -> None:
     """Plot temperatures, the loss split and the heat paths of both sweeps to a PNG."""
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, axes = plt.subplots(3, 2, figsize=(13, 11), sharex='col')
     # the heat paths, stacked to the total loss: what the solids give the oil through

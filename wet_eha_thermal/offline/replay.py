@@ -48,7 +48,7 @@ from ..estimator.core import Estimate, Estimator
 from ..estimator.intake import INPUTS, sensor_inputs
 from ..estimator.limits import CurrentLimits
 from ..model import quantity_table
-from ..output_files import atomic, markdown_table, save_figure, write_text
+from ..output_files import atomic, markdown_table, pyplot, save_figure, write_text
 
 #: Estimates written to the outputs (degC), in column order.
 OUTPUT_ESTIMATES = interface.ESTIMATES
@@ -612,9 +612,7 @@ def write_report(result: ReplayResult, out_dir: Path) -> Path:
 
 def _write_plots(result: ReplayResult, errors: Dict[str, dict], out_dir: Path) -> List[Path]:
     """Write the report's PNGs (errors.png with thermocouples, limits.png with limits)."""
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     t0 = float(result.stamp_s[0])
     t_min = (result.stamp_s - t0) / 60.0

@@ -22,7 +22,7 @@ from ..config import Config
 from ..model import quantity_table
 from ..model.motor import LOSS_NAMES
 from ..model.quantities import OIL_OUTPUTS
-from ..output_files import atomic, save_figure
+from ..output_files import atomic, pyplot, save_figure
 from ..units import C_TO_K
 
 #: Temperatures of the table, in print order.
@@ -485,9 +485,7 @@ def plot(result, cfg: Config, path: Path, title: str,
     limit is drawn as a dashed line where it is within 30 K of the panel's
     data.
     """
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     temps = temperatures_C(result)
     t = np.asarray(result.time_s, dtype=float)

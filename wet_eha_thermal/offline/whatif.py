@@ -38,7 +38,7 @@ from ..model import quantity_table
 from ..model.eha import EHAModel
 from ..model.kinetics import Duty, DutyError, stage_duty, STAGES, TableDuty
 from ..model.oil import OIL_GRADES
-from ..output_files import atomic, save_figure
+from ..output_files import atomic, pyplot, save_figure
 from ..units import C_TO_K, L_MIN, MPA
 
 #: The longest what-if (s): a day of model time costs minutes of a core.
@@ -441,9 +441,7 @@ def format_answer(answer: Mapping[str, Any]) -> str:
 
 def write_answer(answer: Mapping[str, Any], out_dir: Path) -> Tuple[Path, Path]:
     """Write an answer's trajectories as whatif.csv and whatif.png in ``out_dir``; their paths."""
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     out_dir.mkdir(parents=True, exist_ok=True)
     names = list(answer['temperatures_C'])
