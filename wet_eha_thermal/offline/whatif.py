@@ -31,7 +31,7 @@ import numpy as np
 # a what-if is a simulation from a given state: simulate() runs it, the report's limit
 # check finds the crossings
 from .report import check_limit
-from .simulation import SENSORS, SensorTable, simulate, ThermalRunaway
+from .simulation import SensorTable, simulate, ThermalRunaway
 from .. import interface
 from ..config import Config
 from ..model import quantity_table
@@ -61,7 +61,7 @@ MAX_ID = 200
 #: A table of flow and load: its columns, as ``--duty`` files have them.
 TABLE_COLUMNS = ('time_s', 'flow_L_min', 'load_MPa')
 #: A table of the sensor signals: its columns (position_m may be left out).
-SAMPLE_COLUMNS = ('time_s',) + SENSORS
+SAMPLE_COLUMNS = ('time_s',) + interface.INPUTS
 #: The keys a request may have.
 REQUEST_KEYS = ('id', 'stage', 'table', 'samples', 'duration_s', 'ambient_C', 'dt_s',
                 'sample_rate_Hz', 'record_every_s', 'quantities')
@@ -82,7 +82,7 @@ class WhatIfRequest:
 
     ``table``: ``time_s`` with ``flow_L_min`` and ``load_MPa`` (a ``--duty``
     file's columns); ``samples``: ``time_s`` with the sensor signals of
-    :data:`~.simulation.SENSORS`, SI units. Both repeat with their last time
+    :data:`~..interface.INPUTS`, SI units. Both repeat with their last time
     as the period and start at the what-if's start. ``ambient_C`` None: the
     caller's (the estimator's present ambient). ``record_every_s`` None:
     about ``DEFAULT_POINTS`` points.

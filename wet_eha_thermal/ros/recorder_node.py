@@ -152,29 +152,8 @@ PARAMETERS = {
 
 
 def recorded_topics(prefix: str = interface.PREFIX) -> Dict[str, Tuple[str, str]]:
-    """
-    Return the fixed topics of the recorder under ``prefix``: topic -> (type, QoS kind).
-
-    The QoS kind is 'sensor' (the ``qos`` parameter), 'output' (reliable) or
-    'latched' (reliable, transient local).
-    """
-    found = {interface.INPUT_TOPICS[name]: (interface.INPUT_TYPES[name], 'sensor')
-             for name in interface.INPUT_TOPICS}
-    found[interface.AMBIENT_TOPIC] = (interface.TEMPERATURE, 'sensor')
-    for tc in interface.THERMOCOUPLES:
-        found[f'{interface.MEASURED_PREFIX}/{tc}'] = (interface.TEMPERATURE, 'sensor')
-    for name in interface.ESTIMATES:
-        found[f'{interface.ESTIMATE_PREFIX}/{name}'] = (interface.TEMPERATURE, 'output')
-    found[interface.STATE_TOPIC] = (interface.FLOAT64_ARRAY, 'output')
-    found[interface.STATE_NAMES_TOPIC] = (interface.STRING, 'latched')
-    found[interface.ALERT_TOPIC] = (interface.STRING, 'latched')
-    found[interface.CURRENT_LIMITS_TOPIC] = (interface.JOINT_STATE, 'output')
-    found[interface.CURRENT_LIMIT_TOPIC] = (interface.FLOAT64, 'output')
-    found[interface.READY_TOPIC] = (interface.STRING, 'latched')
-    found[interface.RECORDER_HEALTH_TOPIC] = (interface.STRING, 'latched')
-    found[interface.ACK_TOPIC] = (interface.STRING, 'output')
-    found[interface.DIAGNOSTICS_TOPIC] = (interface.DIAGNOSTIC_ARRAY, 'output')
-    return {interface.prefixed(topic, prefix): spec for topic, spec in found.items()}
+    """Return the fixed topics of the recorder under ``prefix``: the twin's topic table."""
+    return interface.topic_table(prefix)
 
 
 def default_output(stem: str = 'eha') -> Path:
@@ -209,9 +188,8 @@ class RecorderNode(Node):
         super().__init__(NODE_NAME, **kwargs)
         p = self._read_parameters()
         # before the bag is made: a bad qos leaves no empty recording behind
-        qos_of = {'sensor': topics.input_qos(p['qos'], p['qos_depth']),  # ValueError: bad kind
-                  'output': topics.input_qos('reliable', p['qos_depth']),
-                  'latched': topics.latched_qos()}
+        qos_of = {kind: topics.qos_profile(kind, p['qos'], p['qos_depth'])
+                  for kind in (interface.SENSOR, interface.OUTPUT, interface.LATCHED)}
         self.hardware_id = p['hardware_id']
         self.depth = p['qos_depth']
         self.started_utc = datetime.now(timezone.utc).isoformat(timespec='seconds')
