@@ -44,6 +44,13 @@ def pytest_configure(config):
         config.pluginmanager.register(ModuleScopes())
 
 
+def pytest_collection_modifyitems(config, items):
+    """Mark the tests of the ROS graph modules ``ros`` (one list: ROS_GRAPH_MODULES)."""
+    for item in items:
+        if item.path.name in ROS_GRAPH_MODULES:
+            item.add_marker(pytest.mark.ros)
+
+
 @pytest.fixture(scope='session', autouse=True)
 def compiled_model():
     """

@@ -343,7 +343,11 @@ def test_idle_writer_flushes_by_wall_time(tmp_path):
     with BagWriter(path, flush_interval_s=0.2) as bag:
         bag.add_topic('/f', FLOAT64)
         bag.write('/f', serialize_message(Float64(data=1.5)), T0_NS)
-        time.sleep(0.6)  # no further message: the background check closes the chunk
+        # no further message: the background check closes the chunk (waited for as a fact:
+        # a loaded machine may wake the thread late; 30 s is a deadline, not the interval)
+        deadline = time.monotonic() + 30.0
+        while open_bag(path).message_count == 0 and time.monotonic() < deadline:
+            time.sleep(0.05)
         live = open_bag(path)
         assert live.truncated and live.message_count == 1
     assert not open_bag(path).truncated
