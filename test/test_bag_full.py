@@ -30,6 +30,8 @@ from wet_eha_thermal.bag.writer import (BagWriter, CLOSED, FileSink, RECORDING, 
                                         SUSPENDED)
 import yaml
 
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
+
 T0_NS = 1_700_000_000_000_000_000
 STEP_NS = 1_000_000                 # 1 kHz of log time
 FLOAT64, STRING = 'std_msgs/msg/Float64', 'std_msgs/msg/String'

@@ -16,6 +16,8 @@ import pytest  # noqa: E402
 from wet_eha_thermal.model.kinetics import stage_duty  # noqa: E402
 from wet_eha_thermal.offline.simulation import simulate  # noqa: E402
 
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
+
 
 @pytest.mark.parametrize('stage', [1, 2, 3, 4, 5, 6])
 def test_audit_closes_on_every_stage_at_the_default_step(cfg, stage):

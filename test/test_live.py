@@ -23,6 +23,8 @@ from wet_eha_thermal.ros.live_children import Child, child_commands, LiveOptions
 from wet_eha_thermal.ros.live_monitor import TwinState
 from wet_eha_thermal.ros.live_text import drive_text, status_line, summary
 
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
+
 BIN = Path(sys.executable).parent / 'wet-eha-thermal'
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -43,6 +43,8 @@ from wet_eha_thermal.ros import recorder_node, topics
 from wet_eha_thermal.ros.recorder_node import RecorderNode
 import yaml
 
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
+
 # this module's own domain, this machine only; conftest puts it in ROS_DOMAIN_ID while it runs
 DOMAIN_ID = claim_domain()
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
