@@ -4,4 +4,5 @@ import sys
 
 from . import main
 
-sys.exit(main())
+if __name__ == '__main__':      # imported by a tool that walks the package, it does nothing
+    sys.exit(main())
