@@ -30,6 +30,8 @@ from wet_eha_thermal.offline import replay as rp
 from wet_eha_thermal.offline.simulated_rig import SimulatedRig
 import yaml
 
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
+
 GAP = 'motor.stator.frame_contact_gap_m'
 SEAL = 'hydraulics.pump.extra_loss_W'
 MAGNET_GLUE = 'motor.rotor.magnet_core_htc_W_m2K'     # no thermocouple sees the magnets

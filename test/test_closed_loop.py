@@ -9,6 +9,8 @@ from wet_eha_thermal.model.kinetics import load_duty_csv
 from wet_eha_thermal.offline.simulated_rig import SimulatedRig
 from wet_eha_thermal.units import C_TO_K
 
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
+
 #: Duty played per run (s)
 SECONDS = 30.0
 #: The winding hot-spot limit of the closed-loop test (degC): the heavy duty below takes the

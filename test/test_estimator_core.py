@@ -15,11 +15,6 @@ STEADY = {'speed_rad_s': 800.0, 'p_a_Pa': 3e6, 'p_b_Pa': 1e6, 'p_acc_Pa': 1e6,
           'position_m': 0.0}
 
 
-@pytest.fixture(scope='module')
-def cfg():
-    return load_config()
-
-
 def feed(est, t0, seconds, rate_Hz=1000.0, current=lambda t: 15.0, skip=(), advance=True,
          values=None):
     """Feed every input at ``rate_Hz`` from ``t0`` (except those in ``skip``); return the end."""

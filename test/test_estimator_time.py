@@ -24,11 +24,6 @@ REST = {'current_A': 0.0, 'speed_rad_s': 0.0, 'p_a_Pa': 1e6, 'p_b_Pa': 1e6, 'p_a
         'position_m': 0.0}
 
 
-@pytest.fixture(scope='module')
-def cfg():
-    return load_config()
-
-
 def feed(est, t0, t1, values, rate_Hz=1000.0, clock=True):
     """Feed every input from t0 to t1 (s), stepping with the clock; return the estimates."""
     out = []

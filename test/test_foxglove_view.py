@@ -30,6 +30,8 @@ from wet_eha_thermal.offline.whatif_worker import run_request
 from wet_eha_thermal.ros.recorder_node import recorded_topics
 from wet_eha_thermal.ros.topics import message_class
 
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
+
 ROOT = Path(__file__).resolve().parents[1]
 SUBPROTOCOL = 'foxglove.sdk.v1'    # foxglove-sdk's server refuses foxglove.websocket.v1
 TIMEOUT_S = 10.0

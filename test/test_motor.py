@@ -10,11 +10,6 @@ from wet_eha_thermal.offline.maps import compute_maps
 from wet_eha_thermal.units import C_TO_K, RPM
 
 
-@pytest.fixture(scope='module')
-def cfg():
-    return load_config()
-
-
 def make_motor(cfg, refresh_dT_K=0.25, max_substep_s=0.1, **overrides):
     if overrides:
         cfg = load_config(overrides={f'motor.{k}': v for k, v in overrides.items()})

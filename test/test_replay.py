@@ -23,6 +23,8 @@ from wet_eha_thermal.estimator.session import EstimatorSession
 from wet_eha_thermal.offline import replay as rp
 from wet_eha_thermal.ros.recorder_node import recorded_topics
 
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
+
 SECONDS = 20.0
 
 

@@ -2,6 +2,7 @@
 
 import contextlib
 import csv
+import functools
 import io
 import math
 
@@ -82,6 +83,7 @@ def test_run_stopped_early_reports_and_writes(tmp_path, monkeypatch):
         pytest.skip('this simulation module does not stop runs early')
     real = simulation.simulate
 
+    @functools.wraps(real)      # the command reads its options' defaults from simulate's
     def stops(cfg, duty, duration_s, **kw):
         res = real(cfg, duty, 5.0, **kw)
         res.append(5.5, res.model.outputs(), {}, dict(res.model.heat_W))

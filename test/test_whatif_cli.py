@@ -7,6 +7,8 @@ from wet_eha_thermal import cli, interface
 from wet_eha_thermal.estimator.session import EstimatorSession
 from wet_eha_thermal.offline import replay as rp
 
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
+
 
 def _csv(path):
     data = np.genfromtxt(path, delimiter=',', names=True)

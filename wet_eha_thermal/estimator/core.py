@@ -52,7 +52,7 @@ from ..config import Config
 from ..model import quantity_table
 from ..model.compiled import jit
 from ..model.eha import EHAModel, SampleBlock
-from ..units import C_TO_K
+from ..units import C_TO_K, L_MIN_PER_M3_S
 
 #: how the estimator works on its outlook (its ``outlook`` argument)
 OUTLOOK_MODES = ('off', 'background', 'inline')
@@ -606,7 +606,7 @@ def implausible_inputs(speed, current, position, dt, area):
     w = np.abs(speed).sum() / speed.size
     i_rms = np.sqrt((current * current).sum() / current.size)
     flow = abs(position[-1] - position[0]) / dt * area
-    return w > 200.0 and i_rms < 0.05, flow > 0.5 / 60000 and w < 20.0
+    return w > 200.0 and i_rms < 0.05, flow > 0.5 / L_MIN_PER_M3_S and w < 20.0
 
 
 @jit

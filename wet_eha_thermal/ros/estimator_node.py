@@ -71,8 +71,9 @@ from wet_eha_thermal.estimator.session import EstimatorSession, Output
 from wet_eha_thermal.live_view import parse_address
 from wet_eha_thermal.ros import diagnostics, topics
 from wet_eha_thermal.ros.estimator_view import EstimatorView, FOXGLOVE_SETTABLE
-from wet_eha_thermal.ros.runtime import (accept_whole_numbers, descriptor, EXECUTORS, FastClock,
-                                         prepare_model_step, Readiness, run_node)
+from wet_eha_thermal.ros.runtime import (declare_parameters, descriptor, FastClock,
+                                         prepare_model_step, Readiness, run_node,
+                                         shared_parameters)
 from wet_eha_thermal.ros.whatif_service import WhatIfService
 
 NODE_NAME = interface.ESTIMATOR_NODE
@@ -83,9 +84,6 @@ PARAMETERS = {
     'config_file': ('', descriptor(
         'estimator configuration YAML (the estimator: section and the rig); '
         "'' = the shipped config/reference_eha.yaml")),
-    'qos': ('sensor_data', descriptor(
-        "QoS of the sensor subscriptions: 'sensor_data' (best effort) or 'reliable'")),
-    'qos_depth': (1000, descriptor('history depth of the sensor subscriptions', 1, 10000)),
     'publish_rate_Hz': (50.0, descriptor(
         'rate of the estimate, state and alert publication (and of advance(now))', 1.0, 500.0,
         read_only=False)),
@@ -95,11 +93,7 @@ PARAMETERS = {
     'diagnostics_rate_Hz': (1.0, descriptor('rate of /diagnostics', 0.1, 10.0, read_only=False)),
     'hardware_id': ('wet-eha-rig', descriptor('hardware_id of the diagnostic statuses')),
     'frame_id': ('eha', descriptor('frame_id of the published temperatures')),
-    'topic_prefix': (interface.PREFIX, descriptor(
-        "replaces '/eha' in every topic name (not /diagnostics)")),
-    'executor': ('events', descriptor(
-        "executor used by main(): 'events' (rclpy.experimental.EventsExecutor) or 'single' "
-        '(SingleThreadedExecutor); the --executor option overrides it')),
+    **shared_parameters('qos', 'qos_depth', 'topic_prefix', 'executor'),
     'foxglove_address': ('', descriptor(
         'Foxglove WebSocket server of the live view (wet_eha_thermal/live_view.py), HOST:PORT, '
         "e.g. 127.0.0.1:8765 (port 0: any free one); '' = no server")),
@@ -156,13 +150,7 @@ class EstimatorNode(Node):
 
     def _read_parameters(self) -> tuple:
         """Declare and read the parameters; return them and the view's address (or None)."""
-        accept_whole_numbers(self, {name: d for name, (d, _) in PARAMETERS.items()})
-        for name, (default, desc) in PARAMETERS.items():
-            self.declare_parameter(name, default, desc)
-        p = {name: self.get_parameter(name).value for name in PARAMETERS}
-        if p['executor'] not in EXECUTORS:
-            raise ValueError(f"parameter executor = {p['executor']!r}: expected one of "
-                             f'{", ".join(EXECUTORS)}')
+        p = declare_parameters(self, PARAMETERS)
         view_at = None         # checked before the model's slow start
         if p['foxglove_address']:
             try:

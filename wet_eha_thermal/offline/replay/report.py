@@ -14,7 +14,7 @@ import numpy as np
 from .run import OUTPUT_ESTIMATES, ReplayResult
 from ... import interface
 from ...model import quantity_table
-from ...output_files import markdown_table, save_figure, write_text
+from ...output_files import markdown_table, pyplot, save_figure, write_text
 
 
 def thermocouple_errors(result: ReplayResult) -> Dict[str, dict]:
@@ -57,9 +57,7 @@ def write_report(result: ReplayResult, out_dir: Path) -> Path:
 
 def _write_plots(result: ReplayResult, errors: Dict[str, dict], out_dir: Path) -> List[Path]:
     """Write the report's PNGs (errors.png with thermocouples, limits.png with limits)."""
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     t0 = float(result.stamp_s[0])
     t_min = (result.stamp_s - t0) / 60.0
