@@ -46,11 +46,17 @@ def _session(cfg, items):
     Return a session that puts each estimate it publishes in ``items``.
 
     As ``(estimate, thermocouple readings, alert summary or None)``, the
-    summary as the node publishes it: when the level changed or events came.
+    summary as the node publishes it: when the level changed or events came
+    (one published before the first estimate goes with it).
     """
+    pending = []
+
     def publish(out):
+        if out.alerts is not None:
+            pending[:] = [out.alerts]
         if out.estimates:
-            items.append((out.estimates[-1], session.measured_C, out.alerts))
+            items.append((out.estimates[-1], session.measured_C, pending.pop() if pending
+                          else None))
 
     session = EstimatorSession(cfg, outlook='background', publish=publish)
     return session

@@ -157,6 +157,9 @@ def test_limits_taken_sample_by_sample_with_a_small_budget_are_the_same_as_at_on
     assert len(computed) >= len(at_once) // 2, [lim.reason for lim in live]
     assert all(lim == at_once[lim.stamp_s] for lim in computed)
     assert all(lim.reason.startswith('behind') for lim in live if lim.status != 'ok')
+    # one channel: the estimate (the view, /diagnostics) carries the limits the drive got,
+    # with their status
+    assert session.limits is live[-1] and session.latest.current_limits is live[-1]
 
 
 def test_a_stale_input_drops_the_limits_to_the_fallback_and_says_why():

@@ -243,12 +243,11 @@ class EstimatorSession:
         the samples keep the model current.
         """
         s = self._est.settings
-        if steady_s is not None:
-            if self._tick_clock is not None:
-                ahead = (now_s - self._tick_clock[0]) - (steady_s - self._tick_clock[1])
-                if ahead > s.clock_jump_s:
-                    self._est.restart_time(now_s)
-            self._tick_clock = (now_s, steady_s)
+        if steady_s is not None and self._tick_clock is not None:
+            ahead = (now_s - self._tick_clock[0]) - (steady_s - self._tick_clock[1])
+            if ahead > s.clock_jump_s:
+                self._est.restart_time(now_s)
+        self._tick_clock = (now_s, steady_s) if steady_s is not None else None
         t_model = self._est.t_model
         if t_model is not None and now_s - t_model < 2.0 * s.step_s:
             return []

@@ -332,10 +332,13 @@ class EstimatorNode(Node):
         try:
             log = self.get_logger()
             for level, text in out.log:
+                # one call site per severity: rclpy refuses to change it at a call site
                 if level == 'error':
                     log.error(text, throttle_duration_sec=5.0)
+                elif level == 'warning':
+                    log.warning(text)
                 else:
-                    (log.warning if level == 'warning' else log.info)(text)
+                    log.info(text)
             for topic, data, _ in self.messages.build(out):
                 self.pubs[topic].publish(data)
             if out.estimates and self._t_rx is not None:
