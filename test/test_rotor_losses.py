@@ -320,6 +320,7 @@ def foil_ac_factor(delta_ratio, layers, points=4000):
     return total / layers      # DC: J = 1 over unit thickness
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('layers', [1, 2, 4])
 def test_dowell_matches_the_foil_solution(layers):
     """Dowell's formula against a numerical solution of the foil layers, to 0.1 %."""
