@@ -87,6 +87,7 @@ def test_sustained_high_load_is_stopped_as_a_runaway(cfg):
     assert max(v[-1] for v in res.temperatures_K.values()) - C_TO_K > RUNAWAY_C
 
 
+@pytest.mark.slow
 def test_every_oil_volume_balances_its_flows(cfg):
     r = simulate(cfg, stage_duty(cfg, 1), 30.0, dt_s=0.1, record_every_s=30.0)
     m = r.model

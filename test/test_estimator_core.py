@@ -52,6 +52,7 @@ def test_current_is_averaged_as_mean_square(cfg):
     assert got == pytest.approx(right, abs=5e-3)
 
 
+@pytest.mark.slow
 def test_stale_input_falls_back_and_recovers(cfg):
     est = Estimator(cfg)
     t, _ = feed(est, 0.0, 2.0)
@@ -115,6 +116,7 @@ def test_implausible_combinations_are_counted(cfg):
     assert est2.implausible_counts['flow_without_speed'] >= 20
 
 
+@pytest.mark.slow
 def test_alerts_follow_the_estimate_and_acknowledge(cfg, tmp_path):
     low = load_config(overrides={'estimator.alerts.winding_hotspot.warn_C': 21.0,
                                  'estimator.alerts.winding_hotspot.critical_C': 400.0})

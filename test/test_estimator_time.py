@@ -136,6 +136,7 @@ def test_a_long_silence_is_crossed_in_few_held_blocks_close_to_stepping(held, be
         assert held_est.latest.temperatures_C[name] == pytest.approx(value, abs=0.5), name
 
 
+@pytest.mark.slow
 def test_every_call_is_bounded_and_the_steps_are_those_of_one_call(cfg):
     # a replay feeds 10 s at once: advance makes max_steps_per_call steps per call, and
     # the estimates are the same as advance_all's, bit for bit

@@ -100,6 +100,7 @@ def test_airgap_outlet_converges_with_section_count(cfg):
     assert diffs[-1] < 0.05
 
 
+@pytest.mark.slow
 def test_transient_settles_on_the_steady_state(cfg):
     u = inputs(rpm=12000, amps=20)
     ref = make_motor(cfg)

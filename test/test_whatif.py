@@ -36,6 +36,7 @@ def _kelvin_to_C(res, name):
     return np.asarray(res.temperatures_K[name]) - C_TO_K
 
 
+@pytest.mark.slow
 def test_from_cold_it_is_the_simulation_from_cold_bit_for_bit(cfg, known):
     request = parse_request({'id': 'cold', 'stage': 3, 'duration_s': 120.0,
                              'record_every_s': 2.0}, cfg, known)
@@ -56,6 +57,7 @@ def test_from_cold_it_is_the_simulation_from_cold_bit_for_bit(cfg, known):
     assert oil == pytest.approx(got.temperatures_C['oil'][-1], abs=1e-4)
 
 
+@pytest.mark.slow
 def test_a_table_of_flow_and_load_from_cold_is_its_simulation(cfg, known):
     table = {'time_s': [0.0, 0.5, 1.0], 'flow_L_min': [6.0, -6.0, 6.0],
              'load_MPa': [4.0, 8.0, 4.0]}
