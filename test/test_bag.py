@@ -318,6 +318,7 @@ def test_cut_files_read_up_to_the_cut(sample_bag, tmp_path):
                 assert info.metadata['estimator'] == {'config': 'a: 1\n'}
 
 
+@pytest.mark.slow
 def test_sigkill_loses_at_most_about_a_second(tmp_path):
     path = tmp_path / 'killed.mcap'
     written, last_ns = kill_writer(path, 3000, pressure=True,

@@ -27,6 +27,8 @@ from wet_eha_thermal.offline.simulated_rig import feedback, SimulatedRig
 from wet_eha_thermal.units import C_TO_K
 import yaml
 
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
+
 STEP_S = 0.25
 MINUTES = 30.0
 WATCH = ('winding_hotspot', 'winding_mean', 'magnet', 'frame', 'pump_case')

@@ -146,6 +146,7 @@ def test_airgap_friction_equals_bilgen_boulos_power_when_turbulent():
     assert power > c.couette_torque(MU, omega, L, R1, R2) * omega
 
 
+@pytest.mark.slow
 @pytest.mark.filterwarnings('error')
 def test_airgap_friction_zero_and_negative_speed():
     """Zero speed gives 0 W without warnings; the sign of omega does not matter."""

@@ -32,6 +32,7 @@ def feed(est, t0, seconds, rate_Hz=1000.0, current=lambda t: 15.0, skip=(), adva
     return t0 + n / rate_Hz, out
 
 
+@pytest.mark.slow
 def test_current_is_averaged_as_mean_square(cfg):
     # a 100 Hz ripple on the RMS current, sampled at 1 kHz with stamps on the step
     # boundaries: the copper loss needs the mean of I^2 (15^2 + 10^2 / 2 = 275 A^2),
@@ -51,6 +52,7 @@ def test_current_is_averaged_as_mean_square(cfg):
     assert got == pytest.approx(right, abs=5e-3)
 
 
+@pytest.mark.slow
 def test_stale_input_falls_back_and_recovers(cfg):
     est = Estimator(cfg)
     t, _ = feed(est, 0.0, 2.0)
@@ -114,6 +116,7 @@ def test_implausible_combinations_are_counted(cfg):
     assert est2.implausible_counts['flow_without_speed'] >= 20
 
 
+@pytest.mark.slow
 def test_alerts_follow_the_estimate_and_acknowledge(cfg, tmp_path):
     low = load_config(overrides={'estimator.alerts.winding_hotspot.warn_C': 21.0,
                                  'estimator.alerts.winding_hotspot.critical_C': 400.0})
@@ -126,6 +129,7 @@ def test_alerts_follow_the_estimate_and_acknowledge(cfg, tmp_path):
     assert acks and acks[0].kind == 'acknowledged'
 
 
+@pytest.mark.slow
 def test_forecast_matches_a_simulated_run_to_the_limit(cfg):
     # stage 2 heats the oil past 135 degC within the hour: run it in full, then let
     # the estimator see its first minute and forecast from the repeated duty
@@ -160,6 +164,7 @@ def test_forecast_matches_a_simulated_run_to_the_limit(cfg):
     assert est._outlook.failures == 0
 
 
+@pytest.mark.slow
 def test_margin_current_brings_the_hotspot_to_its_limit_less_k_sigma(cfg):
     est = Estimator(cfg, outlook='inline')
     feed(est, 0.0, 2.0, rate_Hz=200.0)
@@ -173,6 +178,7 @@ def test_margin_current_brings_the_hotspot_to_its_limit_less_k_sigma(cfg):
         abs=0.1)
 
 
+@pytest.mark.slow
 def test_differential_pressure_matches_ports_with_the_low_side_at_the_accumulator(cfg):
     # a load reversing every 2 s: the high side swaps ports, the low side sits at the
     # accumulator pressure, which is what the differential mode assumes: same model inputs
@@ -209,6 +215,7 @@ def test_differential_pressure_matches_ports_with_the_low_side_at_the_accumulato
         - flat.latest.temperatures_C['pump_port_a'] > 0.3
 
 
+@pytest.mark.slow
 def test_deferred_rediscretisation_is_deterministic_and_lags_harmlessly(cfg):
     # the live estimator re-discretises the motor after publishing (prepare), so its
     # coefficients lag one 20 ms step; whether prepare is called must not change a bit
@@ -239,6 +246,7 @@ def test_deferred_rediscretisation_is_deterministic_and_lags_harmlessly(cfg):
         assert with_prepare[name] == pytest.approx(value, abs=1e-3), name
 
 
+@pytest.mark.slow
 def test_stamps_since_the_epoch_give_the_same_estimates_as_small_stamps(cfg):
     # ROS stamps are ~1.8e9 s: a float64 resolves them to ~0.2 us, so the model must
     # not take step lengths from their differences (each step would then differ and
@@ -287,6 +295,7 @@ def test_add_many_counts_and_keeps_the_same_in_blocks_as_one_by_one(cfg):
     assert late.health['current_A'].late == 2
 
 
+@pytest.mark.slow
 def test_a_burst_of_bunched_position_stamps_is_rate_limited(cfg):
     # a receiver that stalls 0.4 s stamps the LVDT samples of the stall on arrival, all
     # within a millisecond: differentiated, the position would jump at 100 m/s and the

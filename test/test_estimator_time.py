@@ -75,6 +75,7 @@ def test_a_stamp_far_ahead_of_the_clock_is_rejected_and_moves_nothing(cfg):
     assert est.add_many('current_A', [3.0 + 0.4], [15.0])
 
 
+@pytest.mark.slow
 def test_a_clock_jump_back_restarts_model_time_and_keeps_the_state(cfg):
     est = Estimator(cfg)
     feed(est, 1000.0, 1030.0, LOAD)
@@ -102,6 +103,7 @@ def test_a_clock_jump_back_restarts_model_time_and_keeps_the_state(cfg):
     feed(est, 1.0, 4.0, LOAD)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('held, before', [('rest', LOAD), ('load', LOAD)])
 def test_a_long_silence_is_crossed_in_few_held_blocks_close_to_stepping(held, before):
     # 10 minutes with no sample, then data again: held blocks against step by step. The
@@ -134,6 +136,7 @@ def test_a_long_silence_is_crossed_in_few_held_blocks_close_to_stepping(held, be
         assert held_est.latest.temperatures_C[name] == pytest.approx(value, abs=0.5), name
 
 
+@pytest.mark.slow
 def test_every_call_is_bounded_and_the_steps_are_those_of_one_call(cfg):
     # a replay feeds 10 s at once: advance makes max_steps_per_call steps per call, and
     # the estimates are the same as advance_all's, bit for bit
@@ -233,6 +236,7 @@ def good_data(est, clock, seconds):
     return t
 
 
+@pytest.mark.slow
 def test_seeded_fuzz_raises_nothing_stays_bounded_and_recovers(cfg):
     # a few seconds of fuzz (benchmarks/fuzz_estimator.py runs it for 10 minutes), then
     # good data again

@@ -44,6 +44,7 @@ QUADRANTS = {'motoring +': (6.0, 12.0), 'regenerating +': (-6.0, 12.0),
 
 
 # ---------------------------------------------------------------- stages, duties
+@pytest.mark.slow
 def test_six_stages_of_the_datasheet():
     table = {1: (16, 2, 0.2), 2: (12, 4, 0.5), 3: (8, 6, 1.0), 4: (6, 8, 2.0),
              5: (4, 10, 3.0), 6: (0, 12, 1.0)}

@@ -11,6 +11,8 @@ from wet_eha_thermal.estimator.limits import limit_steps, probing, RATING
 from wet_eha_thermal.estimator.session import EstimatorSession
 from wet_eha_thermal.units import C_TO_K
 
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
+
 #: a loaded pump (8 MPa) at 15 A: the winding warms by about 10 K in a minute
 DUTY = {'current_A': 15.0, 'speed_rad_s': 800.0, 'p_a_Pa': 3e6, 'p_b_Pa': 1e6,
         'p_acc_Pa': 1e6, 'position_m': 0.0}

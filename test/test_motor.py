@@ -86,6 +86,7 @@ def test_steady_state_heat_balance_closes(maps):
                                                                            rel=1e-9)
 
 
+@pytest.mark.slow
 def test_airgap_outlet_converges_with_section_count(cfg):
     outlet = {}
     for n in (2, 5, 10, 20, 40):
@@ -99,6 +100,7 @@ def test_airgap_outlet_converges_with_section_count(cfg):
     assert diffs[-1] < 0.05
 
 
+@pytest.mark.slow
 def test_transient_settles_on_the_steady_state(cfg):
     u = inputs(rpm=12000, amps=20)
     ref = make_motor(cfg)
@@ -113,6 +115,7 @@ def test_transient_settles_on_the_steady_state(cfg):
         assert m.outputs()[key] == pytest.approx(value, abs=2e-3), key
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('dt', [1.0, 0.1])
 def test_transient_is_step_size_independent(cfg, dt):
     u = inputs(rpm=14000, amps=25)
@@ -147,6 +150,7 @@ def load_step_reference(cfg):
     return run_load_step(cfg, 1e-4, refresh_dT_K=0.005)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('dt', [1e-4, 1e-2, 1.0])
 def test_any_step_follows_a_violent_load_step(cfg, load_step_reference, dt):
     # the airgap oil heats by 19 K in that second and its viscosity (so the
@@ -157,6 +161,7 @@ def test_any_step_follows_a_violent_load_step(cfg, load_step_reference, dt):
         assert out[key] == pytest.approx(value, abs=0.05), key
 
 
+@pytest.mark.slow
 def test_transient_energy_ledger_closes(cfg):
     # a load that changes every step: losses = stored + to ambient + carried by the oil
     m = make_motor(cfg)

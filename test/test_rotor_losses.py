@@ -107,6 +107,7 @@ def fe_losses(geo, order, n_theta):
     return losses
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('order, pieces', [(8, 1), (8, 2), (4, 1)])
 def test_resistance_limited_losses_match_finite_elements(motor, order, pieces):
     """
@@ -320,6 +321,7 @@ def foil_ac_factor(delta_ratio, layers, points=4000):
     return total / layers      # DC: J = 1 over unit thickness
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('layers', [1, 2, 4])
 def test_dowell_matches_the_foil_solution(layers):
     """Dowell's formula against a numerical solution of the foil layers, to 0.1 %."""

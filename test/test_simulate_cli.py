@@ -34,6 +34,7 @@ def stage_run(tmp_path_factory):
     return rc, stdout, stderr, out
 
 
+@pytest.mark.slow
 def test_stage_run_writes_csv_and_png(stage_run):
     rc, stdout, stderr, out = stage_run
     assert rc == 0, stderr
@@ -63,6 +64,7 @@ def test_stage_run_prints_table_limits_energy(stage_run):
     assert 'error' not in stderr
 
 
+@pytest.mark.slow
 def test_duty_file_runs(tmp_path):
     duty = tmp_path / 'duty.csv'
     duty.write_text('# a small square-ish cycle\ntime_s,flow_L_min,load_MPa\n'
@@ -77,6 +79,7 @@ def test_duty_file_runs(tmp_path):
     assert (out / 'simulation.png').is_file()
 
 
+@pytest.mark.slow
 def test_run_stopped_early_reports_and_writes(tmp_path, monkeypatch):
     runaway = getattr(simulation, 'ThermalRunaway', None)
     if runaway is None:

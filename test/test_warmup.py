@@ -7,6 +7,8 @@ import sys
 import pytest
 from wet_eha_thermal.model import compiled
 
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
+
 # In a process of its own (a test session has compiled more by then): the warm-up, then a
 # minute of live-like work with the node's calls, noise, thermocouples, the forecast and the
 # margin, a silence and data again. Prints the kernel signatures that the warm-up missed.

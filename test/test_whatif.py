@@ -36,6 +36,7 @@ def _kelvin_to_C(res, name):
     return np.asarray(res.temperatures_K[name]) - C_TO_K
 
 
+@pytest.mark.slow
 def test_from_cold_it_is_the_simulation_from_cold_bit_for_bit(cfg, known):
     request = parse_request({'id': 'cold', 'stage': 3, 'duration_s': 120.0,
                              'record_every_s': 2.0}, cfg, known)
@@ -56,6 +57,7 @@ def test_from_cold_it_is_the_simulation_from_cold_bit_for_bit(cfg, known):
     assert oil == pytest.approx(got.temperatures_C['oil'][-1], abs=1e-4)
 
 
+@pytest.mark.slow
 def test_a_table_of_flow_and_load_from_cold_is_its_simulation(cfg, known):
     table = {'time_s': [0.0, 0.5, 1.0], 'flow_L_min': [6.0, -6.0, 6.0],
              'load_MPa': [4.0, 8.0, 4.0]}
@@ -68,6 +70,7 @@ def test_a_table_of_flow_and_load_from_cold_is_its_simulation(cfg, known):
     assert got.duty == 'table of flow and load (period 1 s)'
 
 
+@pytest.mark.slow
 def test_from_a_warm_state_it_continues_the_run(cfg, known):
     """A run split in two at a what-if's start: the same, up to the stage's phase arithmetic."""
     first = simulate(cfg, stage_duty(cfg, 2), 100.0, record_every_s=100.0).model
@@ -82,6 +85,7 @@ def test_from_a_warm_state_it_continues_the_run(cfg, known):
         assert np.max(np.abs(got.temperatures_C[q] - _kelvin_to_C(whole, q)[99:])) < 1e-8, q
 
 
+@pytest.mark.slow
 def test_from_the_live_estimator_it_follows_what_the_estimator_then_does(cfg, known):
     """
     A what-if on the sensor signals the live estimator then gets, from its state, tracks it.
@@ -139,6 +143,7 @@ def test_a_sensor_table_drives_the_model_as_its_samples_would(cfg, known):
     assert block.current_A.tolist() == [5.0, 10.0, 2.5, 5.0]
 
 
+@pytest.mark.slow
 def test_time_to_limit_is_where_the_trajectory_crosses(known):
     hot = load_config(overrides={'motor.winding.insulation_limit_C': 26.0})
     got = what_if(hot, parse_request({'stage': 1, 'duration_s': 300.0, 'record_every_s': 5.0},
@@ -234,6 +239,7 @@ def _wait_answer(worker, timeout=60.0):
     pytest.fail('no answer from the worker')
 
 
+@pytest.mark.slow
 def test_the_worker_runs_one_at_a_time_and_refuses_the_rest(cfg, known):
     model = simulate(cfg, stage_duty(cfg, 6), 5.0).model
     worker = WhatIfWorker(cfg, known)
