@@ -41,7 +41,7 @@ def main() -> None:
     lim = cfg.estimator.limits
     limits_C = dict(est.limits_C, winding_hotspot=args.winding_limit_C)
     setup = probing(est.model, list(limits_C))
-    held = est.outlook.held_duty()
+    held = est._outlook.held_duty()
 
     def tick(horizons):
         saved = pickle.dumps(est.model, pickle.HIGHEST_PROTOCOL)

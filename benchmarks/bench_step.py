@@ -232,7 +232,7 @@ def main() -> None:
                  readings)
         st_on = on['step_times'] * 1e3
         blocks_on = on['block_per_step'] * 1e3
-        c = on['estimator'].correction
+        c = on['estimator']._correction
         ratio_all = np.median(blocks_on) / np.median(blocks)
         print(f'correction on ({", ".join(args.thermocouples)} at 10 Hz, {c.updates} scalar '
               'updates, '

@@ -32,7 +32,7 @@ def check(est: Estimator, winding_C: float, horizons) -> list:
     limits_C = dict(est.limits_C, winding_hotspot=winding_C)
     k = est.cfg.estimator.limits.k_sigma
     got = run(limit_steps(pickle.dumps(est.model), est.model.state,
-                          probing(est.model, list(limits_C)), est.outlook.held_duty(),
+                          probing(est.model, list(limits_C)), est._outlook.held_duty(),
                           est.ambient_K, est.latest.uncertainty_K, limits_C, k, horizons,
                           est.cfg.estimator.limits.period_s, est.cfg.motor.peak_current_A))
     return [(h, amps, binds, peak_excess(est, limits_C, amps, h, k))

@@ -1,27 +1,85 @@
 """A writer in a child process, killed with SIGKILL mid-run: what a crash leaves (tests)."""
 
+import contextlib
+import json
 import os
 import signal
 import subprocess
 import sys
 import time
 
+#: A bag writer at about 1 kHz until killed: ``/f`` (std_msgs/Float64) = i and, when argv[3]
+#: is 'pressure', ``/p`` (sensor_msgs/FluidPressure, 1e5 + i Pa, stamped at its log time);
+#: argv[1] the bag, argv[2] the BagWriter options as JSON. Prints ``ready`` first, then the
+#: log time (ns) of each message written: what it had written when it died is a fact.
+WRITER = """
+import json, sys, time
+import numpy as np
+from wet_eha_thermal.bag import cdr
+from wet_eha_thermal.bag.writer import BagWriter
+bag = BagWriter(sys.argv[1], **json.loads(sys.argv[2]))
+bag.add_topic('/f', 'std_msgs/msg/Float64')
+pressure = sys.argv[3] == 'pressure'
+if pressure:
+    bag.add_topic('/p', 'sensor_msgs/msg/FluidPressure')
+print('ready', flush=True)
+start, i = time.monotonic(), 0
+while True:
+    now_ns = time.time_ns()
+    bag.write('/f', cdr.encode_float64(float(i)), now_ns)
+    if pressure:
+        bag.write('/p', cdr.encode_stamped(np.array([now_ns]), 'port_a', [[1e5 + i, 0.0]])[0],
+                  now_ns)
+    print(now_ns, flush=True)
+    i += 1
+    time.sleep(max(0.0, start + i / 1000 - time.monotonic()))
+"""
 
-def sigkill_after(script: str, target, seconds: float) -> int:
-    """
-    Run ``script`` (Python source) with ``target`` as its argument; SIGKILL it ``seconds`` later.
 
-    The script prints ``ready`` when it starts writing. Returns the kill's time.time_ns().
+class Killed:
+    """What :func:`killed_at_exit` leaves: the child and when it was killed (time.time_ns())."""
+
+    def __init__(self, child: subprocess.Popen) -> None:
+        self.child = child
+        self.kill_ns = None
+
+
+@contextlib.contextmanager
+def killed_at_exit(argv, **popen):
     """
-    child = subprocess.Popen([sys.executable, '-c', script, str(target)],
-                             stdout=subprocess.PIPE, text=True,
-                             env=dict(os.environ, OPENBLAS_NUM_THREADS='1'))
+    Run ``argv`` as a child (OPENBLAS_NUM_THREADS=1); SIGKILL it when the block ends.
+
+    Yields a :class:`Killed`; its ``kill_ns`` is set once the signal is sent.
+    The child is reaped even when the block fails.
+    """
+    child = subprocess.Popen(argv, env=dict(os.environ, OPENBLAS_NUM_THREADS='1'), **popen)
+    killed = Killed(child)
     try:
-        assert child.stdout.readline().strip() == 'ready'
-        time.sleep(seconds)
-        kill_ns = time.time_ns()
+        yield killed
+        killed.kill_ns = time.time_ns()
         child.send_signal(signal.SIGKILL)
     finally:
         child.kill()
         child.wait()
-    return kill_ns
+
+
+def kill_writer(target, messages: int, pressure: bool = False, **options):
+    """
+    Run :data:`WRITER` on ``target`` with BagWriter ``options``; SIGKILL it mid-run.
+
+    It is killed once it has written ``messages`` (however long the machine
+    takes to let it). Returns ``(written, last_ns)``: the messages (of ``/f``)
+    it had written when it died and the log time of the last, in ns.
+    """
+    argv = [sys.executable, '-c', WRITER, str(target), json.dumps(options),
+            'pressure' if pressure else 'float']
+    stamps = []
+    with killed_at_exit(argv, stdout=subprocess.PIPE, text=True) as killed:
+        out = killed.child.stdout
+        assert out.readline().strip() == 'ready'
+        while len(stamps) < messages:
+            stamps.append(int(out.readline()))
+    # what it printed before it died, each line after its write (a cut last line is not one)
+    stamps += [int(line) for line in out.read().splitlines(keepends=True)
+               if line.endswith('\n')]
+    return len(stamps), stamps[-1]

@@ -1,6 +1,5 @@
 """Fixtures shared by the tests."""
 
-import importlib.util
 import os
 from pathlib import Path
 import subprocess
@@ -22,7 +21,11 @@ import yaml
 ROS_GRAPH_MODULES = ('test_estimator_node.py', 'test_live.py', 'test_player.py',
                      'test_recorder.py', 'test_sim_rig_limit.py')
 
-if importlib.util.find_spec('xdist'):
+
+class ModuleScopes:
+    """pytest-xdist's scheduler hook, registered only when xdist runs (``-p no:xdist`` works)."""
+
+    @staticmethod
     def pytest_xdist_make_scheduler(config, log):
         """Send a test module whole to one worker (module fixtures run once), ROS ones together."""
         from xdist.scheduler import LoadScopeScheduling
@@ -35,6 +38,19 @@ if importlib.util.find_spec('xdist'):
         return ModuleScheduling(config, log)
 
 
+def pytest_configure(config):
+    """Register the xdist scheduler hook when xdist is loaded."""
+    if config.pluginmanager.hasplugin('xdist'):
+        config.pluginmanager.register(ModuleScopes())
+
+
+def pytest_collection_modifyitems(config, items):
+    """Mark the tests of the ROS graph modules ``ros`` (one list: ROS_GRAPH_MODULES)."""
+    for item in items:
+        if item.path.name in ROS_GRAPH_MODULES:
+            item.add_marker(pytest.mark.ros)
+
+
 @pytest.fixture(scope='session', autouse=True)
 def compiled_model():
     """
@@ -45,6 +61,12 @@ def compiled_model():
     otherwise time out on that alone.
     """
     compile_model(load_config())
+
+
+@pytest.fixture(scope='session')
+def cfg():
+    """Return the reference configuration (frozen: the tests share one)."""
+    return load_config()
 
 
 @pytest.fixture(scope='module', autouse=True)

@@ -15,7 +15,7 @@ import sys
 import time
 
 from builtin_interfaces.msg import Time
-from child_process import sigkill_after
+from child_process import kill_writer
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from mcap.reader import make_reader
 from mcap.writer import CompressionType, IndexType, Writer
@@ -318,34 +318,11 @@ def test_cut_files_read_up_to_the_cut(sample_bag, tmp_path):
                 assert info.metadata['estimator'] == {'config': 'a: 1\n'}
 
 
-CHILD = """
-import sys, time
-from rclpy.serialization import serialize_message
-from sensor_msgs.msg import FluidPressure
-from std_msgs.msg import Float64
-from wet_eha_thermal.bag.writer import BagWriter
-bag = BagWriter(sys.argv[1], metadata={'estimator': {'config': 'rate_Hz: 1000'}})
-bag.add_topic('/f', 'std_msgs/msg/Float64')
-bag.add_topic('/p', 'sensor_msgs/msg/FluidPressure')
-f, p = Float64(), FluidPressure()
-p.header.frame_id = 'port_a'
-print('ready', flush=True)
-start, i = time.monotonic(), 0
-while True:
-    now_ns = time.time_ns()
-    f.data = float(i)
-    bag.write('/f', serialize_message(f), now_ns)
-    p.header.stamp.sec, p.header.stamp.nanosec = divmod(now_ns, 1_000_000_000)
-    p.fluid_pressure = 1e5 + i
-    bag.write('/p', serialize_message(p), now_ns)
-    i += 1
-    time.sleep(max(0.0, start + i / 1000 - time.monotonic()))
-"""
-
-
+@pytest.mark.slow
 def test_sigkill_loses_at_most_about_a_second(tmp_path):
     path = tmp_path / 'killed.mcap'
-    kill_ns = sigkill_after(CHILD, path, 3.0)
+    written, last_ns = kill_writer(path, 3000, pressure=True,
+                                   metadata={'estimator': {'config': 'rate_Hz: 1000'}})
     info = open_bag(path)
     assert info.truncated and info.metadata['estimator'] == {'config': 'rate_Hz: 1000'}
     data = read_columns(path, {'/f': FLOAT64, '/p': FLUID_PRESSURE})
@@ -354,10 +331,12 @@ def test_sigkill_loses_at_most_about_a_second(tmp_path):
     assert np.array_equal(f.values['data'], np.arange(len(f)))
     assert np.array_equal(p.values['fluid_pressure'], 1e5 + np.arange(len(p)))
     assert np.array_equal(p.time_ns, p.log_time_ns)
-    lost_s = (kill_ns - f.log_time_ns[-1]) / 1e9
-    print(f'SIGKILL after 3 s at 1 kHz: {len(f)} samples recovered, last {lost_s:.2f} s lost')
-    # a chunk closes every 1 s of log time; the rest is scheduling on a busy machine
-    assert len(f) > 1000 and lost_s < 1.5
+    lost_s = (last_ns - f.log_time_ns[-1]) / 1e9
+    print(f'SIGKILL after {written} samples at 1 kHz: {len(f)} recovered, the last '
+          f'{lost_s:.2f} s of log time lost')
+    # a chunk closes every 1 s of log time: what was lost is the open chunk at most, counted
+    # in the log time of what the writer had written (not in how late the kill came)
+    assert 0 < len(f) <= written and lost_s < 1.5
 
 
 def test_idle_writer_flushes_by_wall_time(tmp_path):
@@ -365,7 +344,11 @@ def test_idle_writer_flushes_by_wall_time(tmp_path):
     with BagWriter(path, flush_interval_s=0.2) as bag:
         bag.add_topic('/f', FLOAT64)
         bag.write('/f', serialize_message(Float64(data=1.5)), T0_NS)
-        time.sleep(0.6)  # no further message: the background check closes the chunk
+        # no further message: the background check closes the chunk (waited for as a fact:
+        # a loaded machine may wake the thread late; 30 s is a deadline, not the interval)
+        deadline = time.monotonic() + 30.0
+        while open_bag(path).message_count == 0 and time.monotonic() < deadline:
+            time.sleep(0.05)
         live = open_bag(path)
         assert live.truncated and live.message_count == 1
     assert not open_bag(path).truncated

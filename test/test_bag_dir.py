@@ -21,6 +21,8 @@ from wet_eha_thermal.cli import main
 from wet_eha_thermal.offline import replay as rp
 import yaml
 
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
+
 SECONDS = 20.0
 SPLIT_S = 1.5
 SPECS = {'/eha/current': 'std_msgs/msg/Float64',

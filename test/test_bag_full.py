@@ -18,7 +18,7 @@ import os
 from pathlib import Path
 import time
 
-from child_process import sigkill_after
+from child_process import kill_writer
 from mcap.reader import make_reader
 from mcap.records import Chunk
 from mcap.stream_reader import StreamReader
@@ -29,6 +29,8 @@ from wet_eha_thermal.bag.reader import iter_raw, open_bag, ROSBAG2_METADATA
 from wet_eha_thermal.bag.writer import (BagWriter, CLOSED, FileSink, RECORDING, RESERVE_NAME,
                                         SUSPENDED)
 import yaml
+
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
 
 T0_NS = 1_700_000_000_000_000_000
 STEP_NS = 1_000_000                 # 1 kHz of log time
@@ -102,8 +104,8 @@ class Run:
                 self.writer.write(topic, data, t)
             self.i += 1
 
-    def send_until(self, state: str, timeout_s: float = 5.0) -> None:
-        """Send at about 20 kHz until the writer says it is in ``state``."""
+    def send_until(self, state: str, timeout_s: float = 60.0) -> None:
+        """Send at about 20 kHz until the writer says it is in ``state`` (a deadline: hangs)."""
         deadline = time.monotonic() + timeout_s
         while self.state != state:
             assert time.monotonic() < deadline, f'still {self.state} after {timeout_s} s'
@@ -322,7 +324,8 @@ def test_the_writer_resumes_on_its_own_and_tells(tmp_path):
     disk.fill()
     run.send_until(SUSPENDED)
     disk.capacity = 10 ** 9
-    deadline = time.monotonic() + 3.0       # a check a second, the thread's wake-up too
+    # a check a second, the thread's wake-up too; 30 s is a deadline for a loaded machine
+    deadline = time.monotonic() + 30.0
     while run.state != RECORDING and time.monotonic() < deadline:
         time.sleep(0.02)
     assert run.state == RECORDING and run.changes[-1].current_file.name == 'run_1.mcap'
@@ -441,29 +444,17 @@ def test_a_small_file_system_records_with_the_default_reserve(small_fs):
     (run.bag / 'run_0.mcap').unlink()           # room again: the first file taken away
     run.send_until(RECORDING)
     assert run.changes[-1].current_file == run.bag / 'run_1.mcap'
+    # the background check may resume before a write does: what comes next goes to run_1
+    run.send(100)
     health = run.writer.close()
-    assert health.errors == 1 and strict_count(run.bag / 'run_1.mcap') > 0
+    assert health.errors == 1 and strict_count(run.bag / 'run_1.mcap') >= 100
 
 
 # ------------------------------------------------------------ SIGKILL with splits
-CHILD = """
-import sys, time
-from wet_eha_thermal.bag import cdr
-from wet_eha_thermal.bag.writer import BagWriter
-bag = BagWriter(sys.argv[1], directory=True, split_duration_s=0.5, on_error='suspend')
-bag.add_topic('/f', 'std_msgs/msg/Float64')
-print('ready', flush=True)
-start, i = time.monotonic(), 0
-while True:
-    bag.write('/f', cdr.encode_float64(i), time.time_ns())
-    i += 1
-    time.sleep(max(0.0, start + i / 1000 - time.monotonic()))
-"""
-
-
 def test_sigkill_while_splitting_loses_at_most_about_a_second(tmp_path):
     bag = tmp_path / 'killed'
-    kill_ns = sigkill_after(CHILD, bag, 2.7)
+    written, last_ns = kill_writer(bag, 2700, directory=True, split_duration_s=0.5,
+                                   on_error='suspend')
     info = listed(bag)
     names = info['relative_file_paths']
     assert len(names) >= 4 and sorted(p.name for p in bag.glob('*.mcap')) == sorted(names)
@@ -472,8 +463,7 @@ def test_sigkill_while_splitting_loses_at_most_about_a_second(tmp_path):
         assert strict_count(bag / entry['path']) == entry['message_count'] > 0
     read = [float(cdr.float64_data(m.data)) for m in iter_raw(bag)]
     assert read == list(range(len(read)))       # the start, in order, nothing missing
-    last_ns = max(m.log_time_ns for m in iter_raw(bag))
-    lost_s = (kill_ns - last_ns) / 1e9
-    print(f'SIGKILL after 2.7 s at 1 kHz, split every 0.5 s: {len(names)} files, '
-          f'{len(read)} messages kept, last {lost_s:.2f} s lost')
-    assert lost_s < 1.5
+    lost_s = (last_ns - max(m.log_time_ns for m in iter_raw(bag))) / 1e9
+    print(f'SIGKILL after {written} messages at 1 kHz, split every 0.5 s: {len(names)} files, '
+          f'{len(read)} messages kept, the last {lost_s:.2f} s of log time lost')
+    assert len(read) <= written and lost_s < 1.5

@@ -24,11 +24,13 @@ from wet_eha_thermal.bag.writer import BagWriter
 from wet_eha_thermal.cli import main
 from wet_eha_thermal.config import (config_from_yaml, ConfigError, default_config_path,
                                     load_config, with_values)
-from wet_eha_thermal.estimator.core import Estimator
+from wet_eha_thermal.estimator.session import EstimatorSession
 from wet_eha_thermal.model.kinetics import stage_duty
 from wet_eha_thermal.offline import replay as rp
 from wet_eha_thermal.offline.simulated_rig import SimulatedRig
 import yaml
+
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
 
 GAP = 'motor.stator.frame_contact_gap_m'
 SEAL = 'hydraulics.pump.extra_loss_W'
@@ -128,7 +130,7 @@ def test_calibrated_yaml_loads_and_runs_in_the_estimator(run, tmp_path):
     seal = {r.key: r for r in rec.parameters}[SEAL]
     assert seal.ci95_low < seal.value < seal.ci95_high and seal.identifiable
     # the estimator runs on it as on any configuration
-    est = Estimator(cfg)
+    est = EstimatorSession(cfg)
     log = run.logs[3].log
     # the fit itself runs open-loop, whatever the configuration says about the live correction
     correction = cb.run_config(with_values(cfg, {'estimator.correction.enabled': True}),
@@ -136,8 +138,8 @@ def test_calibrated_yaml_loads_and_runs_in_the_estimator(run, tmp_path):
     assert correction.enabled is False
     for name in est.inputs:
         t, v = log.inputs[name]
-        est.add_many(name, t[:500], v[:500])
-    estimates = est.advance_all()
+        est.add(name, t[:500], v[:500])
+    estimates = est.step(all_steps=True)
     assert len(estimates) > 400 and math.isfinite(estimates[-1].temperatures_C['winding_mean'])
     report = (tmp_path / 'report.md').read_text()
     assert f'| {MAGNET_GLUE} |' in report and '**no**' in report

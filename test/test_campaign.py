@@ -29,6 +29,8 @@ from wet_eha_thermal.config import load_config, with_values
 from wet_eha_thermal.offline import campaign
 from wet_eha_thermal.offline import replay as rp
 
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
+
 SECONDS = 4.0
 STAGES = (1, 3, 5, 6)
 START_S = 60.0            # for processes to start and workers to join, on a busy machine

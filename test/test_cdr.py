@@ -12,7 +12,7 @@ import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from rosbags.typesys import get_typestore, Stores
 from sensor_msgs.msg import FluidPressure, JointState, Temperature
-from std_msgs.msg import Float64, String
+from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension, String
 
 from wet_eha_thermal.bag import cdr
 
@@ -84,3 +84,26 @@ def test_joint_state(frame_id, names):
     assert ours.header.frame_id == frame_id and ours.name == names
     assert ours.position.tolist() == position and ours.effort.tolist() == effort
     assert not ours.velocity.size
+
+
+@pytest.mark.parametrize('frame_id', FRAME_IDS)
+def test_stamped_one_at_a_time_is_the_batch_encoding(frame_id):
+    # the live node's encoder and the bag writers' give the same bytes
+    stamped = cdr.Stamped(frame_id)
+    values = np.column_stack([VALUES[:6], np.linspace(0.0, 4.0, 6)])
+    batch = cdr.encode_stamped(np.array(STAMPS_NS), frame_id, values)
+    for data, ns, (value, variance) in zip(batch, STAMPS_NS, values.tolist()):
+        assert stamped.encode(stamped.head(ns), value, variance) == data
+
+
+@pytest.mark.parametrize('label', ['', 'x', 'state_K: names on /eha/state_names'])
+@pytest.mark.parametrize('n', [0, 1, 7])
+def test_float64_array(label, n):
+    values = np.linspace(280.0, 400.0, n)
+    data = cdr.encode_float64_array(label, values)
+    msg = Float64MultiArray(data=values.tolist())
+    msg.layout.dim = [MultiArrayDimension(label=label, size=n, stride=n)]
+    assert deserialize_message(data, Float64MultiArray) == msg
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    ours = typestore.deserialize_cdr(data, 'std_msgs/msg/Float64MultiArray')
+    assert bytes(typestore.serialize_cdr(ours, 'std_msgs/msg/Float64MultiArray')) == data

@@ -4,11 +4,13 @@ from pathlib import Path
 
 import pytest
 from wet_eha_thermal.config import load_config
-from wet_eha_thermal.estimator.core import Estimator
+from wet_eha_thermal.estimator.session import EstimatorSession
 from wet_eha_thermal.model.kinetics import load_duty_csv
 from wet_eha_thermal.model.uncertainty import as_built
 from wet_eha_thermal.offline.simulated_rig import SimulatedRig
 from wet_eha_thermal.units import C_TO_K
+
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
 
 #: Duty played per run (s)
 SECONDS = 30.0
@@ -43,16 +45,17 @@ def run(cfg, duty, honour, truth=None):
     estimator's peak hot-spot (degC) and the lowest binding limit (A).
     """
     rig = SimulatedRig(truth or cfg, duty, rate_Hz=200.0, seed=3)
-    est = Estimator(cfg, outlook='inline')
+    limits = []
+    est = EstimatorSession(cfg, outlook='inline', publish=lambda out: limits.extend(out.limits))
     peak_C, lowest_A = -1e9, 1e9
     for _, _, block, tcs, _ in rig.run(SECONDS):
         for name in est.inputs:
-            est.add_many(name, block['t_s'], block[name])
+            est.add(name, block['t_s'], block[name])
         for name, value in (tcs or {}).items():
             est.add_measured(name, float(block['t_s'][-1]), value)
-        for e in est.advance_all():
+        limits.clear()
+        for e in est.step(all_steps=True):
             peak_C = max(peak_C, e.temperatures_C['winding_hotspot'])
-        limits = est.outlook.take_limits()
         if limits:
             lowest_A = min(lowest_A, min(lim.binding_A for lim in limits))
             if honour:

@@ -8,6 +8,8 @@ import sys
 import pytest
 from wet_eha_thermal.model import compiled
 
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
+
 # one minute of stage 6 (the most flow and pressure swing) from cold: about 3000 model
 # steps through every compiled kernel (flows, airgap friction, circuit matrices)
 RUN = """

@@ -89,6 +89,7 @@ def test_unreadable_config_is_reported(tmp_path, capsys):
     assert rc == 2 and 'cannot read config file' in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_maps_command_writes_table_csv_and_plot(tmp_path, capsys):
     rc = main(['maps', '--out', str(tmp_path)])
     out = capsys.readouterr().out

@@ -20,12 +20,14 @@ import numpy as np
 import pytest
 from wet_eha_thermal.config import (config_from_yaml, ConfigError, default_config_path,
                                     load_config, with_values)
-from wet_eha_thermal.estimator.core import Estimator
 from wet_eha_thermal.estimator.correction import ThermalCorrection
+from wet_eha_thermal.estimator.session import EstimatorSession
 from wet_eha_thermal.model.kinetics import stage_duty
 from wet_eha_thermal.offline.simulated_rig import feedback, SimulatedRig
 from wet_eha_thermal.units import C_TO_K
 import yaml
+
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
 
 STEP_S = 0.25
 MINUTES = 30.0
@@ -62,18 +64,18 @@ def run(cfg, data, thermocouples=(), reading=None):
     Returns the estimator and, per estimate, its stamp, temperatures,
     uncertainties and errors against the truth (K).
     """
-    est = Estimator(cfg)
+    est = EstimatorSession(cfg)
     out = {'t': [], 'temps': [], 'sigma': [], 'error': {q: [] for q in WATCH}}
     prev = None
     for block, true, tc in data:
         for name in est.inputs:
-            est.add_many(name, block['t_s'], block[name])
+            est.add(name, block['t_s'], block[name])
         t_end = float(block['t_s'][-1])
         for name in thermocouples:
             value = tc[name] if reading is None else reading(name, t_end, tc[name])
             if value is not None:
                 est.add_measured(name, t_end, value)
-        for e in est.advance_all():
+        for e in est.step(all_steps=True):
             out['t'].append(e.stamp_s)
             out['temps'].append(e.temperatures_C)
             out['sigma'].append(e.uncertainty_K)
@@ -104,14 +106,14 @@ def test_no_thermocouples_or_switch_off_is_open_loop_bit_for_bit(cfg, rig_data, 
     n = int(10 * 60 / STEP_S)
     # on, but no thermocouple: the filter never starts, the estimates are the same bits
     est, on = run(cfg, rig_data[:n])
-    assert not est.correction.active and est.correction.updates == 0
+    assert not est.correction_summary()['active'] and est.correction_summary()['updates'] == 0
     assert on['temps'] == open_loop['temps'][:len(on['temps'])]
     assert on['sigma'] == open_loop['sigma'][:len(on['sigma'])]
     # a thermocouple with use: false is displayed (measured_C), never used
     off = with_values(cfg, {'estimator.correction.thermocouples.frame.use': False})
     est, shown = run(off, rig_data[:n], ('frame',))
     assert est.measured_C['frame'][1] == rig_data[n - 1][2]['frame']
-    assert est.correction.tcs['frame'].status == 'unused'
+    assert est.thermocouples['frame'].status == 'unused'
     assert shown['temps'] == open_loop['temps'][:len(shown['temps'])]
 
 
@@ -123,7 +125,7 @@ def test_frame_thermocouple_halves_the_winding_error(cfg, rig_data, open_loop):
               f'{mx:.2f} K RMS {rms:.2f} K')
         assert mx0 > 5.0                        # the open-loop error of that truth
         assert mx <= 0.5 * mx0 and rms <= 0.5 * rms0, q
-    frame = est.correction.tcs['frame']
+    frame = est.thermocouples['frame']
     assert frame.status == 'ok' and frame.dropped_events == 0 and frame.gated == 0
     assert frame.used > 0.99 * len(rig_data)
     # the seal loss is learned as a heat into the case oil (truth: 20 W)
@@ -151,7 +153,7 @@ def test_stuck_thermocouple_is_dropped_and_no_worse_than_open_loop(cfg, rig_data
         return frozen.setdefault(name, value) if t > 300.0 else value
 
     est, out = run(cfg, rig_data, ('frame',), stuck)
-    frame = est.correction.tcs['frame']
+    frame = est.thermocouples['frame']
     assert frame.status == 'stuck' and frame.dropped_events == 1, frame
     assert est.latest.correction['thermocouples']['frame'] == 'stuck'
     assert frame.used < 300 / STEP_S + 20           # nothing used once it froze
@@ -159,8 +161,8 @@ def test_stuck_thermocouple_is_dropped_and_no_worse_than_open_loop(cfg, rig_data
     # the estimates are the open loop's, bit for bit
     n = int(10 * 60 / STEP_S)
     est, first = run(cfg, rig_data[:n], ('frame',), lambda name, t, value: 21.5)
-    assert est.correction.tcs['frame'].status in ('held', 'stuck')
-    assert est.correction.tcs['frame'].used == 0 and not est.correction.active
+    assert est.thermocouples['frame'].status in ('held', 'stuck')
+    assert est.thermocouples['frame'].used == 0 and not est.correction_summary()['active']
     assert first['temps'] == open_loop['temps'][:len(first['temps'])]
     for q in ('winding_hotspot', 'winding_mean'):
         (mx0, rms0), (mx, rms) = figures(open_loop, q), figures(out, q)
@@ -176,14 +178,14 @@ def test_noisy_thermocouple_is_dropped_and_no_worse_than_open_loop(cfg, rig_data
         return value + float(rng.normal(0.0, 3.0)) if t > 300.0 else value
 
     est, out = run(cfg, rig_data, ('frame',), noisy)
-    frame = est.correction.tcs['frame']
+    frame = est.thermocouples['frame']
     assert frame.status == 'noisy' and frame.dropped_events == 1, frame
     assert frame.noise_K > 2.0
     assert frame.used < 300 / STEP_S + 20
     # noisy from the first reading: never used, the filter never starts
     est, _ = run(cfg, rig_data[:int(60 / STEP_S)], ('frame',),
                  lambda name, t, value: value + float(rng.normal(0.0, 3.0)))
-    assert est.correction.tcs['frame'].status == 'noisy' and not est.correction.active
+    assert est.thermocouples['frame'].status == 'noisy' and not est.correction_summary()['active']
     for q in ('winding_hotspot', 'winding_mean'):
         (mx0, rms0), (mx, rms) = figures(open_loop, q), figures(out, q)
         print(f'noisy frame, {q}: max {mx:.2f} K RMS {rms:.2f} K (open loop {mx0:.2f}, '
@@ -200,9 +202,9 @@ def test_stale_thermocouple_is_reported_and_comes_back(cfg, rig_data):
     est = None
     for stop in (int(7 * 60 / STEP_S), n):
         est, _ = run(cfg, rig_data[:stop], ('frame',), gap)
-        seen[stop] = est.correction.tcs['frame'].status, est.latest.uncertainty_K['frame']
+        seen[stop] = est.thermocouples['frame'].status, est.latest.uncertainty_K['frame']
     assert seen[int(7 * 60 / STEP_S)][0] == 'stale'
-    frame = est.correction.tcs['frame']
+    frame = est.thermocouples['frame']
     assert frame.stale_events == 1 and frame.status == 'ok'
     # while stale the frame's uncertainty grows again; with readings it shrinks back
     assert seen[int(7 * 60 / STEP_S)][1] > seen[n][1]
@@ -210,13 +212,13 @@ def test_stale_thermocouple_is_reported_and_comes_back(cfg, rig_data):
     used = frame.used
     est.add_measured('frame', est.t_model - 10.0, 99.0)          # stamp going backwards
     assert frame.rejected == 1
-    est2 = Estimator(cfg)
+    est2 = EstimatorSession(cfg)
     est2.add_measured('frame', -10.0, 20.0)                      # stale before the start
     for block, _, _ in rig_data[:8]:
         for name in est2.inputs:
-            est2.add_many(name, block['t_s'], block[name])
-        est2.advance_all()
-    assert est2.correction.tcs['frame'].used == 0 and not est2.correction.active
+            est2.add(name, block['t_s'], block[name])
+        est2.step(all_steps=True)
+    assert est2.thermocouples['frame'].used == 0 and not est2.correction_summary()['active']
     assert frame.used == used
 
 
@@ -226,7 +228,7 @@ def test_a_jump_is_gated_dropped_and_taken_back_when_it_agrees(cfg, rig_data):
 
     n = int(8 * 60 / STEP_S)
     est, out = run(cfg, rig_data[:n], ('frame',), jump)
-    frame = est.correction.tcs['frame']
+    frame = est.thermocouples['frame']
     assert frame.dropped_events == 1 and frame.recovered == 1 and frame.status == 'ok', frame
     assert frame.gated >= cfg.estimator.correction.gate_count
     # the jump never dragged the estimates: the winding error stays small throughout
@@ -240,14 +242,14 @@ def test_readings_apply_in_sample_time_whatever_the_feeding(cfg, rig_data):
     # step that their stamp closes (live): the filter must use each in the same step
     data = rig_data[:int(90 / STEP_S)]
     block_wise, _ = run(cfg, data, ('frame', 'pump_case'))
-    est = Estimator(cfg)
+    est = EstimatorSession(cfg)
     for block, _, tc in data:
         for name in est.inputs:
-            est.add_many(name, block['t_s'], block[name])
-        est.advance_all()
+            est.add(name, block['t_s'], block[name])
+        est.step(all_steps=True)
         for name in ('frame', 'pump_case'):
             est.add_measured(name, float(block['t_s'][-1]), tc[name])
-    assert est.correction.updates == block_wise.correction.updates > 0
+    assert est.correction_summary()['updates'] == block_wise.correction_summary()['updates'] > 0
     assert est.latest.temperatures_C == block_wise.latest.temperatures_C
 
 
@@ -256,7 +258,7 @@ def test_the_correction_section_is_optional_and_checked():
     del data['estimator']['correction']
     old = config_from_yaml(yaml.safe_dump(data))               # a config from before
     assert old.estimator.correction.enabled is False
-    assert Estimator(old).correction is None
+    assert not EstimatorSession(old).correcting
     with pytest.raises(ConfigError, match=r'estimator\.correction\.gate_sigma = 0\.5: out of '
                                           r'range; allowed \[1, 100\]'):
         load_config(overrides={'estimator.correction.gate_sigma': 0.5})
@@ -273,23 +275,24 @@ def test_winding_heat_state_and_uncertainty_bounds(cfg, rig_data):
     d = est.latest.correction['disturbance_W']
     assert set(d) == {'case_oil', 'winding'} and abs(d['winding']) < 10.0
     assert math.isfinite(figures(out, 'winding_hotspot')[0])
-    P = est.correction.P
+    P = est._est._correction.P
     assert np.allclose(P, P.T) and np.all(np.diag(P) >= 0.0)
     assert P[-1, -1] <= 10.0 ** 2 + 1e-9                      # capped at its prior
 
 
 def test_a_numerical_failure_restarts_the_filter_and_never_stops_the_estimator(cfg, rig_data):
-    est = Estimator(cfg)
+    est = EstimatorSession(cfg)
     for k, (block, _, tc) in enumerate(rig_data[:int(60 / STEP_S)]):
         for name in est.inputs:
-            est.add_many(name, block['t_s'], block[name])
+            est.add(name, block['t_s'], block[name])
         est.add_measured('frame', float(block['t_s'][-1]), tc['frame'])
         if k == 120:
-            est.correction.P[0, 0] = math.nan               # injected
-        out = est.advance_all()
+            est._est._correction.P[0, 0] = math.nan               # injected
+        out = est.step(all_steps=True)
         assert all(math.isfinite(e.temperatures_C['winding_hotspot']) for e in out)
-    assert est.correction.failures == 1 and 'FloatingPointError' in est.correction.last_failure
-    assert est.correction.active                            # restarted at the next reading
+    summary = est.correction_summary()
+    assert summary['failures'] == 1 and 'FloatingPointError' in summary['last_failure']
+    assert summary['active']                            # restarted at the next reading
 
 
 def test_the_filter_transition_is_the_model_step_linearised():
@@ -362,11 +365,11 @@ def test_the_filter_transition_is_the_model_step_linearised():
 def test_the_model_linearises_its_last_step_and_takes_a_correction_by_name(cfg, rig_data):
     # the filter's whole view of the model: named matrices of the last step, and a state
     # correction that also moves the inlet extrapolation's memory (no private member)
-    est = Estimator(cfg)
+    est = EstimatorSession(cfg)
     for block, _, _ in rig_data[:3]:
         for name in est.inputs:
-            est.add_many(name, block['t_s'], block[name])
-        est.advance_all()
+            est.add(name, block['t_s'], block[name])
+        est.step(all_steps=True)
     model = est.model
     lin = model.linearize()
     m, nh = model.motor.x.size, model.T_hyd.size

@@ -146,6 +146,7 @@ def test_airgap_friction_equals_bilgen_boulos_power_when_turbulent():
     assert power > c.couette_torque(MU, omega, L, R1, R2) * omega
 
 
+@pytest.mark.slow
 @pytest.mark.filterwarnings('error')
 def test_airgap_friction_zero_and_negative_speed():
     """Zero speed gives 0 W without warnings; the sign of omega does not matter."""
@@ -434,9 +435,12 @@ def test_arrays_and_scalars_agree():
 def test_airgap_nusselt_registry():
     """The configuration offers the registry's names; the default law is Becker-Kaye's."""
     import dataclasses
-    from wet_eha_thermal.config_model import Motor
+    from wet_eha_thermal.config_model import Frame, Motor
+    from wet_eha_thermal.config_spec import choices_of
     meta = {f.name: f.metadata for f in dataclasses.fields(Motor)}['airgap_nusselt']
-    assert meta['choices'] == tuple(c.AIRGAP_NUSSELT)
+    assert choices_of(meta) == tuple(c.AIRGAP_NUSSELT)
+    meta = {f.name: f.metadata for f in dataclasses.fields(Frame)}['natural_convection']
+    assert choices_of(meta) == tuple(c.NATURAL_CONVECTION)
     assert c.AIRGAP_NUSSELT['becker_kaye'].function is c.taylor_couette_nusselt
     default = c.airgap_wall_to_bulk_htc(2000.0, R1, R2, 1e-5, RHO, MU, K_OIL, CP)
     named = c.airgap_wall_to_bulk_htc(2000.0, R1, R2, 1e-5, RHO, MU, K_OIL, CP,

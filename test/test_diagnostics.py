@@ -1,9 +1,10 @@
-"""The estimator node's diagnostic statuses, built without ROS from an estimator fed by hand."""
+"""The estimator node's diagnostic statuses, built without ROS from a session fed by hand."""
 
 import pytest
 from wet_eha_thermal import interface
 from wet_eha_thermal.config import load_config
-from wet_eha_thermal.estimator.core import Estimator, INPUTS
+from wet_eha_thermal.estimator.intake import INPUTS
+from wet_eha_thermal.estimator.session import EstimatorSession
 from wet_eha_thermal.ros import diagnostics as dg
 
 VALUES = {'current_A': 15.0, 'speed_rad_s': 800.0, 'p_a_Pa': 3e6, 'p_b_Pa': 1e6,
@@ -22,9 +23,9 @@ def feed(est, t0, seconds, skip=()):
     for k in range(1, int(seconds * 1000) + 1):
         for ch in INPUTS:
             if ch not in skip:
-                est.intake.push(ch, t0 + k / 1000, VALUES[ch])
+                est.push(ch, t0 + k / 1000, VALUES[ch])
         if k % 20 == 0:
-            est.advance()
+            est.step()
     return t0 + seconds
 
 
@@ -39,7 +40,7 @@ def report(est, now_s, node=None, new_rejected=None, new_implausible=0):
 
 @pytest.fixture
 def est():
-    return Estimator(load_config(overrides={'estimator.correction.enabled': False}))
+    return EstimatorSession(load_config(overrides={'estimator.correction.enabled': False}))
 
 
 def test_no_estimate_yet_is_stale_and_names_the_fallbacks(est):
@@ -82,7 +83,7 @@ def test_rejections_warn_and_a_failing_model_is_an_error(est):
 
 
 def test_with_the_correction_every_thermocouple_has_a_status():
-    est = Estimator(load_config(overrides={'estimator.correction.enabled': True}))
+    est = EstimatorSession(load_config(overrides={'estimator.correction.enabled': True}))
     s = report(est, feed(est, 0.0, 1.0))
     names = list(s)
     assert names == (['estimate'] + [f'input {n}' for n in est.inputs] + ['plausibility']

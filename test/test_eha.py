@@ -2,7 +2,6 @@
 
 import numpy as np
 import pytest
-from wet_eha_thermal.config import load_config
 from wet_eha_thermal.model.hydraulics import HydraulicCircuit, LINKS, OIL_NODES, StepFlows
 from wet_eha_thermal.model.kinetics import SinusoidalDuty, Stage, stage_duty, TableDuty
 from wet_eha_thermal.model.oil import get_oil, isenthalpic_throttle_temperature_rise
@@ -10,11 +9,7 @@ from wet_eha_thermal.offline.simulation import RUNAWAY_C, simulate, ThermalRunaw
 from wet_eha_thermal.units import C_TO_K
 
 
-@pytest.fixture(scope='module')
-def cfg():
-    return load_config()
-
-
+@pytest.mark.slow
 @pytest.mark.parametrize('stage', [1, 2, 3, 4, 5, 6])
 def test_energy_is_conserved_over_a_stage(cfg, stage):
     # docs/model.md check 5: electrical energy in minus work to the load = heat stored
@@ -64,6 +59,7 @@ def test_leak_is_heated_isenthalpically(cfg):
     assert T[ci.index('port_a')] == pytest.approx(T0, abs=1e-12)   # nothing flows into A
 
 
+@pytest.mark.slow
 def test_steady_static_load_heat_in_equals_heat_out(cfg):
     # holding 2 MPa with the actuator still: the pump turns only for leakage. The
     # slowest time constant is about 2 h (accumulator and shells), so after 10 h the
@@ -80,6 +76,7 @@ def test_steady_static_load_heat_in_equals_heat_out(cfg):
     assert heat_out == pytest.approx(heat_in, rel=2e-3)
 
 
+@pytest.mark.slow
 def test_sustained_high_load_is_stopped_as_a_runaway(cfg):
     # holding 16 MPa dissipates ~340 W of leakage at 40 degC, more as the oil thins
     hold = TableDuty([0.0, 1.0], [0.0, 0.0], [16e6, 16e6], cfg.hydraulics.actuator.area_m2)
@@ -90,6 +87,7 @@ def test_sustained_high_load_is_stopped_as_a_runaway(cfg):
     assert max(v[-1] for v in res.temperatures_K.values()) - C_TO_K > RUNAWAY_C
 
 
+@pytest.mark.slow
 def test_every_oil_volume_balances_its_flows(cfg):
     r = simulate(cfg, stage_duty(cfg, 1), 30.0, dt_s=0.1, record_every_s=30.0)
     m = r.model
@@ -118,6 +116,7 @@ def cycle_means(res, window_s=10.0):
             if k != 'pump_outlet'}
 
 
+@pytest.mark.slow
 def test_default_step_agrees_with_a_fine_step(cfg):
     # stage 6, the no-load rig test: the default 1 s step against 10 ms steps; compare
     # the means over the last cycles (a 1 s step cannot show the swing inside a cycle)
@@ -136,6 +135,7 @@ def rise_after(cfg, stage: Stage, seconds=600.0):
     return {k: v[-1] - (20.0 + C_TO_K) for k, v in r.temperatures_K.items()}
 
 
+@pytest.mark.slow
 def test_more_load_gives_more_temperature_rise(cfg):
     rises = [rise_after(cfg, Stage(3, dp, 6.0 / 60000, 1.0)) for dp in (4e6, 8e6, 12e6)]
     for key in ('winding_mean', 'pump_case', 'chamber_a', 'accumulator'):
@@ -143,6 +143,7 @@ def test_more_load_gives_more_temperature_rise(cfg):
         assert r[0] < r[1] < r[2], (key, r)
 
 
+@pytest.mark.slow
 def test_more_flow_and_frequency_give_more_temperature_rise(cfg):
     # faster duty at the same load: more speed, more friction and core loss
     rises = [rise_after(cfg, Stage(3, 8e6, q / 60000, f))
@@ -152,6 +153,7 @@ def test_more_flow_and_frequency_give_more_temperature_rise(cfg):
         assert r[0] < r[1] < r[2], (key, r)
 
 
+@pytest.mark.slow
 def test_extra_loss_is_booked_as_a_source_and_heats_the_case(cfg):
     # a constant extra loss (a shaft seal the friction law lacks) is heat into the case
     # oil alone, and the coupled model's books still close with it

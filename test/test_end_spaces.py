@@ -129,6 +129,7 @@ def test_flat_plate_laws_meet_and_scale():
     assert [f.quantity for f in log] == ['Pr']          # only where it is turbulent
 
 
+@pytest.mark.slow
 def test_swirl_speed_is_solid_body_inside_and_free_vortex_outside():
     w, a, k = 1000.0, 0.02, 0.3
     v = [c.end_space_swirl_speed(w, a, r, k) for r in (0.005, 0.02, 0.04)]

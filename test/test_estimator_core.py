@@ -16,11 +16,6 @@ STEADY = {'speed_rad_s': 800.0, 'p_a_Pa': 3e6, 'p_b_Pa': 1e6, 'p_acc_Pa': 1e6,
           'position_m': 0.0}
 
 
-@pytest.fixture(scope='module')
-def cfg():
-    return load_config()
-
-
 def feed(est, t0, seconds, rate_Hz=1000.0, current=lambda t: 15.0, skip=(), advance=True,
          values=None):
     """Feed every input at ``rate_Hz`` from ``t0`` (except those in ``skip``); return the end."""
@@ -32,12 +27,13 @@ def feed(est, t0, seconds, rate_Hz=1000.0, current=lambda t: 15.0, skip=(), adva
         for ch in INPUTS:
             if ch in skip:
                 continue
-            est.intake.push(ch, t, current(t) if ch == 'current_A' else values[ch])
+            est.push(ch, t, current(t) if ch == 'current_A' else values[ch])
         if advance and k % 20 == 0:
             out += est.advance()
     return t0 + n / rate_Hz, out
 
 
+@pytest.mark.slow
 def test_current_is_averaged_as_mean_square(cfg):
     # a 100 Hz ripple on the RMS current, sampled at 1 kHz with stamps on the step
     # boundaries: the copper loss needs the mean of I^2 (15^2 + 10^2 / 2 = 275 A^2),
@@ -57,6 +53,7 @@ def test_current_is_averaged_as_mean_square(cfg):
     assert got == pytest.approx(right, abs=5e-3)
 
 
+@pytest.mark.slow
 def test_stale_input_falls_back_and_recovers(cfg):
     est = Estimator(cfg)
     t, _ = feed(est, 0.0, 2.0)
@@ -114,12 +111,13 @@ def test_implausible_combinations_are_counted(cfg):
         t = 1.0 + k / 1000
         sample = dict(STEADY, current_A=5.0, speed_rad_s=0.0, position_m=0.02 * (t - 1.0))
         for ch in INPUTS:
-            est2.intake.push(ch, t, sample[ch])
+            est2.push(ch, t, sample[ch])
         if k % 20 == 0:
             est2.advance()
     assert est2.implausible_counts['flow_without_speed'] >= 20
 
 
+@pytest.mark.slow
 def test_alerts_follow_the_estimate_and_acknowledge(cfg, tmp_path):
     low = load_config(overrides={'estimator.alerts.winding_hotspot.warn_C': 21.0,
                                  'estimator.alerts.winding_hotspot.critical_C': 400.0})
@@ -132,6 +130,7 @@ def test_alerts_follow_the_estimate_and_acknowledge(cfg, tmp_path):
     assert acks and acks[0].kind == 'acknowledged'
 
 
+@pytest.mark.slow
 def test_forecast_matches_a_simulated_run_to_the_limit(cfg):
     # stage 2 heats the oil past 135 degC within the hour: run it in full, then let
     # the estimator see its first minute and forecast from the repeated duty
@@ -153,34 +152,36 @@ def test_forecast_matches_a_simulated_run_to_the_limit(cfg):
         s = kin.sample(duty, ts, fb)
         for i in range(ts.size):
             for ch in INPUTS:
-                est.intake.push(ch, ts[i], float(getattr(s, ch)[i]))
+                est.push(ch, ts[i], float(getattr(s, ch)[i]))
         est.advance_all()
-    start = est.outlook.stamp_s       # the forecast tick at 60 s, done at once (inline)
+    start = est._outlook.stamp_s       # the forecast tick at 60 s, done at once (inline)
     assert start == pytest.approx(60.0, abs=0.1)
     for q in ('oil', 'magnet'):
-        predicted = start + est.outlook.result[q]
+        predicted = start + est._outlook.result[q]
         # the forecast repeats the first minute's sensor duty, while in the run the oil
         # thins, the leakage grows and the speed (and its friction) with it: the forecast
         # crosses late, by 3-4 % whatever its step (2 s: 4.0 %, 10 s: 3.1 %)
         assert truth[q] < predicted < 1.045 * truth[q], q
-    assert est.outlook.failures == 0
+    assert est._outlook.failures == 0
 
 
+@pytest.mark.slow
 def test_margin_current_brings_the_hotspot_to_its_limit_less_k_sigma(cfg):
     # with the constant sigma (no uncertainty section): a known k sigma below the limit
     cfg = dataclasses.replace(cfg, uncertainty=None)
     est = Estimator(cfg, outlook='inline')
     feed(est, 0.0, 2.0, rate_Hz=200.0)
-    amps = est.outlook._margins[1][0]    # the first tick's continuous limit
+    amps = est._outlook._margins[1][0]    # the first tick's continuous limit
     assert 10.0 < amps < 200.0
     # independent check: the motor alone in steady state at that current
-    mot = est.outlook._margin_motor
+    mot = est._outlook._margin_motor
     lim = cfg.estimator.limits
     assert mot.outputs()['winding_hotspot'] - C_TO_K == pytest.approx(
         cfg.motor.winding.insulation_limit_C - lim.k_sigma * cfg.estimator.model_uncertainty_K,
         abs=0.1)
 
 
+@pytest.mark.slow
 def test_differential_pressure_matches_ports_with_the_low_side_at_the_accumulator(cfg):
     # a load reversing every 2 s: the high side swaps ports, the low side sits at the
     # accumulator pressure, which is what the differential mode assumes: same model inputs
@@ -195,9 +196,9 @@ def test_differential_pressure_matches_ports_with_the_low_side_at_the_accumulato
         common = {'current_A': 20.0, 'speed_rad_s': 900.0, 'position_m': x}
         for ch, v in dict(common, p_a_Pa=p_acc + max(dp, 0.0), p_b_Pa=p_acc + max(-dp, 0.0),
                           p_acc_Pa=p_acc).items():
-            ports.intake.push(ch, t, v)
+            ports.push(ch, t, v)
         for ch, v in dict(common, dp_Pa=dp).items():
-            diff.intake.push(ch, t, v)
+            diff.push(ch, t, v)
         ports.advance()
         diff.advance()
     assert ports.steps == diff.steps > 900
@@ -211,12 +212,13 @@ def test_differential_pressure_matches_ports_with_the_low_side_at_the_accumulato
         t = k / 1000.0
         for ch, v in {'current_A': 20.0, 'speed_rad_s': 900.0, 'dp_Pa': 0.0,
                       'position_m': 0.01 * math.sin(2 * math.pi * t / 4.0)}.items():
-            flat.intake.push(ch, t, v)
+            flat.push(ch, t, v)
         flat.advance()
     assert diff.latest.temperatures_C['pump_port_a'] \
         - flat.latest.temperatures_C['pump_port_a'] > 0.3
 
 
+@pytest.mark.slow
 def test_deferred_rediscretisation_is_deterministic_and_lags_harmlessly(cfg):
     # the live estimator re-discretises the motor after publishing (prepare), so its
     # coefficients lag one 20 ms step; whether prepare is called must not change a bit
@@ -229,7 +231,7 @@ def test_deferred_rediscretisation_is_deterministic_and_lags_harmlessly(cfg):
         prepared = 0
         for i in range(t.size):
             for ch, v in cols:
-                est.intake.push(ch, t[i], float(v[i]))
+                est.push(ch, t[i], float(v[i]))
             if i % 20 == 19:
                 est.advance()
                 if prepare:
@@ -247,6 +249,7 @@ def test_deferred_rediscretisation_is_deterministic_and_lags_harmlessly(cfg):
         assert with_prepare[name] == pytest.approx(value, abs=1e-3), name
 
 
+@pytest.mark.slow
 def test_stamps_since_the_epoch_give_the_same_estimates_as_small_stamps(cfg):
     # ROS stamps are ~1.8e9 s: a float64 resolves them to ~0.2 us, so the model must
     # not take step lengths from their differences (each step would then differ and
@@ -287,7 +290,7 @@ def test_add_many_counts_and_keeps_the_same_in_blocks_as_one_by_one(cfg):
     assert vars(h1) == vars(h2)
     assert h1.non_finite >= 30 and h1.out_of_range >= 25 and h1.backwards >= 20
     kept = [(b.stamps().tolist(), b.v[b.lo:b.hi].tolist())
-            for b in (one.intake.buffers['current_A'], many.intake.buffers['current_A'])]
+            for b in (one._intake.buffers['current_A'], many._intake.buffers['current_A'])]
     assert kept[0] == kept[1]
     late = Estimator(cfg)
     late.t_model = 1.0
@@ -295,6 +298,7 @@ def test_add_many_counts_and_keeps_the_same_in_blocks_as_one_by_one(cfg):
     assert late.health['current_A'].late == 2
 
 
+@pytest.mark.slow
 def test_a_burst_of_bunched_position_stamps_is_rate_limited(cfg):
     # a receiver that stalls 0.4 s stamps the LVDT samples of the stall on arrival, all
     # within a millisecond: differentiated, the position would jump at 100 m/s and the
@@ -308,16 +312,16 @@ def test_a_burst_of_bunched_position_stamps_is_rate_limited(cfg):
             t = k / 1000.0
             x = 0.02 * math.sin(2 * math.pi * t / 2.0)       # 63 mm/s peak
             for ch in INPUTS[:-1]:
-                est.intake.push(ch, t, 15.0 if ch == 'current_A' else STEADY[ch])
+                est.push(ch, t, 15.0 if ch == 'current_A' else STEADY[ch])
             if burst and 4000 < k <= 4400:
                 held.append(x)                                 # stalled receiver
             elif held:
                 for j, xj in enumerate(held):                  # stamped on arrival
-                    est.intake.push('position_m', t - 0.001 + (j + 1) * 1e-6, xj)
+                    est.push('position_m', t - 0.001 + (j + 1) * 1e-6, xj)
                 held = []
-                est.intake.push('position_m', t, x)
+                est.push('position_m', t, x)
             else:
-                est.intake.push('position_m', t, x)
+                est.push('position_m', t, x)
             est.advance()
         return est
 

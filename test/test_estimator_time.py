@@ -24,11 +24,6 @@ REST = {'current_A': 0.0, 'speed_rad_s': 0.0, 'p_a_Pa': 1e6, 'p_b_Pa': 1e6, 'p_a
         'position_m': 0.0}
 
 
-@pytest.fixture(scope='module')
-def cfg():
-    return load_config()
-
-
 def feed(est, t0, t1, values, rate_Hz=1000.0, clock=True):
     """Feed every input from t0 to t1 (s), stepping with the clock; return the estimates."""
     out = []
@@ -36,7 +31,7 @@ def feed(est, t0, t1, values, rate_Hz=1000.0, clock=True):
     for k in range(1, n + 1):
         t = t0 + k / rate_Hz
         for ch in INPUTS:
-            est.intake.push(ch, t, values[ch])
+            est.push(ch, t, values[ch])
         if k % 20 == 0:
             out += est.advance(t if clock else None)
     return out
@@ -64,14 +59,14 @@ def test_a_stamp_far_ahead_of_the_clock_is_rejected_and_moves_nothing(cfg):
     for ch in INPUTS:
         assert not est.add_many(ch, [2.0 + 86400.0], [LOAD[ch]])
     assert not est.add_measured('frame', 2.0 + 86400.0, 25.0)
-    assert est.intake.push('speed_rad_s', 2.0 + 86400.0, 800.0)   # checked at the next advance
+    assert est._intake.push('speed_rad_s', 2.0 + 86400.0, 800.0)   # checked at the next advance
     out = est.advance(2.001)
     assert len(out) <= est.settings.max_steps_per_call
     for ch in INPUTS:
         h = est.health[ch]
         assert h.future == (2 if ch == 'speed_rad_s' else 1)
         assert h.last_stamp_s == last[ch]                      # never moved by a rejected one
-    assert est.correction.tcs['frame'].rejected == 1
+    assert est._correction.tcs['frame'].rejected == 1
     # good data goes on as if nothing happened: accepted, current, not stale
     out = feed(est, 2.0, 3.0, LOAD)
     assert all(h.backwards == 0 and h.late == 0 for h in est.health.values())
@@ -80,15 +75,16 @@ def test_a_stamp_far_ahead_of_the_clock_is_rejected_and_moves_nothing(cfg):
     assert est.add_many('current_A', [3.0 + 0.4], [15.0])
 
 
+@pytest.mark.slow
 def test_a_clock_jump_back_restarts_model_time_and_keeps_the_state(cfg):
     est = Estimator(cfg)
     feed(est, 1000.0, 1030.0, LOAD)
     before = est.latest.temperatures_C
     assert before['winding_hotspot'] > 21.0
-    buffered = sum(b.hi - b.lo for b in est.intake.buffers.values())
+    buffered = sum(b.hi - b.lo for b in est._intake.buffers.values())
     # sim time restarts from 10 s: the clock reads 10.0 at the next tick
     out = est.advance(10.0)
-    assert est.clock_jumps == 1 and est.intake.last_clock_jump[1] == 10.0
+    assert est.clock_jumps == 1 and est._intake.last_clock_jump[1] == 10.0
     assert est.t_model == pytest.approx(10.0)           # never stepped across 1020 s
     assert sum(h.discarded for h in est.health.values()) == buffered
     assert len(out) == 1 and 'clock jumped' in out[0].notices[0]
@@ -101,12 +97,13 @@ def test_a_clock_jump_back_restarts_model_time_and_keeps_the_state(cfg):
     stamps = [e.stamp_s for e in out]
     assert all(b > a for a, b in zip(stamps, stamps[1:])) and stamps[-1] <= 12.0
     # an alert timer keeps its age across a jump instead of failing on the stamps
-    est.alerts.update(est.t_model, {'winding_hotspot': 500.0})
+    est._alerts.update(est.t_model, {'winding_hotspot': 500.0})
     est.advance(1.0)
     assert est.clock_jumps == 2
     feed(est, 1.0, 4.0, LOAD)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('held, before', [('rest', LOAD), ('load', LOAD)])
 def test_a_long_silence_is_crossed_in_few_held_blocks_close_to_stepping(held, before):
     # 10 minutes with no sample, then data again: held blocks against step by step. The
@@ -139,6 +136,7 @@ def test_a_long_silence_is_crossed_in_few_held_blocks_close_to_stepping(held, be
         assert held_est.latest.temperatures_C[name] == pytest.approx(value, abs=0.5), name
 
 
+@pytest.mark.slow
 def test_every_call_is_bounded_and_the_steps_are_those_of_one_call(cfg):
     # a replay feeds 10 s at once: advance makes max_steps_per_call steps per call, and
     # the estimates are the same as advance_all's, bit for bit
@@ -162,9 +160,9 @@ def test_buffers_are_capped_and_overflow_is_counted():
     cfg = load_config(overrides={'estimator.buffer_samples': 1024})
     est = Estimator(cfg)
     for k in range(5000):                          # a flood with the model never stepping
-        est.intake.push('current_A', 1.0 + k * 1e-4, 10.0)
+        est.push('current_A', 1.0 + k * 1e-4, 10.0)
     h = est.health['current_A']
-    assert h.overflow == 5000 - 1024 and est.intake.buffers['current_A'].t.size == 1024
+    assert h.overflow == 5000 - 1024 and est._intake.buffers['current_A'].t.size == 1024
     est.advance()
     assert h.accepted == 1024 and h.received == 5000
 
@@ -177,7 +175,7 @@ def test_a_full_buffer_that_the_steps_emptied_takes_the_next_sample():
     for k in range(5 * 1024):                    # five times round the buffer at 1 kHz
         t += 1e-3
         for ch in est.inputs:
-            assert est.intake.push(ch, t, LOAD[ch]), (ch, k)
+            assert est._intake.push(ch, t, LOAD[ch]), (ch, k)
         if k % 20 == 19:
             est.advance(now_s=t)
     assert all(h.overflow == 0 and h.accepted == 5 * 1024 for h in est.health.values())
@@ -214,7 +212,7 @@ def fuzz(est, rng, iterations=None, seconds=None):
             value = float(rng.choice(bad_values)) if rng.random() < 0.05 \
                 else LOAD[ch] * (1.0 + 0.01 * rng.standard_normal())
             if rng.random() < 0.5:
-                est.intake.push(ch, stamp, value)
+                est.push(ch, stamp, value)
             else:
                 est.add_many(ch, [stamp], [value])
         if rng.random() < 0.02:
@@ -231,13 +229,14 @@ def good_data(est, clock, seconds):
     for k in range(1, int(round(seconds * 1000.0)) + 1):
         t = clock + k / 1000.0
         for ch in est.inputs:
-            est.intake.push(ch, t, LOAD[ch])
+            est.push(ch, t, LOAD[ch])
         if k % 20 == 0:
             est.advance(t)
     catch_up(est, t)
     return t
 
 
+@pytest.mark.slow
 def test_seeded_fuzz_raises_nothing_stays_bounded_and_recovers(cfg):
     # a few seconds of fuzz (benchmarks/fuzz_estimator.py runs it for 10 minutes), then
     # good data again
@@ -245,9 +244,9 @@ def test_seeded_fuzz_raises_nothing_stays_bounded_and_recovers(cfg):
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     clock, slowest = fuzz(est, np.random.default_rng(20261123), iterations=3000)
     # every buffer capped, whatever was fed
-    assert all(b.t.size == cfg.estimator.buffer_samples for b in est.intake.buffers.values())
-    assert len(est.outlook.window) <= est.outlook.window.maxlen
-    assert all(len(g.pending) <= 1000 for g in est.correction._guards.values())
+    assert all(b.t.size == cfg.estimator.buffer_samples for b in est._intake.buffers.values())
+    assert len(est._outlook.window) <= est._outlook.window.maxlen
+    assert all(len(g.pending) <= 1000 for g in est._correction._guards.values())
     grown_MB = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - rss0) / 1024
     assert grown_MB < 200, grown_MB
     # no call hangs: at most max_steps_per_call steps or one held block (~4 ms here)

@@ -16,6 +16,8 @@ from wet_eha_thermal.model.motor import WetMotor
 from wet_eha_thermal.model.oil import get_oil
 from wet_eha_thermal.verification import fem
 
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
+
 POINTS = ((10000, 15.0), (10000, 30.0), (20000, 15.0))
 H_SLOT_M = 0.001     # the slot pitch: winding mean within 0.05 K of the 0.25 mm mesh
 H_RZ_M = 0.00075     # r-z: within 0.03 K of the 0.5 mm mesh (1.5 mm: 0.11 K)

@@ -14,6 +14,7 @@ NOT_OURS = ['build', 'install', 'log', 'out']
 
 @pytest.mark.flake8
 @pytest.mark.linter
+@pytest.mark.slow     # the whole package, minutes on a busy machine
 def test_flake8(monkeypatch):
     # ament_flake8 checks the current directory; make that the package root
     # whatever directory pytest was started from.

@@ -21,7 +21,7 @@ import pytest
 from websockets.sync.client import connect
 from wet_eha_thermal import interface
 from wet_eha_thermal.config import load_config
-from wet_eha_thermal.estimator.core import Estimator
+from wet_eha_thermal.estimator.session import EstimatorSession
 from wet_eha_thermal.live_view import (address_text, app_url, BAND_SIGMAS, CHANNELS, LiveView,
                                        parse_address, PENDING_ESTIMATES, view_topics)
 from wet_eha_thermal.model.quantity_table import LIMITED
@@ -29,6 +29,8 @@ from wet_eha_thermal.offline.whatif import model_outputs, parse_request
 from wet_eha_thermal.offline.whatif_worker import run_request
 from wet_eha_thermal.ros.recorder_node import recorded_topics
 from wet_eha_thermal.ros.topics import message_class
+
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
 
 ROOT = Path(__file__).resolve().parents[1]
 SUBPROTOCOL = 'foxglove.sdk.v1'    # foxglove-sdk's server refuses foxglove.websocket.v1
@@ -39,23 +41,33 @@ ALERTS = {'estimator.alerts.oil.warn_C': 21.0, 'estimator.alerts.oil.critical_C'
           'estimator.alerts.oil.min_duration_s': 0.5}
 
 
-def _summary(est, events):
-    """Return the alert summary as the estimator node publishes it (JSON-ready)."""
-    s = est.alerts.summary()
-    s['level'] = int(s['level'])
-    s.update(events=list(events), clock_jumps=est.clock_jumps,
-             data_gaps={'open_since_s': est.gaps.open_since_s})
-    return s
+def _session(cfg, items):
+    """
+    Return a session that puts each estimate it publishes in ``items``.
+
+    As ``(estimate, thermocouple readings, alert summary or None)``, the
+    summary as the node publishes it: when the level changed or events came
+    (one published before the first estimate goes with it).
+    """
+    pending = []
+
+    def publish(out):
+        if out.alerts is not None:
+            pending[:] = [out.alerts]
+        if out.estimates:
+            items.append((out.estimates[-1], session.measured_C, pending.pop() if pending
+                          else None))
+
+    session = EstimatorSession(cfg, outlook='background', publish=publish)
+    return session
 
 
-def _feed(est, t0, seconds, items):
+def _feed(est, t0, seconds):
     """
     Feed every input at 1 kHz over (t0, t0 + seconds] and a frame reading; return the end.
 
-    As live: 20 ms of samples at a time, then the model steps, one step per
-    call, with the clock at the last sample. Each estimate goes to ``items``
-    as ``(estimate, thermocouple readings, alert summary or None)``, the
-    summary as the node publishes it: when the level changed or events came.
+    As live: 20 ms of samples at a time, then the model steps with the clock
+    at the last sample.
     """
     est.add_measured('frame', t0, 21.5)
     for k in range(int(round(seconds / 0.02))):
@@ -65,12 +77,8 @@ def _feed(est, t0, seconds, items):
                    'p_b_Pa': np.full_like(t, 1e6), 'p_acc_Pa': np.full_like(t, 1e6),
                    'position_m': 0.002 * np.sin(t)}
         for name in est.inputs:
-            est.add_many(name, t, signals[name], now_s=float(t[-1]))
-        for e in est.advance(float(t[-1]), max_steps=1):
-            summary = None
-            if e.alert_events or not items or e.alert_level != items[-1][0].alert_level:
-                summary = _summary(est, [ev.message for ev in e.alert_events])
-            items.append((e, dict(est.measured_C), summary))
+            est.add(name, t, signals[name], now_s=float(t[-1]))
+        est.step(float(t[-1]))
     return float(t[-1])
 
 
@@ -82,15 +90,15 @@ def run():
     The forecast and the margin of the first tick (0.5 s) are completed after
     3 s, so the later estimates carry a time to limit and a margin current.
     """
-    est = Estimator(load_config(overrides=ALERTS), outlook='background')
     items = []
-    t = _feed(est, 0.0, 3.0, items)
+    est = _session(load_config(overrides=ALERTS), items)
+    t = _feed(est, 0.0, 3.0)
     deadline = time.monotonic() + 60.0
     while items[-1][0].margin_current_A is None or items[-1][0].forecast_stamp_s is None:
         assert time.monotonic() < deadline, 'no forecast and margin within 60 s'
-        est.background(0.5)
-        t = _feed(est, t, 0.02, items)
-    _feed(est, t, 1.0, items)
+        est.work(0.5)
+        t = _feed(est, t, 0.02)
+    _feed(est, t, 1.0)
     assert any(e.time_to_limit_s.get(q) is not None for e, _, _ in items for q in LIMITED)
     assert any(s and s['events'] for _, _, s in items), 'no alert event'
     return items
@@ -470,7 +478,7 @@ def _layout(name):
     walk(layout['layout'])
     assert sorted(placed) == sorted(config), 'panels placed and configured differ'
     # the gauges' dials end at the limits of the shipped configuration
-    limits = Estimator(load_config()).limits_C
+    limits = EstimatorSession(load_config()).limits_C
     for panel, cfg in config.items():
         if panel.startswith('Gauge!') and panel[6:] in limits:
             assert cfg['maxValue'] == limits[panel[6:]], panel
@@ -500,7 +508,7 @@ def test_live_layout_names_only_channels_of_the_view(view):
 
 def test_replay_layout_names_only_recorded_topics():
     layout = _layout('replay.json')
-    cfg_inputs = Estimator(load_config()).inputs
+    cfg_inputs = EstimatorSession(load_config()).inputs
     unused = {interface.INPUT_TOPICS[n] for n in interface.INPUT_TOPICS if n not in cfg_inputs}
     recorded = {t: spec for t, spec in recorded_topics().items() if t not in unused}
     paths = list(message_paths(layout['configById']))

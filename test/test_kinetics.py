@@ -5,19 +5,13 @@ import warnings
 import numpy as np
 import pytest
 from scipy.integrate import cumulative_trapezoid
-from wet_eha_thermal.config import load_config
 from wet_eha_thermal.model.fluid_power import line_pressure_drop
-from wet_eha_thermal.model.kinetics import (DutyError, KineticModel, L_MIN, load_duty_csv,
-                                            MPA, SinusoidalDuty, Stage, stage_duty, STAGES,
-                                            T40_K, TableDuty, ThermalFeedback)
+from wet_eha_thermal.model.kinetics import (DutyError, KineticModel, load_duty_csv,
+                                            SinusoidalDuty, Stage, stage_duty, STAGES, T40_K,
+                                            TableDuty, ThermalFeedback)
 from wet_eha_thermal.model.losses import copper_resistance
 from wet_eha_thermal.model.oil import get_oil
-from wet_eha_thermal.units import RPM
-
-
-@pytest.fixture(scope='module')
-def cfg():
-    return load_config()
+from wet_eha_thermal.units import L_MIN, MPA, RPM
 
 
 @pytest.fixture(scope='module')
@@ -50,6 +44,7 @@ QUADRANTS = {'motoring +': (6.0, 12.0), 'regenerating +': (-6.0, 12.0),
 
 
 # ---------------------------------------------------------------- stages, duties
+@pytest.mark.slow
 def test_six_stages_of_the_datasheet():
     table = {1: (16, 2, 0.2), 2: (12, 4, 0.5), 3: (8, 6, 1.0), 4: (6, 8, 2.0),
              5: (4, 10, 3.0), 6: (0, 12, 1.0)}

@@ -5,7 +5,6 @@ import dataclasses
 import numpy as np
 import pytest
 
-from wet_eha_thermal.config import load_config
 from wet_eha_thermal.model.fluid_power import check_gap_leakage, GAP_LAMINAR_RE, gap_leakage
 from wet_eha_thermal.model.kinetics import KineticModel, stage_duty, ThermalFeedback
 from wet_eha_thermal.model.oil import get_oil
@@ -81,11 +80,6 @@ def test_gap_reynolds_flagged_beyond_the_laminar_range():
     (flag,) = list(log)
     assert flag.quantity == 'Re_gap' and flag.high == GAP_LAMINAR_RE
     assert flag.count == 2 and flag.max_seen == 4000.0
-
-
-@pytest.fixture(scope='module')
-def cfg():
-    return load_config()
 
 
 def test_reference_rig_stays_laminar_over_its_temperature_range(cfg):

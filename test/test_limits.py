@@ -9,7 +9,10 @@ import pytest
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.estimator.core import Estimator, INPUTS
 from wet_eha_thermal.estimator.limits import limit_steps, probing, RATING
+from wet_eha_thermal.estimator.session import EstimatorSession
 from wet_eha_thermal.units import C_TO_K
+
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
 
 #: a loaded pump (8 MPa) at 15 A: the winding warms by about 10 K in a minute
 DUTY = {'current_A': 15.0, 'speed_rad_s': 800.0, 'p_a_Pa': 3e6, 'p_b_Pa': 1e6,
@@ -27,7 +30,7 @@ def feed(est, t0, seconds, skip=(), rate_Hz=1000.0):
         t = t0 + k / rate_Hz
         for ch in INPUTS:
             if ch not in skip:
-                est.intake.push(ch, t, DUTY[ch])
+                est.push(ch, t, DUTY[ch])
         if k % 20 == 0:
             est.advance(t)
     return t0 + n / rate_Hz
@@ -63,7 +66,7 @@ def peak_excess(est, limits_C, current_A, horizon_s, k_sigma):
     plus k sigma over its limit (K): the nonlinear model, step by step,
     where the limits solved its linearisation.
     """
-    held = est.outlook.held_duty()
+    held = est._outlook.held_duty()
     m = copy.deepcopy(est.model)
     m.defer_refresh = False
     dt = est.cfg.estimator.limits.period_s
@@ -85,7 +88,7 @@ def test_a_limit_takes_the_model_to_its_limit_and_no_further(warm, winding_C, ho
     lim = est.cfg.estimator.limits
     limits_C = {'winding_hotspot': winding_C, 'magnet': 120.0, 'oil': 120.0}
     got = run(limit_steps(pickle.dumps(est.model), est.model.state,
-                          probing(est.model, list(limits_C)), est.outlook.held_duty(),
+                          probing(est.model, list(limits_C)), est._outlook.held_duty(),
                           est.ambient_K, est.latest.uncertainty_K, limits_C, lim.k_sigma,
                           (horizon_s,), lim.period_s, est.cfg.motor.peak_current_A))
     amps, binds = got[0]
@@ -104,7 +107,7 @@ def test_a_limit_takes_the_model_to_its_limit_and_no_further(warm, winding_C, ho
 def test_a_cold_motor_is_limited_by_its_rating_over_short_horizons():
     est = Estimator(load_config(), outlook='inline')
     feed(est, 0.0, 11.0)        # past MARGIN_DELAY_S: the first tick's margin is taken
-    limits = est.outlook.limits
+    limits = est._outlook.limits
     assert limits.status == 'ok'
     assert limits.limits_A[limits.names.index('10s')] == est.cfg.motor.peak_current_A
     assert limits.binds[limits.names.index('10s')] == RATING
@@ -114,7 +117,7 @@ def test_a_cold_motor_is_limited_by_its_rating_over_short_horizons():
     assert 0.0 < limits.limits_A[i] < est.cfg.motor.peak_current_A
     assert limits.binds[i] == 'winding_hotspot'
     # the ticks of the first MARGIN_DELAY_S had none yet: the fallback current, pending
-    first = est.outlook.take_limits()[0]
+    first = est._outlook.take_limits()[0]
     assert (first.limits_A[i], first.binds[i]) == (est.cfg.estimator.limits.fallback_current_A,
                                                    'pending')
 
@@ -126,9 +129,9 @@ def collect(mode, seconds):
     t = 0.0
     while t < seconds:
         t = feed(est, t, 1.0)
-        while est.outlook.busy:
+        while est._outlook.busy:
             est.background(1.0)
-        out += est.outlook.take_limits()
+        out += est._outlook.take_limits()
     return out
 
 
@@ -150,20 +153,23 @@ def test_limits_are_bit_for_bit_the_same_at_once_and_in_background_slices(inline
 
 
 def test_limits_taken_sample_by_sample_with_a_small_budget_are_the_same_as_at_once(inline):
-    # as the live node works: take() per sample, 4 ms of background after each estimate,
+    # as the live node's session works: take() per sample, 4 ms of background after each estimate,
     # the limits given up when older than max_age_s; what it computes is what a replay does
     at_once = {lim.stamp_s: lim for lim in inline}
-    est = Estimator(load_config(overrides=LOW_LIMITS), outlook='background')
     live = []
+    session = EstimatorSession(load_config(overrides=LOW_LIMITS), outlook='background',
+                               publish=lambda out: live.extend(out.limits), budget_s=0.004)
     for k in range(1, 12001):
         t = k / 1000.0
         for ch in INPUTS:
-            if est.take(ch, t, DUTY[ch], now_s=t, budget_s=0.004):
-                live += est.outlook.take_limits(est.t_model)
+            session.take(ch, t, DUTY[ch], now_s=t)
     computed = [lim for lim in live if lim.status == 'ok']
     assert len(computed) >= len(at_once) // 2, [lim.reason for lim in live]
     assert all(lim == at_once[lim.stamp_s] for lim in computed)
     assert all(lim.reason.startswith('behind') for lim in live if lim.status != 'ok')
+    # one channel: the estimate (the view, /diagnostics) carries the limits the drive got,
+    # with their status
+    assert session.limits is live[-1] and session.latest.current_limits is live[-1]
 
 
 def test_a_stale_input_drops_the_limits_to_the_fallback_and_says_why():
@@ -171,7 +177,7 @@ def test_a_stale_input_drops_the_limits_to_the_fallback_and_says_why():
     est = Estimator(cfg, outlook='inline')
     t = feed(est, 0.0, 2.0)
     feed(est, t, 2.0, skip=('current_A',))
-    limits = est.outlook.take_limits()
+    limits = est._outlook.take_limits()
     assert limits[0].status == 'ok'
     last = limits[-1]
     assert last.status == 'fallback' and 'current_A' in last.reason
@@ -182,9 +188,9 @@ def test_fallbacks_wait_behind_the_ticks_still_worked_on_so_stamps_never_go_back
     est = Estimator(load_config(), outlook='background')
     t = feed(est, 0.0, 1.1)                # two ticks waiting for background work
     feed(est, t, 1.0, skip=('current_A',))  # then stale ticks, decided at once
-    while est.outlook.busy:
+    while est._outlook.busy:
         est.background(1.0)
-    limits = est.outlook.take_limits()
+    limits = est._outlook.take_limits()
     stamps = [lim.stamp_s for lim in limits]
     assert stamps == sorted(stamps) and len(stamps) == len(set(stamps))
     assert limits[0].status == 'ok' and 'current_A' in limits[-1].reason
@@ -197,7 +203,7 @@ def test_too_uncertain_an_estimate_drops_the_limits_to_the_fallback():
                               uncertainty=None)
     est = Estimator(cfg, outlook='inline')
     feed(est, 0.0, 1.0)
-    last = est.outlook.limits
+    last = est._outlook.limits
     assert last.status == 'fallback' and last.reason.startswith('uncertain')
 
 
@@ -205,8 +211,8 @@ def test_a_tick_not_worked_on_in_time_is_published_as_the_fallback():
     cfg = load_config()
     est = Estimator(cfg, outlook='background')
     feed(est, 0.0, 3.0)                    # no background work at all: every tick waits
-    limits = est.outlook.take_limits(est.t_model)
+    limits = est._outlook.take_limits(est.t_model)
     behind = [lim for lim in limits if lim.status == 'fallback']
     assert behind and all(lim.reason.startswith('behind') for lim in behind)
-    assert est.outlook.limits_behind == len(behind)
+    assert est._outlook.limits_behind == len(behind)
     assert [lim.stamp_s for lim in limits] == sorted(lim.stamp_s for lim in limits)

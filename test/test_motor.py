@@ -10,11 +10,6 @@ from wet_eha_thermal.offline.maps import compute_maps
 from wet_eha_thermal.units import C_TO_K, RPM
 
 
-@pytest.fixture(scope='module')
-def cfg():
-    return load_config()
-
-
 def make_motor(cfg, refresh_dT_K=0.25, max_substep_s=0.1, **overrides):
     if overrides:
         cfg = load_config(overrides={f'motor.{k}': v for k, v in overrides.items()})
@@ -92,6 +87,7 @@ def test_steady_state_heat_balance_closes(maps):
                                                                            rel=1e-9)
 
 
+@pytest.mark.slow
 def test_airgap_outlet_converges_with_section_count(cfg):
     outlet = {}
     for n in (2, 5, 10, 20, 40):
@@ -105,6 +101,7 @@ def test_airgap_outlet_converges_with_section_count(cfg):
     assert diffs[-1] < 0.05
 
 
+@pytest.mark.slow
 def test_transient_settles_on_the_steady_state(cfg):
     u = inputs(rpm=12000, amps=20)
     ref = make_motor(cfg)
@@ -119,6 +116,7 @@ def test_transient_settles_on_the_steady_state(cfg):
         assert m.outputs()[key] == pytest.approx(value, abs=2e-3), key
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('dt', [1.0, 0.1])
 def test_transient_is_step_size_independent(cfg, dt):
     u = inputs(rpm=14000, amps=25)
@@ -153,6 +151,7 @@ def load_step_reference(cfg):
     return run_load_step(cfg, 1e-4, refresh_dT_K=0.005)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('dt', [1e-4, 1e-2, 1.0])
 def test_any_step_follows_a_violent_load_step(cfg, load_step_reference, dt):
     # the airgap oil heats by 19 K in that second and its viscosity (so the
@@ -163,6 +162,7 @@ def test_any_step_follows_a_violent_load_step(cfg, load_step_reference, dt):
         assert out[key] == pytest.approx(value, abs=0.05), key
 
 
+@pytest.mark.slow
 def test_transient_energy_ledger_closes(cfg):
     # a load that changes every step: losses = stored + to ambient + carried by the oil
     m = make_motor(cfg)

@@ -89,6 +89,7 @@ def test_stiff_network_matches_an_independent_ode_solver(dt):
     assert np.allclose(x, sol.y[:, -1], atol=1e-6)
 
 
+@pytest.mark.slow
 def test_step_mean_gives_exact_energy_balance():
     net = stiff_network()
     x = np.array([293.15, 293.15])
@@ -106,6 +107,7 @@ def test_step_mean_gives_exact_energy_balance():
     assert stored + to_amb == pytest.approx(P * dt * 50, rel=1e-9)
 
 
+@pytest.mark.slow
 def test_mean_over_a_step_matches_quadrature():
     net = stiff_network()
     A, B = net.state_space()

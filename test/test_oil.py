@@ -160,6 +160,7 @@ def test_volumetric_energy_integrates_rho_cp_and_inverts(name):
         assert np.max(np.abs(back - T)) < 1e-9
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('name', GRADES)
 def test_secant_modulus_is_the_density_change_from_zero_to_p(name):
     """

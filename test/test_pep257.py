@@ -13,6 +13,7 @@ NOT_OURS = ['build', 'install', 'log', 'out']
 
 @pytest.mark.linter
 @pytest.mark.pep257
+@pytest.mark.slow     # the whole package, minutes on a busy machine
 def test_pep257(monkeypatch):
     # ament_pep257 resolves its paths against the current directory; make
     # that the package root whatever directory pytest was started from.

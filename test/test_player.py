@@ -34,6 +34,8 @@ from wet_eha_thermal.ros.estimator_node import EstimatorNode
 from wet_eha_thermal.ros.player import (LOOP_GAP_NS, main, PlayerNode, recorded_qos,
                                         shift_header_stamp)
 
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
+
 # this module's own domain, this machine only; conftest puts it in ROS_DOMAIN_ID while it runs
 DOMAIN_ID = claim_domain()
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'

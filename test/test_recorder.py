@@ -12,13 +12,13 @@ SIGKILL test runs the recorder as a subprocess and reads its cut bag with
 import json
 import os
 from pathlib import Path
-import signal
 import subprocess
 import sys
 import time
 from types import SimpleNamespace
 
 from builtin_interfaces.msg import Time as TimeMsg
+from child_process import killed_at_exit
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
@@ -42,6 +42,8 @@ from wet_eha_thermal.interface import FLOAT64
 from wet_eha_thermal.ros import recorder_node, topics
 from wet_eha_thermal.ros.recorder_node import RecorderNode
 import yaml
+
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
 
 # this module's own domain, this machine only; conftest puts it in ROS_DOMAIN_ID while it runs
 DOMAIN_ID = claim_domain()
@@ -293,33 +295,28 @@ def test_existing_output_is_one_error_line(tmp_path, capsys, name):
 def test_sigkill_loses_at_most_about_one_flush_interval(context, tmp_path):
     output = tmp_path / 'killed'
     log = open(tmp_path / 'recorder.log', 'wb')
-    proc = subprocess.Popen(
-        [sys.executable, '-m', 'wet_eha_thermal.ros.recorder_node', '--ros-args',
-         '-p', f'output:={output}', '-p', 'qos:=reliable', '-p', 'split_duration_s:=1.0'],
-        stdout=log, stderr=subprocess.STDOUT, env=dict(os.environ, OPENBLAS_NUM_THREADS='1'))
+    argv = [sys.executable, '-m', 'wet_eha_thermal.ros.recorder_node', '--ros-args',
+            '-p', f'output:={output}', '-p', 'qos:=reliable', '-p', 'split_duration_s:=1.0']
     probe = rclpy.create_node('recorder_test_killer', context=context)
     topic = interface.INPUT_TOPICS['current_A']
     pub = probe.create_publisher(Float64, topic, topics.input_qos('reliable', 1000))
     try:
-        end = time.monotonic() + 20.0
-        while pub.get_subscription_count() == 0:
-            assert time.monotonic() < end and proc.poll() is None, \
-                (tmp_path / 'recorder.log').read_text()
-            time.sleep(0.05)
-        time.sleep(0.2)   # the subscription matched here first: let the other side see it too
-        t0 = time.monotonic()
-        sent = 0
-        while time.monotonic() - t0 < 3.0:           # 1 kHz, paced to the wall clock
-            due = int((time.monotonic() - t0) * 1000.0) + 1
-            while sent < due:
-                pub.publish(Float64(data=float(sent)))
-                sent += 1
-            time.sleep(0.0005)
-        proc.send_signal(signal.SIGKILL)
-        proc.wait(timeout=10)
+        with killed_at_exit(argv, stdout=log, stderr=subprocess.STDOUT) as killed:
+            end = time.monotonic() + 20.0
+            while pub.get_subscription_count() == 0:
+                assert time.monotonic() < end and killed.child.poll() is None, \
+                    (tmp_path / 'recorder.log').read_text()
+                time.sleep(0.05)
+            time.sleep(0.2)   # the subscription matched here first: let the other side see it
+            t0 = time.monotonic()
+            sent = 0
+            while time.monotonic() - t0 < 3.0:           # 1 kHz, paced to the wall clock
+                due = int((time.monotonic() - t0) * 1000.0) + 1
+                while sent < due:
+                    pub.publish(Float64(data=float(sent)))
+                    sent += 1
+                time.sleep(0.0005)
     finally:
-        if proc.poll() is None:
-            proc.kill()
         log.close()
         probe.destroy_node()
     # metadata.yaml names every file begun, each complete one with its count; the last is cut

@@ -1,5 +1,6 @@
 """Offline replay of bags through the estimator: round trip, determinism, damaged input."""
 
+import json
 import math
 import shutil
 from types import SimpleNamespace
@@ -18,9 +19,11 @@ from wet_eha_thermal.bag.reader import iter_raw, open_bag
 from wet_eha_thermal.bag.writer import BagWriter
 from wet_eha_thermal.cli import main
 from wet_eha_thermal.config import ConfigError, default_config_path, with_values
-from wet_eha_thermal.estimator.core import Estimator
+from wet_eha_thermal.estimator.session import EstimatorSession
 from wet_eha_thermal.offline import replay as rp
 from wet_eha_thermal.ros.recorder_node import recorded_topics
+
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
 
 SECONDS = 20.0
 
@@ -55,22 +58,35 @@ def test_cli_writes_estimates_and_report(bag, tmp_path, capsys):
 
 
 def test_estimates_mcap_reads_back_with_an_independent_decoder(result, tmp_path):
+    # the live node's form: each estimate with its own variance, the state with its names,
+    # the alert summary as JSON
     path = rp.write_mcap(result, tmp_path / 'estimates.mcap')
-    got = {}
+    got, state, summaries, names = {}, {}, [], None
     with open(path, 'rb') as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
         for schema, channel, message, msg in reader.iter_decoded_messages():
-            if channel.topic not in ('/eha/alerts', interface.CURRENT_LIMITS_TOPIC,
-                                     interface.CURRENT_LIMIT_TOPIC):
+            if channel.topic.startswith(interface.ESTIMATE_PREFIX):
                 assert schema.name == 'sensor_msgs/msg/Temperature'
             if channel.topic == '/eha/estimate/winding_hotspot':
                 stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
                 got[round(stamp, 6)] = (msg.temperature, msg.variance)
-    assert len(got) == len(result.stamp_s)
+            elif channel.topic == interface.STATE_TOPIC:
+                state[message.log_time] = list(msg.data)
+            elif channel.topic == interface.STATE_NAMES_TOPIC:
+                names = json.loads(msg.data)['names']
+            elif channel.topic == interface.ALERT_TOPIC:
+                summaries.append(json.loads(msg.data))
+    assert len(got) == len(state) == len(result.stamp_s)
     for k, stamp in enumerate(result.stamp_s):
         temperature, variance = got[round(float(stamp), 6)]
         assert temperature == result.temperatures_C['winding_hotspot'][k]
-        assert variance == pytest.approx(result.sigma_K[k] ** 2, rel=1e-15)
+        assert variance == result.uncertainty_K['winding_hotspot'][k] ** 2
+        assert state[round(float(stamp) * 1e9)] == result.state_K[k].tolist()
+    assert names == list(result.state_names) and len(names) == result.state_K.shape[1]
+    # the first summary is the one a node publishes at its start; the last the run's end
+    assert len(summaries) == len(result.alerts) >= 1
+    assert summaries[-1]['level'] == result.alert_level[-1]
+    assert {'data_gaps', 'clock_jumps', 'events', 'quantities'} <= set(summaries[-1])
     assert open_bag(path).metadata[interface.CONFIG_METADATA][interface.CONFIG_METADATA_KEY]
 
 
@@ -79,10 +95,12 @@ def test_replay_equals_the_live_estimator_fed_sample_by_sample(bag, result):
     # step; the replay adds 10 s blocks: in sample time both must give the same numbers
     # (the thermocouples too: the live correction uses each reading by its stamp)
     plan = rp.plan_replay(bag)
-    est = Estimator(plan.cfg, outlook='inline')
+    limits = []
+    est = EstimatorSession(plan.cfg, outlook='inline',
+                           publish=lambda out: limits.extend(out.limits))
     by_topic = {topic: name for name, topic in plan.inputs.items()}
     by_tc = {topic: tc for tc, topic in plan.thermocouples.items()}
-    live, margin, limits = {}, {}, []
+    live, margin = {}, {}
     for m in iter_raw(bag, list(by_topic) + [plan.ambient] + list(by_tc)):
         if m.topic == plan.ambient or m.topic in by_tc:
             msg = deserialize_message(m.data, Temperature)
@@ -98,13 +116,12 @@ def test_replay_equals_the_live_estimator_fed_sample_by_sample(bag, result):
             t, v = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec, msg.fluid_pressure
         else:
             t, v = m.log_time_ns * 1e-9, deserialize_message(m.data, Float64).data
-        for e in est.take(name, t, v, budget_s=0.0):
+        for e in est.take(name, t, v):
             live[e.stamp_s] = e.temperatures_C
             margin[e.stamp_s] = e.margin_current_A
-        limits += est.outlook.take_limits()
     assert len(live) == len(result.stamp_s) > 900
-    assert result.correction['active'] and est.correction.updates > 900
-    assert est.correction.updates == result.correction['updates']
+    assert result.correction['active'] and est.correction_summary()['updates'] > 900
+    assert est.correction_summary()['updates'] == result.correction['updates']
     for k, stamp in enumerate(result.stamp_s):
         for name in ('winding_hotspot', 'magnet', 'oil', 'chamber_a'):
             assert live[stamp][name] == result.temperatures_C[name][k], (stamp, name)
@@ -113,7 +130,7 @@ def test_replay_equals_the_live_estimator_fed_sample_by_sample(bag, result):
     assert limits == result.current_limits
     assert np.array_equal([math.nan if margin[s] is None else margin[s] for s in result.stamp_s],
                           result.margin_current_A, equal_nan=True)
-    assert est.outlook.result and est.outlook.result == {
+    assert est.latest.time_to_limit_s and est.latest.time_to_limit_s == {
         q: None if math.isinf(v[-1]) else v[-1] for q, v in result.time_to_limit_s.items()}
     again = rp.replay(rp.plan_replay(bag), output_rate_Hz=50.0)
     for name, values in result.temperatures_C.items():

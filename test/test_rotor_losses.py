@@ -108,6 +108,7 @@ def fe_losses(geo, order, n_theta):
     return losses
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('order, pieces', [(8, 1), (8, 2), (4, 1)])
 def test_resistance_limited_losses_match_finite_elements(motor, order, pieces):
     """

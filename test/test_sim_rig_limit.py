@@ -22,6 +22,8 @@ from wet_eha_thermal import interface
 from wet_eha_thermal.ros import topics
 from wet_eha_thermal.ros.sim_rig_node import clamp_text, SimRigNode
 
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
+
 # this module's own domain, this machine only; conftest puts it in ROS_DOMAIN_ID while it runs
 DOMAIN_ID = claim_domain()
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'

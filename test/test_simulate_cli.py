@@ -2,6 +2,7 @@
 
 import contextlib
 import csv
+import functools
 import io
 import math
 
@@ -33,6 +34,7 @@ def stage_run(tmp_path_factory):
     return rc, stdout, stderr, out
 
 
+@pytest.mark.slow
 def test_stage_run_writes_csv_and_png(stage_run):
     rc, stdout, stderr, out = stage_run
     assert rc == 0, stderr
@@ -62,6 +64,7 @@ def test_stage_run_prints_table_limits_energy(stage_run):
     assert 'error' not in stderr
 
 
+@pytest.mark.slow
 def test_duty_file_runs(tmp_path):
     duty = tmp_path / 'duty.csv'
     duty.write_text('# a small square-ish cycle\ntime_s,flow_L_min,load_MPa\n'
@@ -76,12 +79,14 @@ def test_duty_file_runs(tmp_path):
     assert (out / 'simulation.png').is_file()
 
 
+@pytest.mark.slow
 def test_run_stopped_early_reports_and_writes(tmp_path, monkeypatch):
     runaway = getattr(simulation, 'ThermalRunaway', None)
     if runaway is None:
         pytest.skip('this simulation module does not stop runs early')
     real = simulation.simulate
 
+    @functools.wraps(real)      # the command reads its options' defaults from simulate's
     def stops(cfg, duty, duration_s, **kw):
         res = real(cfg, duty, 5.0, **kw)
         res.append(5.5, res.model.outputs(), {}, dict(res.model.heat_W))

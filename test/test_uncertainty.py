@@ -8,6 +8,7 @@ from wet_eha_thermal.config import (config_from_yaml, config_value, ConfigError,
                                     default_config_path, load_config)
 from wet_eha_thermal.estimator.core import Estimator, INPUTS
 from wet_eha_thermal.estimator.limits import ceiling_K
+from wet_eha_thermal.estimator.session import EstimatorSession
 from wet_eha_thermal.model.uncertainty import as_built, draw, parameter_perturbations
 from wet_eha_thermal.offline.coverage import CHECKED, coarse, play
 from wet_eha_thermal.units import C_TO_K
@@ -92,15 +93,15 @@ def test_perturbations_move_each_parameter_by_one_sigma_and_draws_are_seeded():
     assert as_built(cfg, None) is cfg
 
 
-def feed(est, t0, seconds, rate_Hz=1000.0, take=False, budget_s=0.0):
-    """Feed the steady duty from ``t0``: as a replay (add_many), or sample by sample (take)."""
+def feed(est, t0, seconds, rate_Hz=1000.0, take=False):
+    """Feed the steady duty from ``t0``: as a replay (add_many), or to a session per sample."""
     n = int(round(seconds * rate_Hz))
     t = t0 + np.arange(1, n + 1) / rate_Hz
     out = []
     if take:
         for tk in t:
             for ch in INPUTS:
-                out += est.take(ch, float(tk), DUTY[ch], now_s=float(tk), budget_s=budget_s)
+                out += est.take(ch, float(tk), DUTY[ch], now_s=float(tk))
         return out
     for ch in INPUTS:
         est.add_many(ch, t, np.full(n, DUTY[ch]))
@@ -119,7 +120,7 @@ def test_sigmas_start_at_zero_and_a_replay_gives_the_live_sigmas_bit_for_bit():
     replay = feed(Estimator(cfg), 0.0, 4.0)
     # as the live node: one call per sample, with background work between estimates that
     # steps copies whenever it has time
-    live = feed(Estimator(cfg), 0.0, 4.0, take=True, budget_s=0.004)
+    live = feed(EstimatorSession(cfg, budget_s=0.004), 0.0, 4.0, take=True)
     assert [e.stamp_s for e in live] == [e.stamp_s for e in replay]
     assert [e.uncertainty_K for e in live] == [e.uncertainty_K for e in replay]
     first, last = replay[0].uncertainty_K, replay[-1].uncertainty_K

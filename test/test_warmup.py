@@ -7,6 +7,8 @@ import sys
 import pytest
 from wet_eha_thermal.model import compiled
 
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
+
 # In a process of its own (a test session has compiled more by then): the warm-up, then a
 # minute of live-like work with the node's calls, noise, thermocouples, the forecast and the
 # margin, a silence and data again. Prints the kernel signatures that the warm-up missed.
@@ -15,7 +17,7 @@ import json, sys
 import numba
 import numpy as np
 from wet_eha_thermal.config import load_config
-from wet_eha_thermal.estimator.core import Estimator
+from wet_eha_thermal.estimator.session import EstimatorSession
 from wet_eha_thermal.estimator.intake import sensor_signal
 from wet_eha_thermal.estimator.warmup import compile_estimator
 from wet_eha_thermal.model.kinetics import KineticModel, stage_duty, ThermalFeedback
@@ -36,7 +38,7 @@ def signatures():
 cfg = load_config()
 compile_estimator(cfg)
 before = signatures()
-est = Estimator(cfg, outlook='background')
+est = EstimatorSession(cfg, outlook='background', budget_s=0.002)
 rng = np.random.default_rng(7)
 kin = KineticModel(cfg, get_oil(cfg.fluid.grade))
 for stage, (t0, t1) in ((6, (0.0, 30.0)), (3, (400.0, 430.0))):
@@ -46,13 +48,13 @@ for stage, (t0, t1) in ((6, (0.0, 30.0)), (3, (400.0, 430.0))):
            for n in est.inputs}
     for k, tk in enumerate(t):
         if k % 1000 == 0:
-            for tc in est.correction.tcs:
+            for tc in est.thermocouples:
                 est.add_measured(tc, tk, 25.0 + rng.standard_normal())
         for n in est.inputs:
-            est.take(n, tk, sig[n][k], now_s=tk, budget_s=0.002)
-    while est.outlook.busy:
-        est.background(0.05)
-    est.advance_all(t1 + 360.0 if stage == 6 else t1)
+            est.take(n, tk, sig[n][k], now_s=tk)
+    while est.work(0.05):
+        pass
+    est.step(t1 + 360.0 if stage == 6 else t1, all_steps=True)
 after = signatures()
 json.dump({k: sorted(v - before.get(k, set())) for k, v in after.items()
            if v - before.get(k, set())}, sys.stdout)

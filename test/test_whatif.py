@@ -13,22 +13,18 @@ import numpy as np
 import pytest
 from wet_eha_thermal import interface
 from wet_eha_thermal.config import load_config
-from wet_eha_thermal.estimator.core import Estimator
+from wet_eha_thermal.estimator.session import EstimatorSession
+from wet_eha_thermal.interface import INPUTS
 from wet_eha_thermal.model.eha import EHAModel, SampleBlock
-from wet_eha_thermal.model.kinetics import L_MIN, MPA, stage_duty, TableDuty
-from wet_eha_thermal.offline.simulation import SENSORS, SensorTable, simulate
+from wet_eha_thermal.model.kinetics import stage_duty, TableDuty
+from wet_eha_thermal.offline.simulation import SensorTable, simulate
 from wet_eha_thermal.offline.whatif import (MAX_DURATION_S, model_outputs, parse_request,
                                             RequestError, what_if)
 from wet_eha_thermal.offline.whatif_worker import run_request, WhatIfWorker
-from wet_eha_thermal.units import C_TO_K
+from wet_eha_thermal.units import C_TO_K, L_MIN, MPA
 
 SIGNALS = {'current_A': 25.0, 'speed_rad_s': 800.0, 'p_a_Pa': 3.0e6, 'p_b_Pa': 1.0e6,
            'p_acc_Pa': 1.0e6, 'position_m': 0.001}
-
-
-@pytest.fixture(scope='module')
-def cfg():
-    return load_config()
 
 
 @pytest.fixture(scope='module')
@@ -40,6 +36,7 @@ def _kelvin_to_C(res, name):
     return np.asarray(res.temperatures_K[name]) - C_TO_K
 
 
+@pytest.mark.slow
 def test_from_cold_it_is_the_simulation_from_cold_bit_for_bit(cfg, known):
     request = parse_request({'id': 'cold', 'stage': 3, 'duration_s': 120.0,
                              'record_every_s': 2.0}, cfg, known)
@@ -60,6 +57,7 @@ def test_from_cold_it_is_the_simulation_from_cold_bit_for_bit(cfg, known):
     assert oil == pytest.approx(got.temperatures_C['oil'][-1], abs=1e-4)
 
 
+@pytest.mark.slow
 def test_a_table_of_flow_and_load_from_cold_is_its_simulation(cfg, known):
     table = {'time_s': [0.0, 0.5, 1.0], 'flow_L_min': [6.0, -6.0, 6.0],
              'load_MPa': [4.0, 8.0, 4.0]}
@@ -72,6 +70,7 @@ def test_a_table_of_flow_and_load_from_cold_is_its_simulation(cfg, known):
     assert got.duty == 'table of flow and load (period 1 s)'
 
 
+@pytest.mark.slow
 def test_from_a_warm_state_it_continues_the_run(cfg, known):
     """A run split in two at a what-if's start: the same, up to the stage's phase arithmetic."""
     first = simulate(cfg, stage_duty(cfg, 2), 100.0, record_every_s=100.0).model
@@ -86,6 +85,7 @@ def test_from_a_warm_state_it_continues_the_run(cfg, known):
         assert np.max(np.abs(got.temperatures_C[q] - _kelvin_to_C(whole, q)[99:])) < 1e-8, q
 
 
+@pytest.mark.slow
 def test_from_the_live_estimator_it_follows_what_the_estimator_then_does(cfg, known):
     """
     A what-if on the sensor signals the live estimator then gets, from its state, tracks it.
@@ -95,19 +95,18 @@ def test_from_the_live_estimator_it_follows_what_the_estimator_then_does(cfg, kn
     default step of 1 s within 30 mK, the step's own error in the fast
     oil volumes. The what-if starts at the estimator's state.
     """
-    est = Estimator(cfg)
+    est = EstimatorSession(cfg)
 
     def feed(k0, k1):
         for k in range(k0, k1):
             t = 0.02 * k + np.arange(1, 21) / 1000.0
             for name in est.inputs:
-                est.add_many(name, t, np.full(t.size, SIGNALS[name]), now_s=float(t[-1]))
-            est.advance(float(t[-1]))
-            est.prepare()
+                est.add(name, t, np.full(t.size, SIGNALS[name]), now_s=float(t[-1]))
+            est.step(float(t[-1]))
 
     feed(0, 750)
     start = {q: est.latest.temperatures_C[q] for q in interface.ESTIMATES}
-    samples = {'time_s': [0.0, 1.0], **{n: [SIGNALS[n]] * 2 for n in SENSORS}}
+    samples = {'time_s': [0.0, 1.0], **{n: [SIGNALS[n]] * 2 for n in INPUTS}}
     runs = {}
     for dt, rate, tol in ((0.02, 500.0, 1e-3), (1.0, 200.0, 3e-2)):
         got = what_if(cfg, parse_request({'samples': samples, 'duration_s': 20.0, 'dt_s': dt,
@@ -125,25 +124,26 @@ def test_from_the_live_estimator_it_follows_what_the_estimator_then_does(cfg, kn
 
 def test_a_sensor_table_drives_the_model_as_its_samples_would(cfg, known):
     """Constant signals from a table step the model as the same blocks stepped by hand."""
-    samples = {'time_s': [0.0, 3.0], **{n: [SIGNALS[n]] * 2 for n in SENSORS}}
+    samples = {'time_s': [0.0, 3.0], **{n: [SIGNALS[n]] * 2 for n in INPUTS}}
     got = what_if(cfg, parse_request({'samples': samples, 'duration_s': 30.0,
                                       'sample_rate_Hz': 50.0, 'ambient_C': 30.0}, cfg, known))
     model = EHAModel(cfg)
     T_K = 30.0 + C_TO_K
     model.T_hyd = np.full(model.circuit.n, T_K)      # as simulate() starts it, then initialise
-    model.initialise(T_K, SampleBlock(np.zeros(1), *(np.full(1, SIGNALS[n]) for n in SENSORS)))
+    model.initialise(T_K, SampleBlock(np.zeros(1), *(np.full(1, SIGNALS[n]) for n in INPUTS)))
     for k in range(30):
         t = k + np.arange(1, 51) / 50.0
-        model.step(SampleBlock(t, *(np.full(t.size, SIGNALS[n]) for n in SENSORS)), T_K)
+        model.step(SampleBlock(t, *(np.full(t.size, SIGNALS[n]) for n in INPUTS)), T_K)
     assert got.temperatures_C['winding_hotspot'][-1] == \
         model.outputs()['winding_hotspot'] - C_TO_K
     # linear between the rows, repeating, the table's time 0 at its start
-    table = SensorTable([0.0, 1.0, 2.0], {**{n: [0.0, 0.0, 0.0] for n in SENSORS},
+    table = SensorTable([0.0, 1.0, 2.0], {**{n: [0.0, 0.0, 0.0] for n in INPUTS},
                                           'current_A': [0.0, 10.0, 0.0]}, start_s=100.0)
     block = table.sample(np.array([100.5, 101.0, 102.25, 103.5]))
     assert block.current_A.tolist() == [5.0, 10.0, 2.5, 5.0]
 
 
+@pytest.mark.slow
 def test_time_to_limit_is_where_the_trajectory_crosses(known):
     hot = load_config(overrides={'motor.winding.insulation_limit_C': 26.0})
     got = what_if(hot, parse_request({'stage': 1, 'duration_s': 300.0, 'record_every_s': 5.0},
@@ -207,7 +207,7 @@ def test_bad_requests_name_the_field_the_value_and_the_range(cfg, known, request
       'duration_s': 10}, 'duty table: time must increase strictly'),
     ({'table': {'time_s': [0, 10], 'flow_L_min': [100, 100], 'load_MPa': [1, 1]},
       'duration_s': 10}, 'beyond the half stroke'),
-    ({'samples': {'time_s': [1, 2], **{n: [0, 0] for n in SENSORS}}, 'duration_s': 10},
+    ({'samples': {'time_s': [1, 2], **{n: [0, 0] for n in INPUTS}}, 'duration_s': 10},
      'samples: time_s must start at 0'),
 ])
 def test_a_duty_that_cannot_be_built_is_a_request_error(cfg, known, request_, message):
@@ -239,6 +239,7 @@ def _wait_answer(worker, timeout=60.0):
     pytest.fail('no answer from the worker')
 
 
+@pytest.mark.slow
 def test_the_worker_runs_one_at_a_time_and_refuses_the_rest(cfg, known):
     model = simulate(cfg, stage_duty(cfg, 6), 5.0).model
     worker = WhatIfWorker(cfg, known)

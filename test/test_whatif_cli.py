@@ -4,8 +4,10 @@
 import numpy as np
 import pytest
 from wet_eha_thermal import cli, interface
-from wet_eha_thermal.estimator.core import Estimator
+from wet_eha_thermal.estimator.session import EstimatorSession
 from wet_eha_thermal.offline import replay as rp
+
+pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
 
 
 def _csv(path):
@@ -24,8 +26,8 @@ def test_from_the_last_state_of_a_bag(record_rig_log, tmp_path, capsys):
     table = _csv(out / 'whatif.csv')
     assert table['time_s'][0] == 0.0 and table['time_s'][-1] == 120.0
     # the first row is the state the replay ends in
-    est = Estimator(rp.ReplayOptions().plan(bag).cfg)
-    rp.replay(rp.ReplayOptions().plan(bag), estimator=est)
+    est = EstimatorSession(rp.ReplayOptions().plan(bag).cfg)
+    rp.replay(rp.ReplayOptions().plan(bag), session=est)
     for q in interface.ESTIMATES:
         assert table[f'{q}_C'][0] == pytest.approx(est.latest.temperatures_C[q], abs=1e-4), q
     assert (out / 'whatif.png').stat().st_size > 10000

@@ -18,6 +18,7 @@ import typing
 from typing import Any, List, Optional
 
 from .config import Config, config_dir, ConfigError, load_config, range_text
+from .config_spec import choices_of
 
 INTRO = """\
 # Configuration reference
@@ -64,8 +65,8 @@ def _type_text(tp: Any, meta: dict) -> str:
 
 def _allowed_text(meta: dict) -> str:
     """Return the allowed range or choices of a field (empty when anything goes)."""
-    if meta.get('choices'):
-        return ', '.join(f'`{c}`' for c in meta['choices'])
+    if choices_of(meta):
+        return ', '.join(f'`{c}`' for c in choices_of(meta))
     if meta.get('low') is None and meta.get('high') is None:
         return ''
     return range_text(meta)

@@ -13,6 +13,19 @@ from .config_spec import check_below, ConfigError, fraction, OIL_GRADE_NAMES, po
 from .loss_map import LossMapError, read_loss_map
 
 
+def laws(registry: str):
+    """
+    Return the choices of a selectable law: the names of ``registry`` in model/correlations.py.
+
+    Read when a value is checked, not at import: the configuration layer
+    imports nothing of the model (which imports it).
+    """
+    def names():
+        from .model import correlations
+        return tuple(getattr(correlations, registry))
+    return names
+
+
 @dataclass(frozen=True, kw_only=True)
 class Solid:
     """Thermal properties of a solid material (anisotropic conductivity allowed)."""
@@ -41,7 +54,7 @@ class Frame:
         0.0, None, low_open=True, default=None,
         doc='fan cooling; null for natural convection plus radiation')
     natural_convection: str = spec(
-        choices=('churchill_chu', 'morgan_mcadams'), default='churchill_chu',
+        choices=laws('NATURAL_CONVECTION'), default='churchill_chu',
         doc='free convection law of the barrel and the end caps: Churchill-Chu (1975), '
             'or the power laws of Morgan (1975, cylinder) and McAdams (1954, plate)')
     material: Solid = spec(doc='housing material, also of the frame over the end spaces')
@@ -248,7 +261,7 @@ class Motor:
         'the teeth'))
     stack_length_m: float = positive('axial length of the laminated stack (the active length)')
     airgap_nusselt: str = spec(
-        choices=('becker_kaye', 'tachibana_fukui'), default='becker_kaye',
+        choices=laws('AIRGAP_NUSSELT'), default='becker_kaye',
         doc='rotational Nusselt law of the oil-filled airgap (correlations.AIRGAP_NUSSELT): '
             'Becker and Kaye (1962), or Tachibana, Fukui and Mitsumura (1960)')
     torque_constant_Nm_A: float = positive('per A RMS phase current')

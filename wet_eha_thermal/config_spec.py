@@ -15,10 +15,16 @@ import dataclasses
 from dataclasses import field
 import math
 import typing
-from typing import Any, Optional, Tuple
+from typing import Any, Callable, Optional, Tuple, Union
 
 
 OIL_GRADE_NAMES = ('MIL-PRF-5606', 'MIL-PRF-83282')
+
+
+def choices_of(meta: dict) -> Optional[Tuple[str, ...]]:
+    """Return the choices of a field's metadata (None: any text), calling a function of them."""
+    choices = meta.get('choices')
+    return choices() if callable(choices) else choices
 
 
 class ConfigError(ValueError):
@@ -27,12 +33,14 @@ class ConfigError(ValueError):
 
 def spec(low: Optional[float] = None, high: Optional[float] = None, *,
          low_open: bool = False, high_open: bool = False, default: Any = dataclasses.MISSING,
-         choices: Optional[Tuple[str, ...]] = None, doc: str = '',
-         default_factory: Any = dataclasses.MISSING, min_items: int = 1):
+         choices: Union[Tuple[str, ...], Callable[[], Tuple[str, ...]], None] = None,
+         doc: str = '', default_factory: Any = dataclasses.MISSING, min_items: int = 1):
     """
     Declare a config field with its allowed range (or choices) and a short description.
 
-    ``min_items``: the fewest entries a list field may hold.
+    ``choices``: the names allowed, or a function returning them (a registry
+    of laws the model has, read when a value is checked, see
+    :func:`choices_of`). ``min_items``: the fewest entries a list field may hold.
     """
     meta = {'low': low, 'high': high, 'low_open': low_open, 'high_open': high_open,
             'choices': choices, 'doc': doc, 'min_items': min_items}
@@ -92,9 +100,9 @@ def check_value(key: str, value: Any, tp: Any, meta: dict) -> Any:
     elif tp is str:
         if not isinstance(value, str):
             raise ConfigError(f'{key} = {value!r}: expected text')
-        if meta.get('choices') and value not in meta['choices']:
-            raise ConfigError(f'{key} = {value!r}: unknown; allowed: '
-                              f'{", ".join(meta["choices"])}')
+        choices = choices_of(meta)
+        if choices and value not in choices:
+            raise ConfigError(f'{key} = {value!r}: unknown; allowed: {", ".join(choices)}')
         return value
     elif origin is tuple:
         item = typing.get_args(tp)[0]

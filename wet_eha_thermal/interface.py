@@ -42,7 +42,7 @@ here; :mod:`.ros.topics` adds what needs rclpy (QoS profiles, publishing).
 from dataclasses import asdict, dataclass, field
 import json
 import math
-from typing import Dict, Iterable, Optional, TextIO
+from typing import Dict, Iterable, Optional, TextIO, Tuple
 
 PREFIX = '/eha'
 #: Message types of the twin's topics, as bags store them (pkg/msg/Type)
@@ -62,6 +62,12 @@ PARAMS_METADATA = 'wet_eha_thermal.params'
 RECORDER_METADATA = 'wet_eha_thermal.recorder'
 #: The nodes' names (one place: ``live`` and the rig's ``wait_for`` name them too)
 ESTIMATOR_NODE, RIG_NODE, RECORDER_NODE = 'eha_thermal_estimator', 'eha_sim_rig', 'eha_recorder'
+#: The sensor inputs, in the order of the model's SampleBlock fields: SI units (A RMS,
+#: rad/s, absolute Pa of chamber A, chamber B and the accumulator, m of the LVDT)
+INPUTS = ('current_A', 'speed_rad_s', 'p_a_Pa', 'p_b_Pa', 'p_acc_Pa', 'position_m')
+#: ... with one differential pressure sensor, p_a - p_b (estimator.pressure_inputs:
+#: differential)
+DIFFERENTIAL_INPUTS = ('current_A', 'speed_rad_s', 'dp_Pa', 'position_m')
 INPUT_TOPICS = {
     'current_A': f'{PREFIX}/current',
     'speed_rad_s': f'{PREFIX}/speed',
@@ -132,6 +138,33 @@ ESTIMATES = ('winding_mean', 'winding_hotspot', 'end_winding_hotspot', 'frame', 
 THERMOCOUPLES = {'winding': 'winding_mean', 'frame': 'frame', 'pump_inlet': 'pump_outlet',
                  'pump_case': 'pump_case', 'chamber_a': 'chamber_a', 'chamber_b': 'chamber_b',
                  'motor_oil_outlet': 'motor_oil_outlet'}
+
+
+#: QoS kinds of the topics (:func:`topic_table`): ``sensor`` the nodes' ``qos`` parameter
+#: (sensor_data, best effort, or reliable), ``output`` reliable and volatile, ``latched``
+#: reliable and transient local, the last message kept. ``ros.topics.qos_profile`` makes
+#: the rclpy profile of a kind, ``bag.rosbag2.offered_profiles`` what a bag stores of it.
+SENSOR, OUTPUT, LATCHED = 'sensor', 'output', 'latched'
+
+
+def topic_table(prefix: str = PREFIX) -> Dict[str, Tuple[str, str]]:
+    """Return the twin's topics under ``prefix``: topic -> (message type, QoS kind)."""
+    found = {INPUT_TOPICS[name]: (INPUT_TYPES[name], SENSOR) for name in INPUT_TOPICS}
+    found[AMBIENT_TOPIC] = (TEMPERATURE, SENSOR)
+    for tc in THERMOCOUPLES:
+        found[f'{MEASURED_PREFIX}/{tc}'] = (TEMPERATURE, SENSOR)
+    for name in ESTIMATES:
+        found[f'{ESTIMATE_PREFIX}/{name}'] = (TEMPERATURE, OUTPUT)
+    found[STATE_TOPIC] = (FLOAT64_ARRAY, OUTPUT)
+    found[STATE_NAMES_TOPIC] = (STRING, LATCHED)
+    found[ALERT_TOPIC] = (STRING, LATCHED)
+    found[CURRENT_LIMITS_TOPIC] = (JOINT_STATE, OUTPUT)
+    found[CURRENT_LIMIT_TOPIC] = (FLOAT64, OUTPUT)
+    found[READY_TOPIC] = (STRING, LATCHED)
+    found[RECORDER_HEALTH_TOPIC] = (STRING, LATCHED)
+    found[ACK_TOPIC] = (STRING, OUTPUT)
+    found[DIAGNOSTICS_TOPIC] = (DIAGNOSTIC_ARRAY, OUTPUT)
+    return {prefixed(topic, prefix): spec for topic, spec in found.items()}
 
 
 def prefixed(topic: str, prefix: str) -> str:

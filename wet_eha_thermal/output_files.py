@@ -35,6 +35,20 @@ def write_text(path: Path, text: str) -> Path:
     return path
 
 
+def pyplot():
+    """
+    Return ``matplotlib.pyplot`` on the file-only Agg backend (the one set-up of every plot).
+
+    Imported on first use: matplotlib costs a second of start-up that a
+    command without plots should not pay; Agg needs no display (servers, CI).
+    """
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
 def save_figure(fig, path: Path) -> Path:
     """Lay out a matplotlib figure, save it as the PNG ``path`` atomically, close it."""
     import matplotlib.pyplot as plt

@@ -29,6 +29,8 @@ from typing import Dict, Iterable, List, Optional
 
 import yaml
 
+from .. import interface
+
 #: The file of a rosbag2 bag directory that lists its files, and its top-level key.
 ROSBAG2_METADATA = 'metadata.yaml'
 ROSBAG2_METADATA_ROOT = 'rosbag2_bagfile_information'
@@ -153,6 +155,22 @@ def offered_qos(reliability: str = 'reliable', durability: str = 'volatile',
     """
     return [_rosbag2_profile('keep_last', depth, reliability, durability, 0, 0,
                              'system_default', 0, False)]
+
+
+def offered_profiles(kind: str, depth: int = 10) -> List[dict]:
+    """
+    Return what a bag stores as offered by a publisher of a QoS kind (``interface.SENSOR`` ...).
+
+    The sensor kind is the sensor_data profile (best effort), the nodes' default.
+    """
+    if kind == interface.SENSOR:
+        return offered_qos('best_effort', depth=depth)
+    if kind == interface.OUTPUT:
+        return offered_qos(depth=depth)
+    if kind == interface.LATCHED:
+        return offered_qos(durability='transient_local', depth=1)
+    raise ValueError(f'QoS kind {kind!r}: expected one of {interface.SENSOR}, '
+                     f'{interface.OUTPUT}, {interface.LATCHED}')
 
 
 def to_yaml(data) -> str:

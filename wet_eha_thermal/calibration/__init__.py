@@ -76,8 +76,8 @@ from .evaluator import (channel_errors, evaluate_run, Evaluator, lagged, make_wi
 from .fit import calibrate, effective_samples, fit_keys, screen
 from .logs import (CalibrationError, CHANNELS, InputAverager, load_log, log_from_rig,
                    LogBuilder, LogData, plan_log, read_log)
-from .outputs import (CALIBRATED_YAML, config_yaml, error_table, report_text, write_outputs,
-                      write_plots)
+from .outputs import (CALIBRATED_YAML, config_yaml, error_table, report_text, summary_text,
+                      times_text, write_outputs, write_plots)
 from .results import CalibrationRun, LogFit, ParameterFit, result_record
 
 __all__ = [
@@ -85,6 +85,6 @@ __all__ = [
     'CHANNELS', 'config_yaml', 'effective_samples', 'error_table', 'evaluate_run', 'Evaluator',
     'fit_keys', 'InputAverager', 'lagged', 'load_log', 'log_from_rig', 'LogBuilder', 'LogData',
     'LogFit', 'make_windows', 'ParameterFit', 'plan_log', 'read_log', 'report_text', 'residuals',
-    'result_record', 'run_config', 'screen', 'simulate_log', 'window_means', 'Windows',
-    'write_outputs', 'write_plots',
+    'result_record', 'run_config', 'screen', 'simulate_log', 'summary_text', 'times_text',
+    'window_means', 'Windows', 'write_outputs', 'write_plots',
 ]

@@ -20,7 +20,7 @@ import numpy as np
 
 from .logs import CalibrationError, CHANNELS, LogData
 from ..config import Calibration, Config, with_values
-from ..estimator.core import Estimator
+from ..estimator.session import EstimatorSession
 from ..interface import THERMOCOUPLES
 
 #: Length of the ambient segments (s): each gets the mean of its readings.
@@ -47,9 +47,9 @@ def simulate_log(log: LogData, cfg: Config,
     :data:`CHANNELS`; the model starts uniform at ``log.start_C`` plus
     ``start_offset_K``.
     """
-    est = Estimator(cfg)
+    session = EstimatorSession(cfg)
     names = [THERMOCOUPLES[c] for c in CHANNELS]
-    feed = {n: log.inputs[n] for n in est.inputs if n in log.inputs}
+    feed = {n: log.inputs[n] for n in session.inputs if n in log.inputs}
     amb_t, amb_v = log.ambient
     t_end = max(t[-1] for t, _ in feed.values())
     edges = np.arange(AMBIENT_SEGMENT_S, t_end + AMBIENT_SEGMENT_S, AMBIENT_SEGMENT_S)
@@ -58,17 +58,17 @@ def simulate_log(log: LogData, cfg: Config,
     rows: List[List[float]] = []
 
     def advance() -> None:
-        for e in est.advance_all():
+        for e in session.step(all_steps=True):
             stamps.append(e.stamp_s)
             temps = e.temperatures_C
             rows.append([temps[n] for n in names])
 
     # the model starts at the starting temperature: the estimator starts its model at
     # its ambient, so that is set to it first, and to the ambient once started
-    est.add_ambient(0.0, log.start_C + start_offset_K)
+    session.add_ambient(0.0, log.start_C + start_offset_K)
     cursor = dict.fromkeys(feed, 0)
     for n, (t, v) in feed.items():
-        est.add_many(n, t[:1], v[:1])
+        session.add(n, t[:1], v[:1])
         cursor[n] = 1
     advance()
     for k, edge in enumerate(edges):
@@ -76,11 +76,11 @@ def simulate_log(log: LogData, cfg: Config,
         last = int(np.searchsorted(amb_t, edge, side='right')) - 1     # latest reading so far
         ambient = float(np.mean(here)) if here.size else (
             float(amb_v[last]) if last >= 0 else cfg.estimator.ambient_C)
-        est.add_ambient(edge - AMBIENT_SEGMENT_S, ambient)
+        session.add_ambient(edge - AMBIENT_SEGMENT_S, ambient)
         for n, (t, v) in feed.items():
             hi = int(np.searchsorted(t, edge, side='right'))
             if hi > cursor[n]:
-                est.add_many(n, t[cursor[n]:hi], v[cursor[n]:hi])
+                session.add(n, t[cursor[n]:hi], v[cursor[n]:hi])
                 cursor[n] = hi
         advance()
     if not stamps:

@@ -14,7 +14,7 @@ from .evaluator import window_means
 from .logs import CHANNELS
 from .results import CalibrationRun, LogFit, plain
 from ..config import Config, config_from_yaml, ConfigError
-from ..output_files import markdown_table, save_figure, write_text
+from ..output_files import markdown_table, pyplot, save_figure, write_text
 
 #: Name of the calibrated configuration in the output folder.
 CALIBRATED_YAML = 'calibrated.yaml'
@@ -66,9 +66,7 @@ def _stem(run: CalibrationRun, k: int) -> str:
 
 def write_plots(run: CalibrationRun, out_dir: Path) -> List[Path]:
     """Write one PNG per log: measured, nominal and calibrated per thermocouple, and errors."""
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     images = []
     for k, log_fit in enumerate(run.logs):
@@ -122,6 +120,31 @@ def error_table(log_fit: LogFit) -> List[str]:
     return markdown_table(('thermocouple', 'estimate', 'before: max abs', 'RMS', 'bias',
                            'after: max abs', 'RMS', 'bias', 'after, max abs of single readings'),
                           (row(c) for c in log_fit.windows.channels))
+
+
+def summary_text(run: CalibrationRun, residual_interval_s: float) -> str:
+    """Return the console summary: each parameter, each log's errors before and after, times."""
+    lines = ['parameters: nominal -> calibrated [95 % interval]']
+    for p in run.parameters:
+        if p.identifiable:
+            lines.append(f'  {p.key:<42} {p.nominal:<10.4g} -> {p.value:<10.4g} '
+                         f'[{p.ci95[0]:.4g}, {p.ci95[1]:.4g}]{"  " + p.note if p.note else ""}')
+        else:
+            lines.append(f'  {p.key:<42} {p.nominal:<10.4g} held: not identifiable ({p.note})')
+    for lf in run.logs:
+        role = 'fit' if lf.role == 'fit' else 'held out'
+        lines.append(f'{lf.log.name} ({role}): model - thermocouple, max abs over '
+                     f'{residual_interval_s:g} s means, nominal -> calibrated (K)')
+        lines.append('  ' + ', '.join(f'{c} {lf.before[c]["max_abs_K"]:.2f} -> '
+                                      f'{lf.after[c]["max_abs_K"]:.2f}'
+                                      for c in lf.windows.channels))
+    return '\n'.join(lines)
+
+
+def times_text(run: CalibrationRun, where: str) -> str:
+    """Return the wall time line: reading, fit, model runs, and where they ran."""
+    return (f'wall time: reading {run.read_s:.1f} s, fit {run.fit_s:.1f} s ({run.evaluations} '
+            f'model runs of whole logs, {run.iterations} iterations, {where})')
 
 
 def report_text(run: CalibrationRun, images: Sequence[Path], command: str = '') -> str:

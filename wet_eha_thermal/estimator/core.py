@@ -4,9 +4,10 @@ The live estimator without ROS: timestamped samples in, estimates and alerts out
 The estimator by its jobs: :mod:`.intake` takes the samples (buffers, checks,
 sensor health, the receiving clock, data gaps); this module steps the model;
 :mod:`.outlook` forecasts the limits and the margin current in the background;
-:mod:`.correction` corrects the model with the thermocouples. A node makes one
-call per sample, :meth:`Estimator.take`; offline work feeds arrays with
-``add_many`` and steps with ``advance_all``.
+:mod:`.correction` corrects the model with the thermocouples; :mod:`.alerts`
+raises the alerts. Those parts are private: every caller (the live node,
+replay, calibration, what-if, the tests) drives an estimator through one
+:class:`~.session.EstimatorSession`, which decides what to publish.
 
 ``advance`` steps the coupled thermal model over the complete steps of
 ``step_s`` in *sample time* (the stamps, never the wall clock), so a replayed
@@ -39,7 +40,7 @@ from dataclasses import dataclass, field
 import math
 import sys
 import time
-from typing import Any, Callable, Dict, List, Optional, Tuple
+from typing import Any, Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -53,7 +54,7 @@ from ..config import Config
 from ..model import quantity_table
 from ..model.compiled import jit
 from ..model.eha import EHAModel, SampleBlock
-from ..units import C_TO_K
+from ..units import C_TO_K, L_MIN_PER_M3_S
 
 #: how the estimator works on its outlook (its ``outlook`` argument)
 OUTLOOK_MODES = ('off', 'background', 'inline')
@@ -94,12 +95,11 @@ class Estimate:
     # root of the mean square per grid interval; one value for a held block): arrays the
     # estimator never writes again, so a display can average them on another thread
     inputs: Dict[str, np.ndarray] = field(default_factory=dict)
-    # the latest current limits for the drive (any tick's; None before the first)
+    # the latest current limits published for the drive, with the status they went out
+    # with (set by the session, :mod:`.session`; None before the first)
     current_limits: Optional[CurrentLimits] = None
-
-
-class StepFailed(RuntimeError):
-    """The model's step failed in :meth:`Estimator.take` (the cause is chained)."""
+    # the model's state after the step (K; the order of ``model.quantities.state_names``)
+    state_K: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 class Estimator:
@@ -119,23 +119,23 @@ class Estimator:
         self.n_grid = max(1, int(round(s.step_s * s.block_rate_Hz)))
         self._frac = np.arange(1, self.n_grid + 1) / self.n_grid   # grid times in a step
         # samples, their checks and health, the clock; stamps this close count as equal
-        self.intake = Intake(cfg, resolution_s=1e-6 * s.step_s / self.n_grid)
-        self.inputs = self.intake.inputs
+        self._intake = Intake(cfg, resolution_s=1e-6 * s.step_s / self.n_grid)
+        self.inputs = self._intake.inputs
         #: each input's counters and state (:class:`~.intake.ChannelHealth`), by name
-        self.health: Dict[str, ChannelHealth] = self.intake.health
+        self.health: Dict[str, ChannelHealth] = self._intake.health
         #: silences of every input at once (:class:`~.intake.DataGaps`)
-        self.gaps: DataGaps = self.intake.gaps
+        self.gaps: DataGaps = self._intake.gaps
         self.ambient_K = s.ambient_C + C_TO_K
         self.measured_C: Dict[str, tuple] = {}
         # live correction with the thermocouples (estimator.correction): a Kalman filter
         # that starts at the first usable reading; until then the model runs open loop
-        self.correction = ThermalCorrection(cfg, self.model) if s.correction.enabled else None
-        self.alerts = AlertManager(rules_from_config(s.alerts))
+        self._correction = ThermalCorrection(cfg, self.model) if s.correction.enabled else None
+        self._alerts = AlertManager(rules_from_config(s.alerts))
         self.limits_C = quantity_table.limits_C(cfg)
         #: the limits and the forecast (:mod:`.outlook`): 'off', worked on in the
         #: 'background' (a live node), or 'inline' at each tick (offline)
         self.outlook_mode = outlook
-        self.outlook = Outlook(cfg, self.model, self.limits_C, inline=outlook == 'inline')
+        self._outlook = Outlook(cfg, self.model, self.limits_C, inline=outlook == 'inline')
         #: the uncertainty propagated from the configuration's stated sigmas (None: the
         #: constant ``model_uncertainty_K``)
         self.propagation = Propagation(cfg, self.model.quantities.names) \
@@ -164,43 +164,21 @@ class Estimator:
     @property
     def clock_jumps(self) -> int:
         """Return how many jumps of the receiving clock re-started the model time."""
-        return self.intake.clock_jumps
-
-    # ------------------------------------------------------------ one tick
-    def take(self, channel: str, stamp_s: float, value: float,
-             now_s: Optional[float] = None,
-             publish: Optional[Callable[[List[Estimate]], None]] = None,
-             budget_s: float = 0.005) -> List[Estimate]:
-        """
-        Take one sample (SI units) as a live node does; return the estimates it completed.
-
-        In order: append the sample, unchecked, to its input's buffer (all
-        the work for most samples; a full buffer drops it, counted); if every
-        fresh input now reaches past the end of the next step, ``advance``
-        the model (to the receiving clock ``now_s``: the samples are checked
-        there), hand the estimates (a list, maybe empty) to ``publish`` at
-        once, then, if there were any, do the slow work after they have left:
-        the model's deferred re-discretisation (``prepare``) and, with a
-        positive ``budget_s``, forecast and margin slices within about that
-        much wall time (``background``). A failure of the step raises
-        :class:`StepFailed`, so a caller tells it from the slow work's.
-        """
-        if not (self.intake.push(channel, stamp_s, value) and self._due(channel, stamp_s)):
-            return []
-        try:
-            estimates = self.advance(now_s)
-        except Exception as exc:  # noqa: B902 - any failure of the step is the model's
-            raise StepFailed(f'{type(exc).__name__}: {exc}') from exc
-        if publish is not None:
-            publish(estimates)
-        if not estimates:
-            return estimates
-        self.prepare()
-        if budget_s > 0.0:
-            self.background(budget_s)
-        return estimates
+        return self._intake.clock_jumps
 
     # ----------------------------------------------------------------- input
+    def push(self, channel: str, stamp_s: float, value: float) -> bool:
+        """
+        Take one sample (SI units) as a live node does; return whether a step may now be due.
+
+        The sample goes, unchecked, to its input's buffer (all the work for
+        most samples; a full buffer drops it, counted); it is checked at the
+        next ``advance``. True once every fresh input reaches past the end of
+        the next step: the caller then advances
+        (:meth:`~.session.EstimatorSession.take`).
+        """
+        return self._intake.push(channel, stamp_s, value) and self._due(channel, stamp_s)
+
     def _due(self, channel: str, stamp_s: float) -> bool:
         """
         Tell whether ``advance`` may now complete a step, after a sample of ``channel`` (cheap).
@@ -217,7 +195,7 @@ class Estimator:
 
     def _late_before(self) -> float:
         """Return the stamp at or before which a sample is late (the model stepped past it)."""
-        return self.t_model + self.intake.eps if self.t_model is not None else -math.inf
+        return self.t_model + self._intake.eps if self.t_model is not None else -math.inf
 
     def add_many(self, channel: str, stamps_s: np.ndarray, values: np.ndarray,
                  now_s: Optional[float] = None) -> int:
@@ -229,7 +207,7 @@ class Estimator:
         for all or one per sample (a log's receive times); unlike
         ``advance``'s it is not taken as the clock.
         """
-        return self.intake.add_many(channel, stamps_s, values, now_s, self._late_before())
+        return self._intake.add_many(channel, stamps_s, values, now_s, self._late_before())
 
     def add_ambient(self, stamp_s: float, value_C: float) -> bool:
         """Take an ambient temperature (degC) for the housings' heat loss."""
@@ -248,26 +226,26 @@ class Estimator:
         reading stamped more than ``max_future_s`` ahead of the receiving
         clock is not.
         """
-        correcting = self.correction is not None and name in self.correction.tcs
-        latest = self.intake.latest_allowed()
+        correcting = self._correction is not None and name in self._correction.tcs
+        latest = self._intake.latest_allowed()
         if not math.isfinite(value_C) or not stamp_s <= latest:
             if correcting:
-                self.correction.add_reading(name, stamp_s, value_C, latest)   # counted there
+                self._correction.add_reading(name, stamp_s, value_C, latest)   # counted there
             return False
         self.measured_C[name] = (stamp_s, value_C)
         if correcting:
-            return self.correction.add_reading(name, stamp_s, value_C, latest)
+            return self._correction.add_reading(name, stamp_s, value_C, latest)
         return True
 
     def acknowledge(self, quantity: Optional[str] = None) -> List[AlertEvent]:
         """Acknowledge latched alerts (all, or one quantity)."""
         stamp = self.t_model if self.t_model is not None else 0.0
-        return self.alerts.acknowledge(quantity, stamp_s=stamp)
+        return self._alerts.acknowledge(quantity, stamp_s=stamp)
 
     # ------------------------------------------------------------- the clock
     def _observe_clock(self, now_s: float) -> None:
         """Take a reading of the receiving clock; a jump back re-starts the model time."""
-        if self.intake.observe_clock(now_s):
+        if self._intake.observe_clock(now_s):
             self.restart_time(now_s)
 
     def restart_time(self, now_s: float) -> None:
@@ -287,17 +265,17 @@ class Estimator:
         # the first step after the jump ends at the reading that showed it, so that the
         # samples of the new clock stamped up to that reading are not late
         delta = now_s - self.settings.step_s - self.t_model if self.t_model is not None else 0.0
-        self.intake.restart(now_s, delta)
+        self._intake.restart(now_s, delta)
         if self.t_model is None:
             return
         self.t_model += delta
         self._t_origin += delta
         self.next_end_s += delta
-        self.intake.resolve(now_s)
-        self.alerts.shift_time(delta)
-        if self.correction is not None:
-            self.correction.restart_time()
-        self.outlook.shift_time(delta)
+        self._intake.resolve(now_s)
+        self._alerts.shift_time(delta)
+        if self._correction is not None:
+            self._correction.restart_time()
+        self._outlook.shift_time(delta)
         self.measured_C = {k: (t + delta, v) for k, (t, v) in self.measured_C.items()}
 
     # ------------------------------------------------------------- stepping
@@ -334,29 +312,29 @@ class Estimator:
         """Step as :meth:`advance` says; the samples of the steps made are used up."""
         if now_s is not None:
             self._observe_clock(now_s)
-        self.intake.screen(self._late_before())
+        self._intake.screen(self._late_before())
         self._behind = False
-        ref = self.intake.reference_time(now_s)
+        ref = self._intake.reference_time(now_s)
         if ref is None:
             return []
-        stale = self.intake.update_staleness(ref)
+        stale = self._intake.update_staleness(ref)
         fresh = [n for n in self.inputs if n not in stale]
         horizon = min(self.health[n].last_stamp_s for n in fresh) if fresh else ref
         if self.t_model is None:
             # start once every input has spoken (or its timeout passed), at the latest
             # first stamp: each input then has a value at the start, live or replayed
-            firsts = self.intake.first_stamps()
+            firsts = self._intake.first_stamps()
             if not firsts:
                 self._start(horizon)
                 return []
-            patience_s = max(c.timeout_s for c in self.intake.channel_cfg.values())
+            patience_s = max(c.timeout_s for c in self._intake.channel_cfg.values())
             if len(firsts) < len(self.inputs) and ref - min(firsts) <= patience_s:
                 return []
             self._start(max(firsts))
-            stale = self.intake.update_staleness(ref)
+            stale = self._intake.update_staleness(ref)
             fresh = [n for n in self.inputs if n not in stale]
             horizon = min(self.health[n].last_stamp_s for n in fresh) if fresh else ref
-        self.intake.track_gap(stale)
+        self._intake.track_gap(stale)
         budget = self.settings.max_steps_per_call if max_steps is None else max_steps
         out: List[Estimate] = []
         try:
@@ -379,7 +357,7 @@ class Estimator:
             self._behind = self._complete_steps(horizon) > 0
         finally:
             for n in self.inputs:          # the samples of the steps made are used up
-                self.intake.drop_until(n, self.t_model)
+                self._intake.drop_until(n, self.t_model)
         return out
 
     def advance_all(self, now_s: Optional[float] = None) -> List[Estimate]:
@@ -397,7 +375,7 @@ class Estimator:
         # from an integer count: a sum of dt drifts, and a sample stamped on a boundary
         # would then land in the neighbouring step (a phase-locked ripple would bias the
         # mean of I^2); the division only guesses, the comparisons decide
-        limit = horizon + self.intake.eps
+        limit = horizon + self._intake.eps
         k = max(int((limit - self._t_origin) / self.settings.step_s) - 1, self.steps)
         while self._step_end(k + 1) <= limit:
             k += 1
@@ -415,11 +393,11 @@ class Estimator:
         """
         if n_steps < HOLD_AFTER_STEPS:
             return False, n_steps
-        span = np.array([self.t_model, self._step_end(self.steps + n_steps)]) + self.intake.eps
-        stamps = self.intake.stamps_in(span[0], span[1])     # those of the steps ahead
+        span = np.array([self.t_model, self._step_end(self.steps + n_steps)]) + self._intake.eps
+        stamps = self._intake.stamps_in(span[0], span[1])     # those of the steps ahead
         # the step of each sample: (end_{k-1}, end_k] holds step k
         step = self.settings.step_s
-        k = np.ceil((stamps - self.intake.eps - self._t_origin) / step).astype(np.int64)
+        k = np.ceil((stamps - self._intake.eps - self._t_origin) / step).astype(np.int64)
         k = np.unique(np.concatenate([[self.steps], k, [self.steps + n_steps + 1]]))
         empty = np.diff(k) - 1          # steps without a sample between two with samples
         long = np.flatnonzero(empty >= HOLD_AFTER_STEPS)
@@ -437,9 +415,9 @@ class Estimator:
     def _start(self, t0: float) -> None:
         """Initialise the model at ambient with the inputs' values at ``t0``."""
         self.t_model = self._t_origin = t0
-        self.intake.resolve(t0)
-        self.next_end_s = self._step_end(1) - self.intake.eps
-        values = self.intake.model_inputs({n: np.array([self.intake.value_at(n, t0)])
+        self._intake.resolve(t0)
+        self.next_end_s = self._step_end(1) - self._intake.eps
+        values = self._intake.model_inputs({n: np.array([self._intake.value_at(n, t0)])
                                            for n in self.inputs})
         # the model runs on time since the start: stamps since the epoch (~1.8e9 s) carry
         # only ~0.2 us of resolution, which would make every step length differ
@@ -448,7 +426,7 @@ class Estimator:
         if self.propagation is not None:
             self.propagation.start(self.ambient_K, first)
         for n in self.inputs:
-            self.intake.drop_until(n, t0)
+            self._intake.drop_until(n, t0)
 
     def _grid_block(self, ends: np.ndarray) -> Dict[str, np.ndarray]:
         """
@@ -464,10 +442,10 @@ class Estimator:
         """
         out = {}
         for name in self.inputs:
-            ts, vs = self.intake.until(name, ends[-1])
-            prev = self.intake.prev[name]
-            start = prev[1] if prev is not None else self.intake.value_at(name, ends[0])
-            out[name] = grid_rows(ts, vs, ends, self._frac, self.intake.eps, start,
+            ts, vs = self._intake.until(name, ends[-1])
+            prev = self._intake.prev[name]
+            start = prev[1] if prev is not None else self._intake.value_at(name, ends[0])
+            out[name] = grid_rows(ts, vs, ends, self._frac, self._intake.eps, start,
                                   prev[0] if prev is not None else math.nan, _MODE[name])
         return out
 
@@ -481,24 +459,24 @@ class Estimator:
         """
         frac = self._frac if m == 1 else np.ones(1)
         sensors = dict(grid_values)      # the model's inputs below limit the position in place
-        values = self.intake.model_inputs(grid_values)
+        values = self._intake.model_inputs(grid_values)
         values['position_m'] = self._limit_position(values['position_m'], (t1 - t0) / frac.size)
         since_start = (self.steps + m * frac) * self.settings.step_s
         block = SampleBlock(since_start, *(values[n] for n in INPUTS))
         span_s = m * self.settings.step_s
         self.model.step(block, self.ambient_K, max_substep_s=span_s if m > 1 else None)
         corrected = None
-        if self.correction is not None:
-            corrected = self.correction.step(self.model, t0, t1, span_s, self.intake.eps)
+        if self._correction is not None:
+            corrected = self._correction.step(self.model, t0, t1, span_s, self._intake.eps)
         self.t_model = t1
         self.steps += m
-        self.next_end_s = self._step_end(self.steps + 1) - self.intake.eps
+        self.next_end_s = self._step_end(self.steps + 1) - self._intake.eps
         if m == 1:
-            self.outlook.record(block)
+            self._outlook.record(block)
         else:
             # the forecast repeats steps of the recent duty: the block's held values, as
             # many steps of them as the block held
-            self.outlook.record(SampleBlock(self.settings.step_s * self._frac, *(
+            self._outlook.record(SampleBlock(self.settings.step_s * self._frac, *(
                 np.full(self.n_grid, values[n][-1]) for n in INPUTS)), m)
         if self.propagation is not None:
             taken = self.propagation.record(since_start[-1], block, self.steps - m,
@@ -508,7 +486,7 @@ class Estimator:
         implausible = self._plausibility(values, t1 - t0)
         outputs = corrected if corrected is not None else self.model.outputs()
         temps = {k: v - C_TO_K for k, v in outputs.items()}
-        events = self.alerts.update(t1, temps)      # (it takes the quantities it has rules for)
+        events = self._alerts.update(t1, temps)      # (it takes the quantities it has rules for)
         worst_stale = max((t1 - self.health[n].stale_since_s for n in stale
                            if self.health[n].stale_since_s is not None), default=0.0)
         on_fallback = self.settings.stale_uncertainty_K_per_s * max(worst_stale, 0.0)
@@ -521,18 +499,18 @@ class Estimator:
         else:
             uncertainty = dict(zip(self.model.quantities.names, sigma.tolist()))
         if self.outlook_mode != 'off':
-            self.outlook.tick(self.steps - m, self.steps, t1, self.ambient_K, temps,
-                              uncertainty, stale, self.propagation.relative()
-                              if self.propagation is not None else None)
-        notices, self.intake.notices = self.intake.notices, []
+            self._outlook.tick(self.steps - m, self.steps, t1, self.ambient_K, temps,
+                               uncertainty, stale, self.propagation.relative()
+                               if self.propagation is not None else None)
+        notices, self._intake.notices = self._intake.notices, []
         est = Estimate(
             stamp_s=t1, temperatures_C=temps, uncertainty_K=uncertainty,
             heat_W=dict(self.model.heat_W), limits_C=dict(self.limits_C),
-            time_to_limit_s=dict(self.outlook.result), forecast_stamp_s=self.outlook.stamp_s,
-            margin_current_A=self.outlook.margin_A, alert_level=int(self.alerts.worst()),
+            time_to_limit_s=dict(self._outlook.result), forecast_stamp_s=self._outlook.stamp_s,
+            margin_current_A=self._outlook.margin_A, alert_level=int(self._alerts.worst()),
             alert_events=events, stale=list(stale), implausible=implausible, step=self.steps,
-            correction=self.correction.summary() if self.correction is not None else None,
-            notices=notices, inputs=sensors, current_limits=self.outlook.limits)
+            correction=self._correction.summary() if self._correction is not None else None,
+            notices=notices, inputs=sensors, state_K=self.model.state)
         self.latest = est
         return est
 
@@ -548,7 +526,7 @@ class Estimator:
         step = self.settings.step_s
         m = max(1, min(n_silent, int(round(self._hold_s / step))))
         t0, t1 = self.t_model, self._step_end(self.steps + m)
-        values = {n: np.array([self.intake.value_at(n, t0)]) for n in self.inputs}
+        values = {n: np.array([self._intake.value_at(n, t0)]) for n in self.inputs}
         before = self.model.state
         # the coefficients of the block's start, at once: deferred by a block of minutes
         # they would lag far behind the temperatures
@@ -578,7 +556,7 @@ class Estimator:
         not seen a thermocouple for long knows no more than the model alone.
         """
         u2 = self.settings.correction.unmodelled_sigma_K ** 2
-        sigma = np.minimum(np.sqrt(self.correction.variances_K2 + u2) + on_fallback, open_loop)
+        sigma = np.minimum(np.sqrt(self._correction.variances_K2 + u2) + on_fallback, open_loop)
         return dict(zip(self.model.quantities.names, sigma.tolist()))
 
     def prepare(self) -> bool:
@@ -633,7 +611,7 @@ class Estimator:
         start = time.perf_counter()
         if self.propagation is not None:
             self.propagation.work(0.0)
-        self.outlook.background(budget_s - (time.perf_counter() - start))
+        self._outlook.background(budget_s - (time.perf_counter() - start))
 
 
 #: how ``grid_rows`` treats each input: interval means, the root of the mean square
@@ -655,7 +633,7 @@ def implausible_inputs(speed, current, position, dt, area):
     w = np.abs(speed).sum() / speed.size
     i_rms = np.sqrt((current * current).sum() / current.size)
     flow = abs(position[-1] - position[0]) / dt * area
-    return w > 200.0 and i_rms < 0.05, flow > 0.5 / 60000 and w < 20.0
+    return w > 200.0 and i_rms < 0.05, flow > 0.5 / L_MIN_PER_M3_S and w < 20.0
 
 
 @jit

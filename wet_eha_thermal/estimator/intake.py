@@ -33,12 +33,10 @@ from typing import Dict, List, Optional, Tuple
 import numpy as np
 
 from ..config import Config
+from ..interface import DIFFERENTIAL_INPUTS, INPUTS
 from ..model.compiled import jit
 from ..model.eha import SampleBlock
 
-INPUTS = ('current_A', 'speed_rad_s', 'p_a_Pa', 'p_b_Pa', 'p_acc_Pa', 'position_m')
-# with one differential pressure sensor (estimator.pressure_inputs: differential)
-DIFFERENTIAL_INPUTS = ('current_A', 'speed_rad_s', 'dp_Pa', 'position_m')
 #: why ``check_samples`` rejected a sample (ACCEPTED: it did not)
 ACCEPTED, NON_FINITE, OUT_OF_RANGE, FUTURE, BACKWARDS, LATE = range(6)
 

@@ -14,8 +14,8 @@ import time
 
 import numpy as np
 
-from .core import Estimator
 from .intake import sensor_signal
+from .session import EstimatorSession
 from ..config import Config
 from ..model.kinetics import KineticModel, stage_duty, ThermalFeedback
 from ..model.oil import get_oil
@@ -33,33 +33,35 @@ def compile_estimator(cfg: Config) -> float:
     Compile (or load from numba's cache) the model's and the estimator core's kernels; return s.
 
     Runs :func:`~wet_eha_thermal.model.warmup.compile_model`, then a throw-away
-    :class:`Estimator` through the live node's calls (:meth:`~Estimator.take`,
-    ``add_measured``) on ``WARM_SECONDS`` of stage-6 signals, then ``WARM_SILENCE_S`` of
-    silence (stale inputs, held blocks), and the live correction's filter once.
+    :class:`~.session.EstimatorSession` through the live node's calls
+    (:meth:`~.session.EstimatorSession.take`, ``add_measured``) on
+    ``WARM_SECONDS`` of stage-6 signals, then ``WARM_SILENCE_S`` of silence
+    (stale inputs, held blocks), and the live correction's filter once.
     """
     start = time.perf_counter()
     compile_model(cfg)
-    est = Estimator(cfg, outlook='background')
+    session = EstimatorSession(cfg, outlook='background')
     kin = KineticModel(cfg, get_oil(cfg.fluid.grade))
     t = np.arange(1, int(WARM_SECONDS * WARM_RATE_HZ) + 1) / WARM_RATE_HZ
     samples = kin.sample(stage_duty(cfg, 6), t, ThermalFeedback.uniform())
-    signals = {name: sensor_signal(samples, name) for name in est.inputs}
-    tcs = est.correction.tcs if est.correction is not None else ()
+    signals = {name: sensor_signal(samples, name) for name in session.inputs}
+    tcs = session.thermocouples
     for k, tk in enumerate(t):
         if k % 100 == 50:       # thermocouple readings: the correction's filter step
             for tc in tcs:
-                est.add_measured(tc, float(tk), cfg.estimator.ambient_C)
-        for name in est.inputs:
-            est.take(name, float(tk), float(signals[name][k]), now_s=float(tk), budget_s=0.0)
+                session.add_measured(tc, float(tk), cfg.estimator.ambient_C)
+        for name in session.inputs:
+            session.take(name, float(tk), float(signals[name][k]), now_s=float(tk))
     # the first tick's limits and margin, to their end; not the forecast, whose model steps
     # are the estimator's (a second of start-up saved)
-    est.outlook.forecast = None
-    while est.outlook.busy:
-        est.background(0.05)
+    est = session._est          # the estimator's parts: this module warms them up
+    est._outlook.forecast = None
+    while session.work(0.05):
+        pass
     # a silence: inputs go stale, the model steps on held values and in held blocks
-    est.advance_all(float(t[-1]) + WARM_SILENCE_S)
-    if est.correction is not None:
+    session.step(float(t[-1]) + WARM_SILENCE_S, all_steps=True)
+    if est._correction is not None:
         # the filter starts at the first usable reading, which so short a record never
         # gives (a thermocouple is first watched for its noise and for being stuck)
-        est.correction.warm_up(est.model, cfg.estimator.step_s)
+        est._correction.warm_up(est.model, cfg.estimator.step_s)
     return time.perf_counter() - start

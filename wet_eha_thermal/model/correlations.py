@@ -42,6 +42,7 @@ from scipy.constants import Stefan_Boltzmann as _SIGMA
 
 from .compiled import jit
 from .validity import check, ValidityLog
+from ..units import RPM_PER_RAD_S
 
 #: Specific gas constant of dry air, J/(kg K).
 R_AIR = 287.05
@@ -968,6 +969,29 @@ def mcadams_vertical_plate(Ra, log: Optional[ValidityLog] = None):
                             0.10 * np.power(ra, 1.0 / 3.0)))
 
 
+class FreeConvection(NamedTuple):
+    """One free-convection law in air: Nusselt numbers called as ``(Ra, Pr, log)``."""
+
+    cylinder: object        # Nu_D of a horizontal cylinder
+    plate: object           # Nu_L of a vertical plate
+    source: str
+
+
+#: The free-convection laws of the barrel and the end caps, selectable by name as
+#: ``frame.natural_convection``; ``churchill_chu`` is the default. Morgan's and
+#: McAdams' power laws have no Prandtl number: theirs is dropped.
+NATURAL_CONVECTION = {
+    'churchill_chu': FreeConvection(
+        churchill_chu_horizontal_cylinder, churchill_chu_vertical_plate,
+        'Churchill and Chu, Int. J. Heat Mass Transfer 18, 1975'),
+    'morgan_mcadams': FreeConvection(
+        lambda Ra, Pr, log=None: morgan_horizontal_cylinder(Ra, log),
+        lambda Ra, Pr, log=None: mcadams_vertical_plate(Ra, log),
+        'Morgan, Adv. Heat Transfer 11, 1975 (cylinder); McAdams, Heat Transmission, 1954 '
+        '(plate)'),
+}
+
+
 def _rayleigh_air(T_surface_K, T_ambient_K, length_m, log):
     """Return ``(Ra, air)`` of air at the film temperature for a length scale."""
     t_film = 0.5 * np.add(T_surface_K, T_ambient_K)
@@ -1008,9 +1032,7 @@ def natural_convection_htc_horizontal_cylinder(T_surface_K, T_ambient_K, D_m,
 
     """
     ra, air = _rayleigh_air(T_surface_K, T_ambient_K, D_m, log)
-    nu = morgan_horizontal_cylinder(ra, log) if law == 'morgan_mcadams' \
-        else churchill_chu_horizontal_cylinder(ra, air.Pr, log)
-    return nu * air.k / D_m
+    return NATURAL_CONVECTION[law].cylinder(ra, air.Pr, log) * air.k / D_m
 
 
 def natural_convection_htc_vertical_plate(T_surface_K, T_ambient_K, height_m,
@@ -1042,9 +1064,7 @@ def natural_convection_htc_vertical_plate(T_surface_K, T_ambient_K, height_m,
 
     """
     ra, air = _rayleigh_air(T_surface_K, T_ambient_K, height_m, log)
-    nu = mcadams_vertical_plate(ra, log) if law == 'morgan_mcadams' \
-        else churchill_chu_vertical_plate(ra, air.Pr, log)
-    return nu * air.k / height_m
+    return NATURAL_CONVECTION[law].plate(ra, air.Pr, log) * air.k / height_m
 
 
 def radiation_htc(T_surface_K, T_ambient_K, emissivity):
@@ -1513,7 +1533,7 @@ def palmgren_bearing_torque(nu_m2_s, speed_rad_s, mean_diameter_m, f0, f1, load_
     0.004424
 
     """
-    nu_n = (nu_m2_s * 1.0e6) * (np.abs(speed_rad_s) * (30.0 / np.pi))
+    nu_n = (nu_m2_s * 1.0e6) * (np.abs(speed_rad_s) * RPM_PER_RAD_S)
     dm3 = (mean_diameter_m * 1.0e3) ** 3
     m0 = f0 * dm3 * np.maximum(1.0e-7 * np.square(np.cbrt(nu_n)), 160.0e-7)
     return 1.0e-3 * (m0 + f1 * load_N * mean_diameter_m * 1.0e3)

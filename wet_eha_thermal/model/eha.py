@@ -38,6 +38,7 @@ from .oil import get_oil, Oil
 from .quantities import coupled_outputs, QuantityMap
 from .validity import ValidityLog, within
 from ..config import Config
+from ..units import L_MIN_PER_M3_S
 
 #: the case oil may fall this far below its nominal volume (a fraction), never further
 CASE_BUFFER_FLOOR = 0.75
@@ -391,9 +392,9 @@ class EHAModel:
             'motor_to_oil': float(m_cp * (sf.motor_outlet_K - T_case)),
             'pump_friction': sf.pump_friction_W,
             'hydraulic_sources': float(ci.last_sources.sum()),
-            'motor_flow_L_min': q_motor * 60000.0,
+            'motor_flow_L_min': q_motor * L_MIN_PER_M3_S,
             'case_buffer_mL': self.case_buffer_m3 * 1e6,
-            'leakage_to_case_L_min': q_ext * 60000.0,
+            'leakage_to_case_L_min': q_ext * L_MIN_PER_M3_S,
         }
 
     def _case_change(self, q_ext: float, q_motor: float, dt: float) -> float:

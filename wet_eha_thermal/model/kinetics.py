@@ -32,12 +32,8 @@ from .losses import copper_resistance
 from .oil import Oil
 from .validity import ValidityLog
 from ..config import Config
-from ..units import C_TO_K
+from ..units import C_TO_K, L_MIN, MPA
 
-#: m^3/s per L/min.
-L_MIN = 1.0e-3 / 60.0
-#: Pa per MPa.
-MPA = 1.0e6
 #: 40 degC in kelvin, the default oil and winding temperature.
 T40_K = C_TO_K + 40.0
 #: Speed magnitude (rad/s) below which a friction power is not turned into a torque.
@@ -64,6 +60,11 @@ class Stage:
     load_dp_amplitude_Pa: float
     flow_amplitude_m3_s: float
     frequency_Hz: float
+
+    def describe(self) -> str:
+        """Return ``stage N (load .. MPa, flow .. L/min, .. Hz)``, in the units people read."""
+        return (f'stage {self.number} (load {self.load_dp_amplitude_Pa / MPA:g} MPa, flow '
+                f'{self.flow_amplitude_m3_s / L_MIN:g} L/min, {self.frequency_Hz:g} Hz)')
 
 
 def _stage(number: int, dp_MPa: float, q_L_min: float, f_Hz: float) -> Stage:

@@ -37,7 +37,7 @@ from .quantities import motor_outputs, QuantityMap
 from .rotor_losses import rotor_eddy_loss_breakdown
 from .validity import ValidityLog
 from ..config import Motor
-from ..units import C_TO_K, RPM
+from ..units import C_TO_K, RPM, RPM_PER_RAD_S
 
 
 def _mean(a, axis: Optional[int] = None):
@@ -239,7 +239,7 @@ class WetMotor(MotorNetworkBuilder):
         if self.loss_table.from_map or not self.check_rotor_validity:
             return
         current = float(np.sqrt(max(i_sq, 0.0)))
-        key = (int(w * 30.0 / np.pi // 2000.0), int(current // 10.0))
+        key = (int(w * RPM_PER_RAD_S // 2000.0), int(current // 10.0))
         if key not in self._em_checked:
             self._em_checked.add(key)
             rotor_eddy_loss_breakdown(self.cfg, w, current, self.log)

@@ -34,7 +34,7 @@ from . import replay as rp     # a campaign is one replay per bag
 from .. import interface
 from ..bag.reader import is_bag
 from ..estimator.alerts import Level
-from ..output_files import atomic, markdown_table, save_figure, write_text
+from ..output_files import atomic, markdown_table, pyplot, save_figure, write_text
 
 #: How long to wait for a scheduler to answer, and for a worker to join it (s).
 CONNECT_TIMEOUT_S = 30.0
@@ -288,9 +288,7 @@ def summary_lines(rows: Sequence[Dict[str, object]], image: str) -> List[str]:
 
 def plot(rows: Sequence[Dict[str, object]], path: Path) -> Path:
     """Plot the peak winding hot-spot and the minimum margin of every log; mark failures."""
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     x = np.arange(len(rows))
     fig, axes = plt.subplots(2, 1, sharex=True,

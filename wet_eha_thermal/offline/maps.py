@@ -22,8 +22,8 @@ from ..model import quantity_table
 from ..model.motor import LOSS_NAMES, MotorInputs, WetMotor
 from ..model.oil import get_oil
 from ..model.validity import ValidityLog
-from ..output_files import atomic, save_figure
-from ..units import C_TO_K, RPM
+from ..output_files import atomic, pyplot, save_figure
+from ..units import C_TO_K, L_MIN_PER_M3_S, RPM
 
 TEMPERATURES = ('winding_mean', 'winding_hotspot', 'end_winding_hotspot', 'frame', 'magnet',
                 'airgap_oil_outlet', 'motor_oil_outlet')
@@ -71,7 +71,7 @@ def compute_maps(cfg: Config, progress: Optional[Callable[[int, int, str], None]
             progress(k, len(points), f'{sweep} sweep: {rpm:.0f} r/min, {amps:g} A')
         u = MotorInputs(current_sq_mean_A2=amps ** 2, speed_rad_s=rpm * RPM,
                         oil_inlet_K=job.oil_inlet_C + C_TO_K,
-                        oil_flow_m3_s=job.oil_flow_L_min / 60000.0,
+                        oil_flow_m3_s=job.oil_flow_L_min / L_MIN_PER_M3_S,
                         ambient_K=job.ambient_C + C_TO_K,
                         case_pressure_Pa=job.case_pressure_Pa)
         T = motor.steady_state(u)
@@ -127,9 +127,7 @@ def write_csv(points: List[MapPoint], path: Path) -> None:
 
 def plot_maps(points: List[MapPoint], path: Path, title: str) -> None:
     """Plot temperatures, the loss split and the heat paths of both sweeps to a PNG."""
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, axes = plt.subplots(3, 2, figsize=(13, 11), sharex='col')
     # the heat paths, stacked to the total loss: what the solids give the oil through

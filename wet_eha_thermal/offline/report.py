@@ -22,7 +22,7 @@ from ..config import Config
 from ..model import quantity_table
 from ..model.motor import LOSS_NAMES
 from ..model.quantities import OIL_OUTPUTS
-from ..output_files import atomic, save_figure
+from ..output_files import atomic, pyplot, save_figure
 from ..units import C_TO_K
 
 #: Temperatures of the table, in print order.
@@ -320,6 +320,22 @@ def format_heat(result, period_s: Optional[float] = None) -> str:
     return '\n'.join(lines)
 
 
+def format_summary(result, cfg: Config, period_s: Optional[float]) -> str:
+    """Return what ``simulate`` prints of a run: temperatures, limits, heat paths, energy."""
+    oil_lim, oil_src = quantity_table.limits_C(cfg)['oil'], quantity_table.LIMIT_KEYS['oil']
+    _, hottest = hottest_oil_C(result)
+    return '\n'.join([
+        format_table(result),
+        '\nLimits: first crossing in the run, else extrapolated by a first-order fit to the '
+        'last third of the run',
+        format_limits(check_limits(result, cfg)),
+        f'(oil limit {oil_lim:g} degC from {oil_src}; hottest oil node at the end: '
+        f'{hottest.replace("_", " ")})',
+        '\nWhere the heat is made and where it goes, mean over the last duty period:',
+        format_heat(result, period_s),
+        '\n' + format_energy(energy_check(result))])
+
+
 def heat_column(name: str) -> str:
     """Return the CSV column of a heat-flow key: the key with ``_W`` unless it has a unit."""
     return name if _UNIT.search(name) else f'{name}_W'
@@ -469,9 +485,7 @@ def plot(result, cfg: Config, path: Path, title: str,
     limit is drawn as a dashed line where it is within 30 K of the panel's
     data.
     """
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     temps = temperatures_C(result)
     t = np.asarray(result.time_s, dtype=float)

@@ -40,7 +40,7 @@ from .simulation import feedback
 from ..config import Config
 from ..estimator.intake import sensor_inputs, sensor_signal
 from ..interface import (AMBIENT_TOPIC, INPUT_TOPICS, INPUT_TYPES, MEASURED_PREFIX,
-                         PRESSURE_INPUTS, TEMPERATURE, THERMOCOUPLES)
+                         PRESSURE_INPUTS, SENSOR, TEMPERATURE, THERMOCOUPLES)
 from ..model.eha import EHAModel
 from ..model.kinetics import Duty, KineticModel, ThermalFeedback
 from ..units import C_TO_K
@@ -189,6 +189,7 @@ def write_rig_bag(path: os.PathLike, rig: SimulatedRig, seconds: float, *,
     ``thermocouple_rate_Hz`` and 1 Hz.
     """
     from ..bag import cdr
+    from ..bag.rosbag2 import offered_profiles
     from ..bag.writer import BagWriter, offered_qos
 
     def temperature(value_C: float, sigma_K: float, ns: int) -> bytes:
@@ -198,9 +199,7 @@ def write_rig_bag(path: os.PathLike, rig: SimulatedRig, seconds: float, *,
     count = 0
     with BagWriter(path, metadata=metadata) as bag:
         for name in rig.inputs:
-            # what the sensor_data input QoS offers (ros.topics.input_qos)
-            bag.add_topic(INPUT_TOPICS[name], INPUT_TYPES[name],
-                          offered_qos('best_effort', depth=100))
+            bag.add_topic(INPUT_TOPICS[name], INPUT_TYPES[name], offered_profiles(SENSOR, 100))
         for tc in THERMOCOUPLES:
             bag.add_topic(f'{MEASURED_PREFIX}/{tc}', TEMPERATURE,
                           offered_qos(depth=10))

@@ -17,11 +17,11 @@ from typing import Callable, Dict, List, Mapping, Optional, Union
 import numpy as np
 
 from ..config import Config
+from ..interface import INPUTS
 from ..model.eha import EHAModel, SampleBlock
 from ..model.kinetics import Duty, DutyError, KineticModel, ThermalFeedback
-from ..units import C_TO_K
+from ..units import C_TO_K, MPA, RPM_PER_RAD_S
 
-SENSORS = ('current_A', 'speed_rad_s', 'p_a_Pa', 'p_b_Pa', 'p_acc_Pa', 'position_m')
 RUNAWAY_C = 300.0   # far past every limit (oil 135, insulation 180 degC): stop, do not extrapolate
 
 
@@ -59,7 +59,7 @@ class SensorTable:
     """
     A duty given as the sensor signals: time with current, speed, pressures (and position).
 
-    ``columns`` maps each of :data:`SENSORS` to its values at ``time_s`` (SI
+    ``columns`` maps each of :data:`~..interface.INPUTS` to its values at ``time_s`` (SI
     units; ``position_m`` may be left out: the piston then stands still at
     mid-stroke). The signals are linear between the rows and repeat with the
     period ``time_s[-1]``, as a :class:`~.model.kinetics.TableDuty` does; the
@@ -78,12 +78,12 @@ class SensorTable:
             raise DutyError(f'{self.name}: time_s must hold at least 2 finite times')
         if t[0] != 0.0 or np.any(np.diff(t) <= 0.0):
             raise DutyError(f'{self.name}: time_s must start at 0 and increase strictly')
-        unknown = sorted(set(columns) - set(SENSORS))
+        unknown = sorted(set(columns) - set(INPUTS))
         if unknown:
             raise DutyError(f'{self.name}: unknown column {unknown[0]!r}; the columns are '
-                            f'{", ".join(SENSORS)}')
+                            f'{", ".join(INPUTS)}')
         self._values = {}
-        for name in SENSORS:
+        for name in INPUTS:
             if name not in columns and name != 'position_m':
                 raise DutyError(f'{self.name}: missing column {name}')
             v = np.array(columns.get(name, np.zeros(t.size)), dtype=float)
@@ -99,7 +99,7 @@ class SensorTable:
         """Return the signals at the model times ``t_s`` (``fb``: unused, as the rig's are)."""
         t = np.asarray(t_s, dtype=float)
         local = np.mod(t - self.start_s, self.period_s)
-        return SampleBlock(t, *(np.interp(local, self._t, self._values[n]) for n in SENSORS))
+        return SampleBlock(t, *(np.interp(local, self._t, self._values[n]) for n in INPUTS))
 
 
 def feedback(model: EHAModel) -> ThermalFeedback:
@@ -189,9 +189,9 @@ def simulate(cfg: Config, duty: Union[Duty, SensorTable], duration_s: float, dt_
             span = acc[4]
             res.append(float(t[-1]), out,
                        {'current_A_rms': float(np.sqrt(acc[0] / span)),
-                        'speed_rpm': float(acc[1] / span * 30 / np.pi),
-                        'p_a_MPa': float(acc[2] / span / 1e6),
-                        'p_b_MPa': float(acc[3] / span / 1e6),
+                        'speed_rpm': float(acc[1] / span * RPM_PER_RAD_S),
+                        'p_a_MPa': float(acc[2] / span / MPA),
+                        'p_b_MPa': float(acc[3] / span / MPA),
                         'position_mm': float(s.position_m[-1] * 1e3)},
                        motor_heat(model))
             acc[:] = 0.0

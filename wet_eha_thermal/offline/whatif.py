@@ -24,22 +24,22 @@ import json
 import math
 from pathlib import Path
 import time
-from typing import Any, Dict, Mapping, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
 # a what-if is a simulation from a given state: simulate() runs it, the report's limit
 # check finds the crossings
 from .report import check_limit
-from .simulation import SENSORS, SensorTable, simulate, ThermalRunaway
+from .simulation import SensorTable, simulate, ThermalRunaway
 from .. import interface
 from ..config import Config
 from ..model import quantity_table
 from ..model.eha import EHAModel
-from ..model.kinetics import Duty, DutyError, L_MIN, MPA, stage_duty, STAGES, TableDuty
+from ..model.kinetics import Duty, DutyError, stage_duty, STAGES, TableDuty
 from ..model.oil import OIL_GRADES
-from ..output_files import atomic, save_figure
-from ..units import C_TO_K
+from ..output_files import atomic, pyplot, save_figure
+from ..units import C_TO_K, L_MIN, MPA
 
 #: The longest what-if (s): a day of model time costs minutes of a core.
 MAX_DURATION_S = 86400.0
@@ -61,7 +61,7 @@ MAX_ID = 200
 #: A table of flow and load: its columns, as ``--duty`` files have them.
 TABLE_COLUMNS = ('time_s', 'flow_L_min', 'load_MPa')
 #: A table of the sensor signals: its columns (position_m may be left out).
-SAMPLE_COLUMNS = ('time_s',) + SENSORS
+SAMPLE_COLUMNS = ('time_s',) + interface.INPUTS
 #: The keys a request may have.
 REQUEST_KEYS = ('id', 'stage', 'table', 'samples', 'duration_s', 'ambient_C', 'dt_s',
                 'sample_rate_Hz', 'record_every_s', 'quantities')
@@ -82,7 +82,7 @@ class WhatIfRequest:
 
     ``table``: ``time_s`` with ``flow_L_min`` and ``load_MPa`` (a ``--duty``
     file's columns); ``samples``: ``time_s`` with the sensor signals of
-    :data:`~.simulation.SENSORS`, SI units. Both repeat with their last time
+    :data:`~..interface.INPUTS`, SI units. Both repeat with their last time
     as the period and start at the what-if's start. ``ambient_C`` None: the
     caller's (the estimator's present ambient). ``record_every_s`` None:
     about ``DEFAULT_POINTS`` points.
@@ -178,6 +178,38 @@ def _check_ranges(cfg: Config, samples: Mapping[str, Tuple[float, ...]]) -> None
                                f'[{ch.low:g}, {ch.high:g}] (estimator.channels.{name})')
 
 
+def read_samples_csv(path: Path) -> Dict[str, List[float]]:
+    """
+    Return the :data:`SAMPLE_COLUMNS` of a CSV of numbers, as a request's ``samples``.
+
+    Lines starting with ``#`` are comments; ``position_m`` may be left out.
+    A file that cannot be read, a missing column or a value that is not a
+    finite number raises :class:`RequestError` naming the file, column and row.
+    """
+    try:
+        # comment lines dropped first: genfromtxt would take one before the header for it
+        lines = [ln for ln in Path(path).read_text().splitlines()
+                 if ln.strip() and not ln.lstrip().startswith('#')]
+        data = np.genfromtxt(lines, delimiter=',', names=True, ndmin=1)
+    except (OSError, ValueError) as exc:
+        raise RequestError(f'{path}: cannot read it: {exc}') from None
+    names = data.dtype.names or ()
+    table = {}
+    for name in SAMPLE_COLUMNS:
+        if name not in names:
+            if name == 'position_m':
+                continue
+            raise RequestError(f'{path}: missing column {name!r}; the header has '
+                               f'{", ".join(names)}')
+        values = np.atleast_1d(data[name])
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            raise RequestError(f'{path}: column {name!r}, data row {bad[0] + 1}: not a finite '
+                               'number')
+        table[name] = values.tolist()
+    return table
+
+
 def parse_request(text: Union[str, Mapping[str, Any]], cfg: Config,
                   known: Sequence[str]) -> WhatIfRequest:
     """
@@ -247,10 +279,7 @@ def make_duty(cfg: Config, request: WhatIfRequest,
     try:
         if request.stage is not None:
             duty = stage_duty(cfg, request.stage)
-            st = duty.stage
-            return Delayed(duty, start_s), (
-                f'stage {st.number} (load {st.load_dp_amplitude_Pa / MPA:g} MPa, flow '
-                f'{st.flow_amplitude_m3_s / L_MIN:g} L/min, {st.frequency_Hz:g} Hz)')
+            return Delayed(duty, start_s), duty.stage.describe()
         if request.table is not None:
             t = request.table
             duty = TableDuty(t['time_s'], np.array(t['flow_L_min']) * L_MIN,
@@ -412,9 +441,7 @@ def format_answer(answer: Mapping[str, Any]) -> str:
 
 def write_answer(answer: Mapping[str, Any], out_dir: Path) -> Tuple[Path, Path]:
     """Write an answer's trajectories as whatif.csv and whatif.png in ``out_dir``; their paths."""
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     out_dir.mkdir(parents=True, exist_ok=True)
     names = list(answer['temperatures_C'])

@@ -1,11 +1,11 @@
 """
-The estimator node's /diagnostics as data: pure functions of the estimator and node counters.
+The estimator node's /diagnostics as data: pure functions of the session and node counters.
 
 One :class:`Status` per concern, in the order the node publishes them: the
 estimate, each input, the plausibility checks, and each thermocouple of the
 live correction. :mod:`.estimator_node` turns them into
 ``diagnostic_msgs/DiagnosticStatus``; nothing here needs ROS, so the texts
-can be checked on an estimator alone.
+can be checked on a session alone (:class:`~.EstimatorSession`).
 """
 
 from dataclasses import dataclass
@@ -13,8 +13,8 @@ from typing import List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 from wet_eha_thermal import interface
-from wet_eha_thermal.estimator.core import Estimator
 from wet_eha_thermal.estimator.limits import CurrentLimits
+from wet_eha_thermal.estimator.session import EstimatorSession
 from wet_eha_thermal.model.quantity_table import LIMITED
 
 # the levels of diagnostic_msgs/DiagnosticStatus
@@ -51,7 +51,7 @@ def fmt(value: Optional[float], spec: str = '.2f', none: str = 'pending') -> str
     return none if value is None else format(value, spec)
 
 
-def statuses(est: Estimator, node: NodeCounters, now_s: float, topic_of: Mapping[str, str],
+def statuses(est: EstimatorSession, node: NodeCounters, now_s: float, topic_of: Mapping[str, str],
              new_rejected: Mapping[str, int], new_implausible: int) -> List[Status]:
     """
     Return every status of one report.
@@ -64,13 +64,13 @@ def statuses(est: Estimator, node: NodeCounters, now_s: float, topic_of: Mapping
     out += [input_status(est, name, now_s, topic_of[name], new_rejected[name],
                          node.callback_errors.get(name, 0)) for name in est.inputs]
     out.append(plausibility_status(est, new_implausible))
-    if est.correction is not None:
+    if est.correcting:
         out += [thermocouple_status(est, tc, topic_of[f'{interface.MEASURED_PREFIX}/{tc}'])
                 for tc in interface.THERMOCOUPLES]
     return out
 
 
-def estimate_status(est: Estimator, node: NodeCounters) -> Status:
+def estimate_status(est: EstimatorSession, node: NodeCounters) -> Status:
     """Return the status of the estimate: alerts, fallbacks, the latest values, the counters."""
     latest = est.latest
     stale = [n for n in est.inputs if est.health[n].stale]
@@ -79,8 +79,8 @@ def estimate_status(est: Estimator, node: NodeCounters) -> Status:
         return Status('estimate', STALE,
                       'no estimate yet: waiting for the clock or the first step',
                       values + [('inputs on fallback', ', '.join(stale) or 'none')])
-    alerts = est.alerts.summary()['message']
-    level = int(est.alerts.worst())       # OK/WARN/CRITICAL = OK/WARN/ERROR
+    alerts = est.alert_message
+    level = est.alert_level       # OK/WARN/CRITICAL = OK/WARN/ERROR
     message = 'estimating' if alerts == 'OK' else alerts
     if stale:
         message += f'; on fallback: {", ".join(stale)}'
@@ -120,7 +120,7 @@ def estimate_status(est: Estimator, node: NodeCounters) -> Status:
     gap_text = f'{gaps.count}, longest {gaps.longest_s:.1f} s, total {gaps.total_s:.1f} s'
     if gaps.open_since_s is not None:
         gap_text = f'every input silent since {gaps.open_since_s:.3f} s; ' + gap_text
-    jump = est.intake.last_clock_jump
+    jump = est.last_clock_jump
     values += [('alerts', alerts),
                ('data gaps (every input silent)', gap_text),
                ('held blocks (silences crossed)', est.held_blocks),
@@ -129,9 +129,9 @@ def estimate_status(est: Estimator, node: NodeCounters) -> Status:
                ('inputs on fallback', ', '.join(stale) or 'none'),
                ('estimates published', node.published),
                ('model errors', node.model_errors),
-               ('forecast and limit failures', est.outlook.failures),
-               ('limit ticks behind (fallback)', est.outlook.limits_behind),
-               ('forecasts skipped (one under way)', est.outlook.forecasts_skipped),
+               ('forecast and limit failures', est.outlook_counts['failures']),
+               ('limit ticks behind (fallback)', est.outlook_counts['limits_behind']),
+               ('forecasts skipped (one under way)', est.outlook_counts['forecasts_skipped']),
                ('background errors', node.background_errors),
                ('callback errors', sum(node.callback_errors.values())),
                ('samples before the clock', node.waiting_for_clock),
@@ -152,24 +152,26 @@ def limit_values(limits: Optional[CurrentLimits]) -> List[Tuple[str, object]]:
     return out
 
 
-def correction_values(est: Estimator) -> List[Tuple[str, object]]:
+def correction_values(est: EstimatorSession) -> List[Tuple[str, object]]:
     """Return the estimate status's key-values of the live correction."""
-    c = est.correction
+    c = est.correction_summary()
     if c is None:
         return [('correction', 'off (estimator.correction.enabled: false)')]
-    used = [tc for tc, h in c.tcs.items() if h.status == 'ok']
-    dropped = [f'{tc} ({h.status})' for tc, h in c.tcs.items() if h.dropped]
-    if not c.active:
+    tcs = est.thermocouples
+    used = [tc for tc, h in tcs.items() if h.status == 'ok']
+    dropped = [f'{tc} ({h.status})' for tc, h in tcs.items() if h.dropped]
+    if not c['active']:
         text = 'waiting for a usable thermocouple: open loop'
     else:
         text = f'on, correcting with: {", ".join(used) or "none now"}'
     if dropped:
         text += f'; dropped: {", ".join(dropped)}'
-    values = [('correction', text), ('correction updates', c.updates),
-              ('correction failures', c.failures if not c.failures
-               else f'{c.failures} (last: {c.last_failure})')]
+    failures = c['failures']
+    values = [('correction', text), ('correction updates', c['updates']),
+              ('correction failures', failures if not failures
+               else f"{failures} (last: {c['last_failure']})")]
     values += [(f'learned heat {name} [W]', f'{value:.2f}')
-               for name, value in zip(c.disturbance_names, c.d.tolist())]
+               for name, value in c['disturbance_W'].items()]
     return values
 
 
@@ -184,9 +186,9 @@ _THERMOCOUPLE_STATES = {
 }
 
 
-def thermocouple_status(est: Estimator, tc: str, topic: str) -> Status:
+def thermocouple_status(est: EstimatorSession, tc: str, topic: str) -> Status:
     """Return the status of one thermocouple in the live correction."""
-    h = est.correction.tcs[tc]
+    h = est.thermocouples[tc]
     level, message = _THERMOCOUPLE_STATES.get(h.status, (WARN, 'dropped from the correction'))
     if h.reason:
         message += f': {h.reason}'
@@ -206,7 +208,7 @@ def thermocouple_status(est: Estimator, tc: str, topic: str) -> Status:
     return Status(f'thermocouple {tc}', level, message, values)
 
 
-def input_status(est: Estimator, name: str, now_s: float, topic: str, new_rejected: int,
+def input_status(est: EstimatorSession, name: str, now_s: float, topic: str, new_rejected: int,
                  callback_errors: int) -> Status:
     """Return the status of one sensor input: rejections since the last report, staleness."""
     h = est.health[name]
@@ -217,12 +219,12 @@ def input_status(est: Estimator, name: str, now_s: float, topic: str, new_reject
     if h.stale:
         level = STALE
         if h.last_value is None:
-            message = f'stale: no sample yet, using the resting value {est.intake.rest[name]:g}'
+            message = f'stale: no sample yet, using the resting value {est.rest[name]:g}'
         else:
             since = h.stale_since_s if h.stale_since_s is not None else now_s
             message = (f'stale: holding last value {h.last_value:g} since {since:.3f} s '
                        f'({max(now_s - since, 0.0):.1f} s)')
-    cfg = est.intake.channel_cfg[name]
+    cfg = est.channel_cfg[name]
     values = [('topic', topic), ('received', h.received),
               ('accepted', h.accepted), ('non_finite', h.non_finite),
               ('out_of_range', h.out_of_range), ('backwards', h.backwards),
@@ -236,7 +238,7 @@ def input_status(est: Estimator, name: str, now_s: float, topic: str, new_reject
     return Status(f'input {name}', level, message, values)
 
 
-def plausibility_status(est: Estimator, new_implausible: int) -> Status:
+def plausibility_status(est: EstimatorSession, new_implausible: int) -> Status:
     """Return the status of the plausibility checks: implausible steps since the last report."""
     if new_implausible > 0:
         latest = est.latest.implausible if est.latest is not None else []

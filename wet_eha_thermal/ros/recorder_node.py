@@ -92,8 +92,8 @@ from wet_eha_thermal.bag.writer import (BagHealth, BagWriter, COMPRESSIONS,
                                         qos_profiles, RECORDING, SUSPENDED)
 from wet_eha_thermal.config import ConfigError, default_config_path, load_config
 from wet_eha_thermal.ros import topics
-from wet_eha_thermal.ros.runtime import (accept_whole_numbers, descriptor, EXECUTORS,
-                                         FastClock, Readiness, run_node)
+from wet_eha_thermal.ros.runtime import (declare_parameters, descriptor, FastClock, Readiness,
+                                         run_node, shared_parameters)
 import yaml
 
 NODE_NAME = interface.RECORDER_NODE
@@ -138,11 +138,7 @@ PARAMETERS = {
         'after a full disk, writing resumes (in a new file) once this much more than the '
         'reserve is free again, bytes', 0, 2 ** 40)),
     'compression': ('zstd', descriptor('chunk compression: ' + ', '.join(COMPRESSIONS))),
-    'qos': ('sensor_data', descriptor(
-        "QoS of the sensor subscriptions: 'sensor_data' (best effort) or 'reliable'")),
-    'qos_depth': (1000, descriptor('history depth of every subscription', 1, 100000)),
-    'topic_prefix': (interface.PREFIX, descriptor(
-        "replaces '/eha' in every topic name (not /diagnostics)")),
+    **shared_parameters('qos', 'qos_depth', 'topic_prefix', 'executor'),
     # declared by type: rclpy takes an empty list for a byte array; unset, it reads None
     'extra_topics': (Parameter.Type.STRING_ARRAY, descriptor(
         'further topics to record (names; type and QoS from their publishers)')),
@@ -152,35 +148,12 @@ PARAMETERS = {
     'params_file': ('', descriptor(
         "estimator parameters file stored in the bag ('' = none)")),
     'hardware_id': ('wet-eha-rig', descriptor('hardware_id of the diagnostic status')),
-    'executor': ('events', descriptor(
-        "executor used by main(): 'events' or 'single'; the --executor option overrides it")),
 }
 
 
 def recorded_topics(prefix: str = interface.PREFIX) -> Dict[str, Tuple[str, str]]:
-    """
-    Return the fixed topics of the recorder under ``prefix``: topic -> (type, QoS kind).
-
-    The QoS kind is 'sensor' (the ``qos`` parameter), 'output' (reliable) or
-    'latched' (reliable, transient local).
-    """
-    found = {interface.INPUT_TOPICS[name]: (interface.INPUT_TYPES[name], 'sensor')
-             for name in interface.INPUT_TOPICS}
-    found[interface.AMBIENT_TOPIC] = (interface.TEMPERATURE, 'sensor')
-    for tc in interface.THERMOCOUPLES:
-        found[f'{interface.MEASURED_PREFIX}/{tc}'] = (interface.TEMPERATURE, 'sensor')
-    for name in interface.ESTIMATES:
-        found[f'{interface.ESTIMATE_PREFIX}/{name}'] = (interface.TEMPERATURE, 'output')
-    found[interface.STATE_TOPIC] = (interface.FLOAT64_ARRAY, 'output')
-    found[interface.STATE_NAMES_TOPIC] = (interface.STRING, 'latched')
-    found[interface.ALERT_TOPIC] = (interface.STRING, 'latched')
-    found[interface.CURRENT_LIMITS_TOPIC] = (interface.JOINT_STATE, 'output')
-    found[interface.CURRENT_LIMIT_TOPIC] = (interface.FLOAT64, 'output')
-    found[interface.READY_TOPIC] = (interface.STRING, 'latched')
-    found[interface.RECORDER_HEALTH_TOPIC] = (interface.STRING, 'latched')
-    found[interface.ACK_TOPIC] = (interface.STRING, 'output')
-    found[interface.DIAGNOSTICS_TOPIC] = (interface.DIAGNOSTIC_ARRAY, 'output')
-    return {interface.prefixed(topic, prefix): spec for topic, spec in found.items()}
+    """Return the fixed topics of the recorder under ``prefix``: the twin's topic table."""
+    return interface.topic_table(prefix)
 
 
 def default_output(stem: str = 'eha') -> Path:
@@ -215,9 +188,8 @@ class RecorderNode(Node):
         super().__init__(NODE_NAME, **kwargs)
         p = self._read_parameters()
         # before the bag is made: a bad qos leaves no empty recording behind
-        qos_of = {'sensor': topics.input_qos(p['qos'], p['qos_depth']),  # ValueError: bad kind
-                  'output': topics.input_qos('reliable', p['qos_depth']),
-                  'latched': topics.latched_qos()}
+        qos_of = {kind: topics.qos_profile(kind, p['qos'], p['qos_depth'])
+                  for kind in (interface.SENSOR, interface.OUTPUT, interface.LATCHED)}
         self.hardware_id = p['hardware_id']
         self.depth = p['qos_depth']
         self.started_utc = datetime.now(timezone.utc).isoformat(timespec='seconds')
@@ -248,16 +220,9 @@ class RecorderNode(Node):
 
     def _read_parameters(self) -> dict:
         """Declare the parameters and return their values, checked (ValueError)."""
-        accept_whole_numbers(self, {name: d for name, (d, _) in PARAMETERS.items()})
-        p = {name: self.declare_parameter(name, default, desc).value
-             for name, (default, desc) in PARAMETERS.items()}
+        p = declare_parameters(self, PARAMETERS)
         p['extra_topics'] = list(p['extra_topics'] or [])
         p['use_sim_time'] = self.get_parameter('use_sim_time').value
-        if p['executor'] not in EXECUTORS:
-            raise ValueError(f"parameter executor = {p['executor']!r}: expected one of "
-                             f'{", ".join(EXECUTORS)}')
-        if not p['topic_prefix'].startswith('/'):
-            raise ValueError(f"parameter topic_prefix = {p['topic_prefix']!r}: must start with /")
         return p
 
     def _open_bag(self, p: dict) -> BagWriter:

@@ -15,7 +15,7 @@ import json
 import signal
 import sys
 import time
-from typing import Callable, List, Mapping, Optional, Sequence, Tuple, Type
+from typing import Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Type
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 import rclpy
@@ -27,10 +27,13 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 from rclpy.utilities import remove_ros_args
 from std_msgs.msg import String
+from wet_eha_thermal import interface
 from wet_eha_thermal.config import Config
 from wet_eha_thermal.ros.topics import latched_qos
 
 EXECUTORS = ('events', 'single')
+#: What a node's ``qos`` parameter may name (:func:`~.topics.input_qos`).
+QOS_KINDS = ('sensor_data', 'reliable')
 
 
 class FastClock:
@@ -183,6 +186,49 @@ def descriptor(text: str, low=None, high=None, read_only: bool = True) -> Parame
         d.floating_point_range = [FloatingPointRange(from_value=float(low),
                                                      to_value=float(high), step=0.0)]
     return d
+
+
+def shared_parameters(*names: str) -> Dict[str, Tuple[object, ParameterDescriptor]]:
+    """
+    Return the declarations (name -> (default, descriptor)) of the parameters the nodes share.
+
+    One declaration, one range and one check (:func:`declare_parameters`)
+    for ``qos``, ``qos_depth``, ``topic_prefix`` and ``executor``, whichever
+    node declares them; ``names`` picks those a node has.
+    """
+    shared = {
+        'qos': ('sensor_data', descriptor(
+            "QoS of the sensor topics: 'sensor_data' (best effort) or 'reliable'")),
+        'qos_depth': (1000, descriptor('history depth of the sensor subscriptions', 1, 100000)),
+        'topic_prefix': (interface.PREFIX, descriptor(
+            "replaces '/eha' in every topic name (not /diagnostics); starts with /")),
+        'executor': ('events', descriptor(
+            "executor used by main(): 'events' (rclpy.experimental.EventsExecutor) or 'single' "
+            '(SingleThreadedExecutor); the --executor option overrides it')),
+    }
+    return {name: shared[name] for name in names}
+
+
+def declare_parameters(node: Node, parameters: Mapping[str, Tuple[object, ParameterDescriptor]]
+                       ) -> Dict[str, object]:
+    """
+    Declare ``parameters`` (name -> (default, descriptor)) on ``node``; return their values.
+
+    The shared ones (:func:`shared_parameters`) are checked here: ValueError
+    names the parameter, its value and what is allowed.
+    """
+    accept_whole_numbers(node, {name: default for name, (default, _) in parameters.items()})
+    values = {name: node.declare_parameter(name, default, desc).value
+              for name, (default, desc) in parameters.items()}
+    allowed = {'qos': QOS_KINDS, 'executor': EXECUTORS}
+    for name, kinds in allowed.items():
+        if name in values and values[name] not in kinds:
+            raise ValueError(f'parameter {name} = {values[name]!r}: expected one of '
+                             f'{", ".join(kinds)}')
+    if 'topic_prefix' in values and not values['topic_prefix'].startswith('/'):
+        raise ValueError(f"parameter topic_prefix = {values['topic_prefix']!r}: must start "
+                         'with /')
+    return values
 
 
 def parse_node_options(argv: List[str], prog: str, description: str) -> argparse.Namespace:

@@ -85,15 +85,15 @@ from sensor_msgs.msg import FluidPressure, JointState, Temperature
 from std_msgs.msg import Float64, String
 from wet_eha_thermal.config import ConfigError, load_config
 from wet_eha_thermal.interface import (AMBIENT_TOPIC, CURRENT_LIMITS_TOPIC, DIAGNOSTICS_TOPIC,
-                                       INPUT_TOPICS, MEASURED_PREFIX, NodeReport, PREFIX,
+                                       INPUT_TOPICS, MEASURED_PREFIX, NodeReport,
                                        prefixed, PRESSURE_INPUTS, READY_TOPIC, RIG_NODE,
                                        THERMOCOUPLES)
 from wet_eha_thermal.model.kinetics import DutyError, load_duty_csv, stage_duty, STAGES
 from wet_eha_thermal.model.uncertainty import as_built
 from wet_eha_thermal.offline.simulated_rig import (AMBIENT_SIGMA_K, NOISE_SIGMA, SimulatedRig,
                                                    THERMOCOUPLE_SIGMA_K)
-from wet_eha_thermal.ros.runtime import (accept_whole_numbers, descriptor, prepare_model_step,
-                                         run_node)
+from wet_eha_thermal.ros.runtime import (declare_parameters, descriptor, prepare_model_step,
+                                         run_node, shared_parameters)
 from wet_eha_thermal.ros.topics import input_qos, latched_qos, publish_inputs
 from wet_eha_thermal.units import C_TO_K
 
@@ -283,59 +283,48 @@ class SimRigNode(Node):
     # ------------------------------------------------------------ parameters
     def _declare_parameters(self) -> Dict[str, object]:
         stages = sorted(STAGES)
-        specs = [
-            ('stage', 6, descriptor('reference stage 1-6 (ignored with duty_file)',
+        specs = {
+            'stage': (6, descriptor('reference stage 1-6 (ignored with duty_file)',
                                     stages[0], stages[-1])),
-            ('duty_file', '', descriptor('duty CSV (time_s, flow_L_min, load_MPa); '
+            'duty_file': ('', descriptor('duty CSV (time_s, flow_L_min, load_MPa); '
                                          'empty: use the stage')),
-            ('rate_Hz', 1000.0, descriptor('sensor sample rate, Hz', 50.0, 10000.0)),
-            ('noise', True, descriptor('add sensor noise')),
-            ('seed', 1, descriptor('seed of the noise', 0, 2 ** 31 - 1)),
-            ('ambient_C', 20.0, descriptor('ambient temperature, degC', -40.0, 60.0)),
-            ('thermocouple_rate_Hz', 10.0, descriptor('thermocouple rate, Hz', 0.1, 100.0)),
-            ('thermocouple_lag_s', 1.0, descriptor('thermocouple time constant, s', 0.0, 60.0)),
-            ('block_s', RIG_BLOCK_S, descriptor(
+            'rate_Hz': (1000.0, descriptor('sensor sample rate, Hz', 50.0, 10000.0)),
+            'noise': (True, descriptor('add sensor noise')),
+            'seed': (1, descriptor('seed of the noise', 0, 2 ** 31 - 1)),
+            'ambient_C': (20.0, descriptor('ambient temperature, degC', -40.0, 60.0)),
+            'thermocouple_rate_Hz': (10.0, descriptor('thermocouple rate, Hz', 0.1, 100.0)),
+            'thermocouple_lag_s': (1.0, descriptor('thermocouple time constant, s', 0.0, 60.0)),
+            'block_s': (RIG_BLOCK_S, descriptor(
                 'samples are computed (kinetics, truth model step) in blocks this long, s',
                 0.005, 1.0)),
-            ('config_file', '', descriptor('YAML configuration; empty: the reference rig')),
-            ('as_built_seed', 1, descriptor(
+            'config_file': ('', descriptor('YAML configuration; empty: the reference rig')),
+            'as_built_seed': (1, descriptor(
                 'the truth model is the configuration with every uncertain parameter (and '
                 'structural choice) of its uncertainty section drawn with this seed: a rig '
                 'as built, not as configured; 0: the configuration itself', 0, 2 ** 31 - 1)),
-            ('topic_prefix', PREFIX, descriptor('namespace of the rig topics')),
-            ('qos', 'sensor_data', descriptor('QoS of the inputs: sensor_data or reliable')),
-            ('wait_for_subscribers', 0, descriptor(
+            'wait_for_subscribers': (0, descriptor(
                 'start the duty once every input topic has this many matched subscribers',
                 0, 100)),
             # declared by type: rclpy takes an empty list for a byte array
-            ('wait_for', Parameter.Type.STRING_ARRAY, descriptor(
+            'wait_for': (Parameter.Type.STRING_ARRAY, descriptor(
                 'nodes that must say they are ready on /eha/ready before the duty starts '
                 '(e.g. [eha_thermal_estimator, eha_recorder])')),
-            ('start_timeout_s', 120.0, descriptor(
+            'start_timeout_s': (120.0, descriptor(
                 'longest wait for wait_for and wait_for_subscribers before starting anyway, s',
                 0.0, 3600.0)),
-            ('honour_limit', False, descriptor(
+            'honour_limit': (False, descriptor(
                 'the simulated drive carries at most the current limit the estimator publishes '
                 'on <topic_prefix>/current_limits')),
-            ('limit_watchdog_s', 2.0, descriptor(
+            'limit_watchdog_s': (2.0, descriptor(
                 'a limit stamped longer ago than this by the rig clock gives way to '
                 'limit_fallback_A, s (default: 4 periods of the 2 Hz limits)', 0.1, 60.0)),
-            ('limit_fallback_A', 0.0, descriptor(
+            'limit_fallback_A': (0.0, descriptor(
                 'the current the drive carries at most without a valid limit (none yet, too '
                 "old, the estimator's fallback), A RMS; 0: the configuration's "
                 'estimator.limits.fallback_current_A', 0.0, 1000.0)),
-        ]
-        accept_whole_numbers(self, {name: default for name, default, _ in specs})
-        values = {}
-        for name, default, desc in specs:
-            values[name] = self.declare_parameter(name, default, desc).value
+        }
+        values = declare_parameters(self, {**specs, **shared_parameters('qos', 'topic_prefix')})
         values['wait_for'] = list(values['wait_for'] or [])
-        if values['qos'] not in ('sensor_data', 'reliable'):
-            raise ValueError(f'parameter qos {values["qos"]!r}: expected sensor_data or '
-                             'reliable')
-        if not values['topic_prefix'].startswith('/'):
-            raise ValueError(f'parameter topic_prefix {values["topic_prefix"]!r}: must start '
-                             'with /')
         return values
 
     # -------------------------------------------------------------- kinetics

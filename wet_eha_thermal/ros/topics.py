@@ -9,6 +9,7 @@ import importlib
 
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, qos_profile_sensor_data, QoSProfile,
                        ReliabilityPolicy)
+from wet_eha_thermal import interface
 
 
 def message_class(type_name: str):
@@ -44,6 +45,23 @@ def input_qos(kind: str, depth: int = 100):
                           reliability=ReliabilityPolicy.RELIABLE,
                           durability=DurabilityPolicy.VOLATILE)
     raise ValueError(f'qos {kind!r}: expected sensor_data or reliable')
+
+
+def qos_profile(kind: str, sensor: str = 'sensor_data', depth: int = 100):
+    """
+    Return the rclpy QoS of a topic's kind (:func:`~wet_eha_thermal.interface.topic_table`).
+
+    ``sensor``: the nodes' ``qos`` parameter, for the sensor kind; ``depth``
+    the history depth of the sensor and output kinds (latched keep the last).
+    """
+    if kind == interface.SENSOR:
+        return input_qos(sensor, depth)
+    if kind == interface.OUTPUT:
+        return input_qos('reliable', depth)
+    if kind == interface.LATCHED:
+        return latched_qos()
+    raise ValueError(f'QoS kind {kind!r}: expected one of {interface.SENSOR}, '
+                     f'{interface.OUTPUT}, {interface.LATCHED}')
 
 
 def latched_qos(depth: int = 1):

@@ -44,7 +44,7 @@ from .rz_model import (bearing_conductance, end_space_box, fit_coupling,  # noqa
 from .slot_section import (slice_motor, slice_problem, slot_coupling,  # noqa: F401
                            slot_network, slot_pitch, slot_problem, SlotProblem)
 from ..model.motor import MotorInputs, WetMotor
-from ..units import C_TO_K, RPM
+from ..units import C_TO_K, L_MIN_PER_M3_S, RPM
 
 
 # ------------------------------------------------------------------ operating points
@@ -54,7 +54,7 @@ def map_inputs(maps, rpm: float, amps: float) -> MotorInputs:
     """Return the inputs of a map point of ``config.MapsJob`` ``maps`` (speed r/min, A)."""
     return MotorInputs(current_sq_mean_A2=amps ** 2, speed_rad_s=rpm * RPM,
                        oil_inlet_K=maps.oil_inlet_C + C_TO_K,
-                       oil_flow_m3_s=maps.oil_flow_L_min / 60000.0,
+                       oil_flow_m3_s=maps.oil_flow_L_min / L_MIN_PER_M3_S,
                        ambient_K=maps.ambient_C + C_TO_K, case_pressure_Pa=maps.case_pressure_Pa)
 
 
