@@ -43,8 +43,10 @@ def test_less_cooling_flow_and_worse_end_spaces_make_the_winding_hotter(small):
     assert np.all(result.moves_K['motor.electromagnetic.loss_factor']['magnet'] < 0.0)
     # the pump's friction moves the oil inlet, which a map holds: listed, not ranked
     assert 'hydraulics.pump.viscous_friction_coeff' in result.not_ranked
+    # the review's large unknowns lead: the cooling flow and the end spaces' h (their order
+    # turns on the model: 4.6 and 4.8 K at 35 A with the end spaces' torque balance)
     ranked = [name for name, _, _ in result.largest('winding_hotspot')]
-    assert ranked[0] == LEAKAGE_KEY
+    assert {LEAKAGE_KEY, 'motor.end_spaces.htc_multiplier'} <= set(ranked[:3]), ranked
     moves = [abs(m) for _, m, _ in result.largest('winding_hotspot')]
     assert moves == sorted(moves, reverse=True)
 
@@ -59,7 +61,9 @@ def test_the_command_prints_the_ranking_and_writes_the_table_and_the_tornado(tmp
     path.write_text(text)
     assert cli.main(['sensitivity', '--config', str(path), '--out', str(tmp_path)]) == 0
     out = capsys.readouterr().out
-    assert out.index(LEAKAGE_KEY) < out.index('motor.end_spaces.htc_multiplier'), out
+    keys = ('motor.', 'hydraulics.')
+    table = [line.split()[0] for line in out.splitlines() if line.startswith(keys)]
+    assert {LEAKAGE_KEY, 'motor.end_spaces.htc_multiplier'} <= set(table[:3]), out
     assert 'Not ranked' in out and 'hydraulics.pump.extra_loss_W' in out
     rows = list(csv.DictReader((tmp_path / 'sensitivity.csv').open()))
     assert {r['perturbation'] for r in rows} >= {LEAKAGE_KEY, 'motor.slices=10'}

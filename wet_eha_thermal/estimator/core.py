@@ -481,8 +481,8 @@ class Estimator:
         if self.propagation is not None:
             taken = self.propagation.record(since_start[-1], block, self.steps - m,
                                             self.steps, self.ambient_K)
-            if taken and self.correction is not None and self.propagation.growth is not None:
-                self.correction.add_parameter_growth(self.propagation.growth)
+            if taken and self._correction is not None and self.propagation.growth is not None:
+                self._correction.add_parameter_growth(self.propagation.growth)
         implausible = self._plausibility(values, t1 - t0)
         outputs = corrected if corrected is not None else self.model.outputs()
         temps = {k: v - C_TO_K for k, v in outputs.items()}

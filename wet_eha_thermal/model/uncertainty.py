@@ -17,7 +17,7 @@ from typing import Any, Dict, List, NamedTuple, Optional
 import numpy as np
 
 from ..config import Config, config_value, ConfigError, LAW_KEYS, with_values
-from ..config_spec import check_value
+from ..config_spec import check_value, choices_of
 
 
 #: a draw's standard normal deviates are cut at this many sigma
@@ -115,7 +115,7 @@ def structural_perturbations(cfg: Config) -> List[Perturbation]:
     if s.other_laws:
         for key in LAW_KEYS:
             nominal = config_value(cfg, key)
-            alternatives.extend((key, c) for c in _meta(cfg, key)['choices'] if c != nominal)
+            alternatives.extend((key, c) for c in choices_of(_meta(cfg, key)) if c != nominal)
     return [Perturbation(f'{key}={value}', {key: value}, replaced(cfg, key, value),
                          float('nan'))
             for key, value in alternatives]
