@@ -35,7 +35,8 @@ def compile_estimator(cfg: Config) -> float:
     Runs :func:`~wet_eha_thermal.model.warmup.compile_model`, then a throw-away
     :class:`Estimator` through the live node's calls (:meth:`~Estimator.take`,
     ``add_measured``) on ``WARM_SECONDS`` of stage-6 signals, then ``WARM_SILENCE_S`` of
-    silence (stale inputs, held blocks), and the live correction's filter once.
+    silence (stale inputs, held blocks), the uncertainty's copies over that record and the
+    live correction's filter once.
     """
     start = time.perf_counter()
     compile_model(cfg)
@@ -58,6 +59,9 @@ def compile_estimator(cfg: Config) -> float:
         est.background(0.05)
     # a silence: inputs go stale, the model steps on held values and in held blocks
     est.advance_all(float(t[-1]) + WARM_SILENCE_S)
+    if est.propagation is not None:
+        # the uncertainty's copies step at a period's end (seconds of samples away)
+        est.propagation.warm_up(est.ambient_K)
     if est.correction is not None:
         # the filter starts at the first usable reading, which so short a record never
         # gives (a thermocouple is first watched for its noise and for being stuck)
