@@ -58,6 +58,7 @@ config/estimator.params.yaml`` or ``python -m wet_eha_thermal.ros.estimator_node
 
 from collections import deque
 import functools
+import gc
 import json
 import math
 import sys
@@ -161,6 +162,11 @@ class EstimatorNode(Node):
         # before any subscription or publisher: a first step that compiled would keep
         # samples waiting for a minute or more
         prepare_model_step(self, self.cfg, estimator=True)
+        # the model and the uncertainty's copies live as long as the node: out of the
+        # collector's sight, a full collection walks the messages only (with them, about
+        # 100 ms inside a sample's callback)
+        gc.collect()
+        gc.freeze()
         self.clock = FastClock(self)
         # the clock read at the last tick, and the steady clock then: a system clock that
         # moves ahead of the steady one was stepped, not waited for
