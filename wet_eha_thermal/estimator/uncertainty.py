@@ -134,12 +134,28 @@ class Propagation:
         self.finish()
         if taken:
             self._take()
-        cols = np.array(self._samples).T
-        self._job = SampleBlock(*cols)
+        self._open(ambient_K)
+        return taken
+
+    def _open(self, ambient_K: float) -> None:
+        """Make the duty recorded since the last period the copies' job."""
+        # contiguous rows: the kernels of the estimator's own steps, not strided variants
+        # that numba would load (or compile) at the first period's end, inside a callback
+        self._job = SampleBlock(*(np.ascontiguousarray(c) for c in np.array(self._samples).T))
         self._samples = []
         self._next = 0
         self._ambient_K = ambient_K
-        return taken
+
+    def warm_up(self, ambient_K: float) -> None:
+        """
+        Step every copy over the duty recorded so far, as a period's end would.
+
+        For :mod:`.warmup`, whose record ends before a period does: the kernels
+        of the copies' steps are then compiled (or loaded) before a live node
+        listens, not at its first period's end.
+        """
+        self._open(ambient_K)
+        self.finish()
 
     def work(self, budget_s: float) -> None:
         """Step copies of the waiting period for about ``budget_s`` of wall time (at least one)."""

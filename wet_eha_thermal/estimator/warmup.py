@@ -36,7 +36,8 @@ def compile_estimator(cfg: Config) -> float:
     :class:`~.session.EstimatorSession` through the live node's calls
     (:meth:`~.session.EstimatorSession.take`, ``add_measured``) on
     ``WARM_SECONDS`` of stage-6 signals, then ``WARM_SILENCE_S`` of silence
-    (stale inputs, held blocks), and the live correction's filter once.
+    (stale inputs, held blocks), the uncertainty's copies over that record and
+    the live correction's filter once.
     """
     start = time.perf_counter()
     compile_model(cfg)
@@ -60,6 +61,9 @@ def compile_estimator(cfg: Config) -> float:
         pass
     # a silence: inputs go stale, the model steps on held values and in held blocks
     session.step(float(t[-1]) + WARM_SILENCE_S, all_steps=True)
+    if est.propagation is not None:
+        # the uncertainty's copies step at a period's end (seconds of samples away)
+        est.propagation.warm_up(est.ambient_K)
     if est._correction is not None:
         # the filter starts at the first usable reading, which so short a record never
         # gives (a thermocouple is first watched for its noise and for being stuck)

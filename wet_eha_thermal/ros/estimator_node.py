@@ -51,6 +51,7 @@ config/estimator.params.yaml`` or ``python -m wet_eha_thermal.ros.estimator_node
 
 from collections import deque
 import functools
+import gc
 import sys
 import time
 from typing import Deque, Dict, List, Optional
@@ -121,6 +122,11 @@ class EstimatorNode(Node):
         # before any subscription or publisher: a first step that compiled would keep
         # samples waiting for a minute or more
         prepare_model_step(self, self.cfg, estimator=True)
+        # the model and the uncertainty's copies live as long as the node: out of the
+        # collector's sight, a full collection walks the messages only (with them, about
+        # 100 ms inside a sample's callback)
+        gc.collect()
+        gc.freeze()
         self.clock = FastClock(self)
         self.prefix = p['topic_prefix'].rstrip('/')
         in_qos = topics.input_qos(p['qos'], p['qos_depth'])   # ValueError names a bad kind
