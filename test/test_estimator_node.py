@@ -283,6 +283,76 @@ def test_one_differential_pressure_topic(context, tmp_path):
         rig.close()
 
 
+class JointStateBroadcasters:
+    """Plays ros2_control's joint_state_broadcasters as ros2_control_rig.inputs.yaml has them."""
+
+    # the SI values of VALUES in the rig's own units: A amplitude, bar gauge, the rod's sign
+    MOTOR = {'velocity': VALUES['speed_rad_s'], 'effort': VALUES['current_A'] * math.sqrt(2.0)}
+    ROD = -VALUES['position_m']
+    GAUGE_BAR = {f'pressure_{n}': VALUES[f'p_{n}_Pa'] / 1e5 - 1.01325 for n in ('a', 'b', 'acc')}
+
+    def __init__(self, probe):
+        self.probe = probe
+        self.joints = probe.create_publisher(JointState, '/joint_states', 100)
+        self.pressures = probe.create_publisher(
+            JointState, '/pressure_state_broadcaster/joint_states', 100)
+
+    def publish(self):
+        stamp = self.probe.get_clock().now().to_msg()
+        msg = JointState(name=['eha_rod', 'eha_motor'], position=[self.ROD, 12.0],
+                         velocity=[0.0, self.MOTOR['velocity']],
+                         effort=[0.0, self.MOTOR['effort']])
+        msg.header.stamp = stamp
+        self.joints.publish(msg)
+        names = list(self.GAUGE_BAR)
+        msg = JointState(name=names, effort=[self.GAUGE_BAR[n] for n in names])
+        msg.header.stamp = stamp
+        self.pressures.publish(msg)
+
+
+def test_a_ros2_control_rig_connects_with_a_parameters_file(context):
+    params = ROOT / 'config' / 'ros2_control_rig.params.yaml'
+    node = EstimatorNode(context=context, cli_args=[
+        '--ros-args', '--params-file', str(params), '-p', 'diagnostics_rate_Hz:=5.0'])
+    rig = NodeAndProbe(context, node, rclpy.create_node('jsb_probe', context=context))
+    try:
+        jsb = JointStateBroadcasters(rig.probe)
+        estimates, diagnostics = [], []
+        rig.probe.create_subscription(Temperature, f'{interface.ESTIMATE_PREFIX}/oil',
+                                      estimates.append, 100)
+        rig.probe.create_subscription(DiagnosticArray, interface.DIAGNOSTICS_TOPIC,
+                                      diagnostics.append, 10)
+
+        def all_ok():
+            return diagnostics and all(s.level[0] == OK for s in diagnostics[-1].status)
+
+        end = time.monotonic() + 8.0
+        next_t = time.monotonic()
+        while time.monotonic() < end and not (all_ok() and len(estimates) > 20):
+            if time.monotonic() >= next_t:
+                jsb.publish()
+                next_t = max(next_t + 0.001, time.monotonic() - 0.005)
+            rig.spin(0.0005)
+        assert all_ok() and len(estimates) > 20, [
+            (s.name, s.message) for s in diagnostics[-1].status] if diagnostics else None
+        # each input read from its joint and field, converted to SI, with the header's stamp
+        for name, value in VALUES.items():
+            if name in node.est.inputs:
+                h = node.est.health[name]
+                assert h.last_value == pytest.approx(value, rel=1e-12), name
+                assert h.accepted > 100 and h.rejected == 0, name
+        topics_of = {s.name: {kv.key: kv.value for kv in s.values}.get('topic')
+                     for s in diagnostics[-1].status}
+        assert topics_of['wet_eha_thermal: input speed_rad_s'] == '/joint_states'
+        assert topics_of['wet_eha_thermal: input p_acc_Pa'] == \
+            '/pressure_state_broadcaster/joint_states'
+        assert node.count_subscribers('/joint_states') == 1
+        stamps = _stamps(estimates)
+        assert all(b > a for a, b in zip(stamps, stamps[1:]))
+    finally:
+        rig.close()
+
+
 def test_use_sim_time_stamps_follow_clock(context):
     rig = Rig(context, [Parameter('use_sim_time', value=True)], sim_time=True)
     try:

@@ -181,6 +181,22 @@ class Estimator:
         """
         if not (self.intake.push(channel, stamp_s, value) and self._due(channel, stamp_s)):
             return []
+        return self._step_taken(now_s, publish, budget_s)
+
+    def take_many(self, channel: str, stamps_s: np.ndarray, values: np.ndarray,
+                  now_s: Optional[float] = None,
+                  publish: Optional[Callable[[List[Estimate]], None]] = None,
+                  budget_s: float = 0.005) -> List[Estimate]:
+        """Take a block of samples of one input (a batched message) as :meth:`take` takes one."""
+        if not (len(stamps_s) and self.intake.push_many(channel, stamps_s, values)
+                and self._due(channel, float(stamps_s[-1]))):
+            return []
+        return self._step_taken(now_s, publish, budget_s)
+
+    def _step_taken(self, now_s: Optional[float],
+                    publish: Optional[Callable[[List[Estimate]], None]],
+                    budget_s: float) -> List[Estimate]:
+        """Advance, publish and do the slow work after a sample that made a step due."""
         try:
             estimates = self.advance(now_s)
         except Exception as exc:  # noqa: B902 - any failure of the step is the model's

@@ -2,10 +2,13 @@
 The live estimator as a ROS 2 node: sensor topics in; estimates, diagnostics and alerts out.
 
 The node wraps :class:`wet_eha_thermal.estimator.core.Estimator`. The input
-topics are taken raw (CDR bytes) and decoded in place (:mod:`..bag.cdr`); each
-sample is pushed into the core's preallocated buffer with its stamp (a Float64
-has none: it takes the node's ROS clock, so /clock under use_sim_time), and
-that is all the per-sample work. A sample that can complete a model step steps
+topics, as the ``inputs_file`` declares them (:mod:`wet_eha_thermal.inputs`:
+Float64, FluidPressure, Temperature, JointState by joint and field, or a
+batched block), are taken raw (CDR bytes) and decoded in place; each sample,
+converted to SI, is pushed into the core's preallocated buffer with its stamp
+(a Float64 has none: it takes the node's ROS clock, so /clock under
+use_sim_time), and that is all the per-sample work; a batched block goes in
+as arrays. A sample that can complete a model step steps
 it at once (the core checks the new samples then, vectorised), so the estimate
 leaves within the step's computing time. A timer at ``publish_rate_Hz`` also
 calls ``advance(now)`` with the ROS clock, so the model keeps stepping on its
@@ -72,11 +75,9 @@ from rclpy.exceptions import NameValidationException, ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
-from rclpy.serialization import deserialize_message
-from sensor_msgs.msg import FluidPressure, JointState, Temperature
+from sensor_msgs.msg import JointState, Temperature
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension, String
-from wet_eha_thermal import interface
-from wet_eha_thermal.bag import cdr
+from wet_eha_thermal import inputs, interface
 from wet_eha_thermal.config import ConfigError, load_config
 from wet_eha_thermal.estimator.core import Estimate, Estimator, StepFailed
 from wet_eha_thermal.estimator.limits import CurrentLimits
@@ -96,6 +97,10 @@ PARAMETERS = {
     'config_file': ('', descriptor(
         'estimator configuration YAML (the estimator: section and the rig); '
         "'' = the shipped config/reference_eha.yaml")),
+    'inputs_file': ('', descriptor(
+        'YAML of the inputs: topic, message type, field and unit of each '
+        '(wet_eha_thermal/inputs.py); a name not found is looked for in the shipped config/; '
+        "'' = the /eha topics of the simulated rig")),
     'qos': ('sensor_data', descriptor(
         "QoS of the sensor subscriptions: 'sensor_data' (best effort) or 'reliable'")),
     'qos_depth': (1000, descriptor('history depth of the sensor subscriptions', 1, 10000)),
@@ -157,6 +162,7 @@ class EstimatorNode(Node):
         super().__init__(NODE_NAME, **kwargs)
         p, view_at = self._read_parameters()
         self.cfg = load_config(p['config_file'] or None)
+        input_spec = inputs.load_inputs(p['inputs_file'])
         self.est = Estimator(self.cfg, outlook='background')
         # before any subscription or publisher: a first step that compiled would keep
         # samples waiting for a minute or more
@@ -171,7 +177,7 @@ class EstimatorNode(Node):
         in_qos = topics.input_qos(p['qos'], p['qos_depth'])   # ValueError names a bad kind
         out_qos = QoSProfile(depth=10)                         # reliable, volatile
         self._init_counters()
-        input_subs = self._subscribe(in_qos)
+        input_subs = self._subscribe(in_qos, input_spec)
         self._advertise(out_qos)
         self._serve_whatif()
         self.budget_s = p['background_budget_ms'] * 1e-3
@@ -234,21 +240,17 @@ class EstimatorNode(Node):
         # the topic of every input and of every thermocouple (measured/<name>), as subscribed
         self.topic_names: Dict[str, str] = {}
 
-    def _subscribe(self, in_qos: QoSProfile) -> list:
+    def _subscribe(self, in_qos: QoSProfile, input_spec: inputs.Inputs) -> list:
         """Subscribe to the inputs (raw), the ambient, the thermocouples and the acks."""
-        # inputs, raw: decoded here in a fraction of rclpy's deserialisation
+        # inputs, raw: decoded here in a fraction of rclpy's deserialisation; one
+        # subscription per topic, whatever number of inputs it carries
         input_subs = []
-        for name in self.est.inputs:
-            topic = self._topic(interface.INPUT_TOPICS[name])
-            if name in interface.PRESSURE_INPUTS:
-                cb = functools.partial(self._on_pressure, name)
-                input_subs.append(self.create_subscription(FluidPressure, topic, cb, in_qos,
-                                                           raw=True))
-            else:
-                cb = functools.partial(self._on_float, name)
-                input_subs.append(self.create_subscription(Float64, topic, cb, in_qos,
-                                                           raw=True))
-            self.topic_names[name] = topic
+        for dec in inputs.decoders(input_spec, self.est.inputs):
+            topic = self._topic(dec.topic)
+            cb = functools.partial(self._on_batch if dec.batched else self._on_input, dec)
+            kind = topics.message_class(dec.message_type)
+            input_subs.append(self.create_subscription(kind, topic, cb, in_qos, raw=True))
+            self.topic_names.update(dict.fromkeys(dec.channels, topic))
         self.create_subscription(Temperature, self._topic(interface.AMBIENT_TOPIC),
                                  self._on_ambient, in_qos)
         for tc in interface.THERMOCOUPLES:
@@ -354,38 +356,40 @@ class EstimatorNode(Node):
         self.get_logger().error(f'{where}: {type(exc).__name__}: {exc}',
                                 throttle_duration_sec=5.0)
 
-    # ----------------------------------------------------------- callbacks
-    def _on_float(self, channel: str, data: bytes) -> None:
-        t_rx = time.perf_counter()
-        try:
-            ns = self.clock.now_ns()
-            if not ns:
-                self.waiting_for_clock += 1
-                return
-            now = ns * 1e-9
-            value = cdr.float64_data(data) if cdr.is_plain_le(data) \
-                else deserialize_message(data, Float64).data
-            self._take(channel, now, value, now, t_rx)
-        except Exception as exc:  # noqa: B902 - a callback never raises
-            self._failed(channel, exc)
+    def _input_failed(self, dec: inputs.TopicDecoder, exc: BaseException) -> None:
+        """Count a failed input message against each input it carries; log it once."""
+        for channel in dec.channels[1:]:
+            self.callback_errors[channel] = self.callback_errors.get(channel, 0) + 1
+        self._failed(dec.channels[0], exc)
 
-    def _on_pressure(self, channel: str, data: bytes) -> None:
+    # ----------------------------------------------------------- callbacks
+    def _on_input(self, dec: inputs.TopicDecoder, data: bytes) -> None:
+        """Take a message of per-message samples: a Float64's stamped on arrival."""
         t_rx = time.perf_counter()
         try:
-            if cdr.is_plain_le(data):
-                ns, value = cdr.header_stamp_and_value(data)
-            else:
-                msg = deserialize_message(data, FluidPressure)
-                ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-                value = msg.fluid_pressure
-            if not ns:
-                ns = self.clock.now_ns()     # a zero stamp: the clock, as for a Float64
-                if not ns:
+            stamp_ns, values = dec.decode(data)
+            now_ns = self.clock.now_ns()
+            if not stamp_ns:
+                stamp_ns = now_ns          # no stamp, or a zero one: the clock
+                if not stamp_ns:
                     self.waiting_for_clock += 1
                     return
-            self._take(channel, ns * 1e-9, value, self._now_s(), t_rx)
+            now = now_ns * 1e-9 if now_ns else None
+            for channel, value in zip(dec.channels, values):
+                self._take(channel, stamp_ns * 1e-9, value, now, t_rx)
+        except Exception as exc:  # noqa: B902 - a callback never raises
+            self._input_failed(dec, exc)
+
+    def _on_batch(self, dec: inputs.TopicDecoder, data: bytes) -> None:
+        """Take a batched block: every sample with its own stamp."""
+        t_rx = time.perf_counter()
+        try:
+            stamps, values = dec.decode_batch(data)
+            now = self._now_s()
+            for k, channel in enumerate(dec.channels):
+                self._take(channel, stamps, values[:, k], now, t_rx, self.est.take_many)
         except Exception as exc:  # noqa: B902
-            self._failed(channel, exc)
+            self._input_failed(dec, exc)
 
     def _on_ambient(self, msg: Temperature) -> None:
         try:
@@ -512,12 +516,13 @@ class EstimatorNode(Node):
         except Exception as exc:  # noqa: B902
             self._failed('publish', exc)
 
-    def _take(self, channel: str, stamp_s: float, value: float, now: Optional[float],
-              t_rx: float) -> None:
+    def _take(self, channel: str, stamp_s, value, now: Optional[float], t_rx: float,
+              take=None) -> None:
         """
         Hand one sample to :meth:`Estimator.take`; publish the estimates it completes at once.
 
-        ``now`` the ROS clock (s), ``t_rx`` the callback's start (perf_counter s).
+        ``now`` the ROS clock (s), ``t_rx`` the callback's start (perf_counter s);
+        ``take``: :meth:`Estimator.take_many` for arrays of samples.
         A failure of the step is the model's (the node publishes on, see
         :meth:`_published`); one after the estimates were handed over, the slow
         work's; one before the step, the callback's (it propagates).
@@ -531,7 +536,8 @@ class EstimatorNode(Node):
             self._published(estimates, now, t_rx, jumps)
 
         try:
-            self.est.take(channel, stamp_s, value, now, publish=publish, budget_s=self.budget_s)
+            (take or self.est.take)(channel, stamp_s, value, now, publish=publish,
+                                    budget_s=self.budget_s)
         except StepFailed as exc:
             self._model_failed(exc.__cause__)
             self._published([], now, t_rx, jumps)
