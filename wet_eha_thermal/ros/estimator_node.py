@@ -288,6 +288,9 @@ class EstimatorNode(Node):
         self.limit_pub = self.create_publisher(
             Float64, self._topic(interface.CURRENT_LIMIT_TOPIC), QoSProfile(depth=10))
         self._limits_msg = JointState()
+        # the same limits for a drive that reads numbers only (interface.DriveLimits)
+        self.drive_limits_pub = self.create_publisher(
+            Float64MultiArray, self._topic(interface.DRIVE_LIMITS_TOPIC), QoSProfile(depth=10))
 
     def _serve_whatif(self) -> None:
         """Start the what-if worker; subscribe to the requests, advertise the answers."""
@@ -606,7 +609,7 @@ class EstimatorNode(Node):
             self._failed('publish', exc)
 
     def _send_limits(self, limits: CurrentLimits) -> None:
-        """Publish ``limits`` as the JointState of every horizon and the binding Float64."""
+        """Publish ``limits``: the JointState of every horizon, the binding Float64, the layout."""
         msg = self._limits_msg
         msg.header.stamp = _stamp_msg(int(round(limits.stamp_s * 1e9)))
         msg.header.frame_id = interface.limits_frame_id(limits.status, limits.reason)
@@ -616,6 +619,16 @@ class EstimatorNode(Node):
         self.limits_pub.publish(msg)
         self.limit_pub.publish(Float64(data=float(limits.binding_A)))
         self.limits_published += 1
+        shortest = min(range(len(limits.horizons_s)), key=limits.horizons_s.__getitem__)
+        drive = interface.DriveLimits(
+            stamp_ns=int(round(limits.stamp_s * 1e9)), sequence=self.limits_published,
+            status=interface.limit_status(limits.status, limits.reason),
+            binding_A=limits.binding_A, binding_horizon_s=limits.horizons_s[shortest],
+            horizons_s=limits.horizons_s, limits_A=limits.limits_A)
+        arr = Float64MultiArray(data=drive.to_data())
+        arr.layout.dim = [MultiArrayDimension(label=drive.LABEL, size=len(arr.data),
+                                              stride=len(arr.data))]
+        self.drive_limits_pub.publish(arr)
         self.limits_fallback += limits.status != 'ok'
 
     def _published(self, estimates: List[Estimate], now: Optional[float],
