@@ -202,9 +202,12 @@ def load_inputs(name: Optional[str]) -> Inputs:
 _ORDER = {b'\x00\x00': '>', b'\x00\x01': '<'}     # plain CDR, big- and little-endian
 
 
-def _byte_order(data) -> str:
+def _reader(data) -> '_Reader':
+    """Return the reader of the byte order of ``data`` (little-endian first: the usual)."""
+    if data[1] == 1 and data[0] == 0:
+        return _LITTLE
     try:
-        return _ORDER[bytes(data[:2])]
+        return _READERS[_ORDER[bytes(data[:2])]]
     except KeyError:
         raise ValueError(f'CDR encapsulation {bytes(data[:2]).hex()}: only plain CDR '
                          '(0000, 0001) is read') from None
@@ -221,6 +224,7 @@ class _Reader:
 
 
 _READERS = {order: _Reader(order) for order in _ORDER.values()}
+_LITTLE = _READERS['<']
 _HEAD = cdr.ENCAPSULATION_BYTES
 
 
@@ -270,18 +274,18 @@ class TopicDecoder:
         return [g * r + b for (g, b), r in zip(self._affine, raw)]
 
     def _float64(self, data) -> Tuple[int, List[float]]:
-        value = _READERS[_byte_order(data)].f64.unpack_from(data, _HEAD)[0]
-        return 0, self._convert([value] * len(self.channels))
+        value = _reader(data).f64.unpack_from(data, _HEAD)[0]
+        return 0, [g * value + b for g, b in self._affine]
 
     def _header_first(self, data) -> Tuple[int, List[float]]:
-        r = _READERS[_byte_order(data)]
+        r = _reader(data)
         sec, nanosec = r.stamp.unpack_from(data, _HEAD + cdr.STAMP_SEC_AT)
         length = r.u32.unpack_from(data, _HEAD + cdr.FRAME_ID_LENGTH_AT)[0]
         value = r.f64.unpack_from(data, _HEAD + cdr.first_after_header(length))[0]
-        return sec * 1_000_000_000 + nanosec, self._convert([value] * len(self.channels))
+        return sec * 1_000_000_000 + nanosec, [g * value + b for g, b in self._affine]
 
     def _joint_state(self, data) -> Tuple[int, List[float]]:
-        r = _READERS[_byte_order(data)]
+        r = _reader(data)
         sec, nanosec = r.stamp.unpack_from(data, _HEAD + cdr.STAMP_SEC_AT)
         length = r.u32.unpack_from(data, _HEAD + cdr.FRAME_ID_LENGTH_AT)[0]
         start = _align(_HEAD + cdr.FRAME_ID_AT + length, 4)
@@ -334,7 +338,7 @@ class TopicDecoder:
 
     def decode_batch(self, data) -> Tuple[np.ndarray, np.ndarray]:
         """Return the stamps (s) and the SI values (one row per sample) of a batched block."""
-        r = _READERS[_byte_order(data)]
+        r = _reader(data)
         pos = _HEAD
         dims = r.u32.unpack_from(data, pos)[0]
         pos += 4
