@@ -176,12 +176,15 @@ def publish_blocks(args, node, q, rows: np.ndarray) -> None:
         st['last'] = wall
         if st['start'] is None:
             return
-        due = ((time.monotonic_ns() - st['start']) // period_ns + 1) * per_block
+        elapsed_ns = time.monotonic_ns() - st['start']
+        if 't0_s' not in st:
+            # the ROS time of the start: sample k is stamped by the schedule, t0_s + (k + 1) dt,
+            # as a DAQ's clock stamps it, however late its block leaves
+            st['t0_s'] = (clock.now().nanoseconds - elapsed_ns) * 1e-9
+        due = (elapsed_ns // period_ns + 1) * per_block
         while st['k'] < due:
             idx = np.arange(st['k'], st['k'] + per_block) % n
-            # the block's last sample is stamped now, the others dt apart before it
-            t0 = clock.now().nanoseconds * 1e-9 - (per_block - 1) * dt
-            pub.publish(encode_batch(t0, dt, rows[idx]))
+            pub.publish(encode_batch(st['t0_s'] + (st['k'] + 1) * dt, dt, rows[idx]))
             st['k'] += per_block
 
     node.create_timer(per_block / args.rate_Hz, tick)
