@@ -17,7 +17,9 @@ Inputs (what the rig publishes; SI units, as the messages define them):
 
 A Float64 carries no stamp: its sample time is the receiving node's clock (the
 ROS clock, so /clock under use_sim_time). Messages with a header use its stamp,
-or the clock when the stamp is zero.
+or the clock when the stamp is zero. These are the defaults: a rig declares its
+own topics, types (JointState, batched blocks) and units in the estimator's
+``inputs_file`` (:mod:`wet_eha_thermal.inputs`).
 
 Outputs of the estimator: /eha/estimate/<name> (sensor_msgs/Temperature, degC,
 variance = uncertainty^2) for every name in ``ESTIMATES``; /eha/state

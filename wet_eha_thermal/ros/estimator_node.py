@@ -113,8 +113,7 @@ PARAMETERS = {
     'diagnostics_rate_Hz': (1.0, descriptor('rate of /diagnostics', 0.1, 10.0, read_only=False)),
     'hardware_id': ('wet-eha-rig', descriptor('hardware_id of the diagnostic statuses')),
     'frame_id': ('eha', descriptor('frame_id of the published temperatures')),
-    'topic_prefix': (interface.PREFIX, descriptor(
-        "replaces '/eha' in every topic name (not /diagnostics)")),
+    'topic_prefix': (topics.FROM_NAMESPACE, descriptor(topics.PREFIX_DOC)),
     'executor': ('events', descriptor(
         "executor used by main(): 'events' (rclpy.experimental.EventsExecutor) or 'single' "
         '(SingleThreadedExecutor); the --executor option overrides it')),
@@ -173,7 +172,7 @@ class EstimatorNode(Node):
         self._tick_clock: Optional[tuple] = None
         self.hardware_id = p['hardware_id']
         self.frame_id = p['frame_id']
-        self.prefix = p['topic_prefix'].rstrip('/')
+        self.prefix = topics.resolve_prefix(self, p['topic_prefix'])
         in_qos = topics.input_qos(p['qos'], p['qos_depth'])   # ValueError names a bad kind
         out_qos = QoSProfile(depth=10)                         # reliable, volatile
         self._init_counters()

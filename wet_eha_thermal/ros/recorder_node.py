@@ -141,8 +141,7 @@ PARAMETERS = {
     'qos': ('sensor_data', descriptor(
         "QoS of the sensor subscriptions: 'sensor_data' (best effort) or 'reliable'")),
     'qos_depth': (1000, descriptor('history depth of every subscription', 1, 100000)),
-    'topic_prefix': (interface.PREFIX, descriptor(
-        "replaces '/eha' in every topic name (not /diagnostics)")),
+    'topic_prefix': (topics.FROM_NAMESPACE, descriptor(topics.PREFIX_DOC)),
     # declared by type: rclpy takes an empty list for a byte array; unset, it reads None
     'extra_topics': (Parameter.Type.STRING_ARRAY, descriptor(
         'further topics to record (names; type and QoS from their publishers)')),
@@ -256,8 +255,7 @@ class RecorderNode(Node):
         if p['executor'] not in EXECUTORS:
             raise ValueError(f"parameter executor = {p['executor']!r}: expected one of "
                              f'{", ".join(EXECUTORS)}')
-        if not p['topic_prefix'].startswith('/'):
-            raise ValueError(f"parameter topic_prefix = {p['topic_prefix']!r}: must start with /")
+        p['topic_prefix'] = topics.resolve_prefix(self, p['topic_prefix'])
         return p
 
     def _open_bag(self, p: dict) -> BagWriter:

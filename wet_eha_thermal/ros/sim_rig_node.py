@@ -86,14 +86,15 @@ from std_msgs.msg import Float64, Float64MultiArray, String
 from wet_eha_thermal.config import ConfigError, load_config
 from wet_eha_thermal.interface import (AMBIENT_TOPIC, DIAGNOSTICS_TOPIC, DRIVE_LIMITS_TOPIC,
                                        DriveLimits, INPUT_TOPICS, LimitStatus, MEASURED_PREFIX,
-                                       NodeReport, PREFIX, prefixed, PRESSURE_INPUTS,
+                                       NodeReport, prefixed, PRESSURE_INPUTS,
                                        READY_TOPIC, RIG_NODE, THERMOCOUPLES)
 from wet_eha_thermal.model.kinetics import DutyError, load_duty_csv, stage_duty, STAGES
 from wet_eha_thermal.offline.simulated_rig import (AMBIENT_SIGMA_K, NOISE_SIGMA, SimulatedRig,
                                                    THERMOCOUPLE_SIGMA_K)
 from wet_eha_thermal.ros.runtime import (accept_whole_numbers, descriptor, prepare_model_step,
                                          run_node)
-from wet_eha_thermal.ros.topics import input_qos, latched_qos, publish_inputs
+from wet_eha_thermal.ros.topics import (FROM_NAMESPACE, input_qos, latched_qos, PREFIX_DOC,
+                                        publish_inputs, resolve_prefix)
 from wet_eha_thermal.units import C_TO_K
 
 NODE_NAME = RIG_NODE
@@ -297,7 +298,7 @@ class SimRigNode(Node):
                 'samples are computed (kinetics, truth model step) in blocks this long, s',
                 0.005, 1.0)),
             ('config_file', '', descriptor('YAML configuration; empty: the reference rig')),
-            ('topic_prefix', PREFIX, descriptor('namespace of the rig topics')),
+            ('topic_prefix', FROM_NAMESPACE, descriptor(PREFIX_DOC)),
             ('qos', 'sensor_data', descriptor('QoS of the inputs: sensor_data or reliable')),
             ('wait_for_subscribers', 0, descriptor(
                 'start the duty once every input topic has this many matched subscribers',
@@ -328,9 +329,7 @@ class SimRigNode(Node):
         if values['qos'] not in ('sensor_data', 'reliable'):
             raise ValueError(f'parameter qos {values["qos"]!r}: expected sensor_data or '
                              'reliable')
-        if not values['topic_prefix'].startswith('/'):
-            raise ValueError(f'parameter topic_prefix {values["topic_prefix"]!r}: must start '
-                             'with /')
+        values['topic_prefix'] = resolve_prefix(self, values['topic_prefix'])
         return values
 
     # -------------------------------------------------------------- kinetics
