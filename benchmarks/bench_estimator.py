@@ -4,6 +4,7 @@ Load benchmark of the estimator node: CPU against a bare subscriber, lost sample
 Run: OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_estimator.py
      [--minutes 10] [--pressure differential|ports] [--rate-Hz 1000] [--stage 6]
      [--depth 1000] [--executor events] [--warmup-s 5] [--busy-live-s 60] [--no-foxglove]
+     [--batched-rate-Hz 4000] [--block-ms 10]
 
 The issue's setting is "four sensor topics at 1 kHz each and estimates
 published at 50 Hz": current, speed, one differential pressure and position
@@ -30,7 +31,15 @@ ROS domain (from the pid, or ``$WET_EHA_BENCH_DOMAIN_ID``):
 - this process: follows the estimates, the first pressure topic (for the
   send times) and /diagnostics.
 
-Figures, both subscribers measured in this one run:
+- then, unless ``--batched-rate-Hz 0``, the estimator once more with the
+  same inputs in the batched form (:mod:`wet_eha_thermal.inputs`): one
+  std_msgs/Float64MultiArray topic, ``/eha/daq``, carrying every input as a
+  column, a block every ``--block-ms`` of samples at ``--batched-rate-Hz``
+  (default 4 kHz in 10 ms blocks: 16 000 samples/s for four inputs), its
+  ``inputs_file`` saying so; no end-to-end latency there (the blocks carry
+  no send time).
+
+Figures, all subscribers measured in this one run:
 
 - CPU of the bare subscriber and of the estimator: utime + stime from
   ``/proc/<pid>/stat`` over the measured ``--minutes`` (after
@@ -65,6 +74,7 @@ import sys
 import tempfile
 import threading
 import time
+from typing import Optional
 
 from diagnostic_msgs.msg import DiagnosticArray
 import numpy as np
@@ -73,10 +83,11 @@ import rclpy
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import FluidPressure, Temperature
-from std_msgs.msg import Float64, String
+from std_msgs.msg import Float64, Float64MultiArray, String
 from wet_eha_thermal import interface
 from wet_eha_thermal.config import default_config_path, load_config
 from wet_eha_thermal.estimator.intake import sensor_inputs, sensor_signal
+from wet_eha_thermal.inputs import encode_batch, SI_UNIT
 from wet_eha_thermal.live_view import CHANNELS
 from wet_eha_thermal.model.kinetics import KineticModel, stage_duty, ThermalFeedback
 from wet_eha_thermal.model.oil import get_oil
@@ -86,6 +97,8 @@ import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 PARAMS_FILE = ROOT / 'config' / 'estimator.params.yaml'
+#: The batched run's topic: a DAQ's block of every input, one column each.
+BATCH_TOPIC = f'{interface.PREFIX}/daq'
 INPUT_STATUS = 'wet_eha_thermal: input '
 ESTIMATE_STATUS = 'wet_eha_thermal: estimate'
 LATENCY_KEY = 'step latency p50/p99/max [ms]'
@@ -118,6 +131,9 @@ def run_publisher(args) -> None:
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node('bench_publisher')
     q = reliable(args.depth)
+    if args.block_ms > 0:
+        publish_blocks(args, node, q, np.array(rows))
+        return
     pubs = [node.create_publisher(FluidPressure if k in interface.PRESSURE_INPUTS else Float64,
                                   interface.INPUT_TOPICS[k], q) for k in inputs]
     msgs = [FluidPressure() if k in interface.PRESSURE_INPUTS else Float64() for k in inputs]
@@ -140,6 +156,43 @@ def run_publisher(args) -> None:
             st['k'] += 1
 
     node.create_timer(1.0 / args.rate_Hz, tick)
+    publish_until_done(args, node, pubs, st)
+
+
+def publish_blocks(args, node, q, rows: np.ndarray) -> None:
+    """Publish the inputs in blocks of ``--block-ms`` on BATCH_TOPIC, serialised by numpy."""
+    pub = node.create_publisher(Float64MultiArray, BATCH_TOPIC, q)
+    clock = node.get_clock()
+    n = rows.shape[0]
+    dt = 1.0 / args.rate_Hz
+    per_block = max(1, int(round(args.block_ms * 1e-3 * args.rate_Hz)))
+    st = {'k': 0, 'start': None, 'ticks': 0, 'intervals': [], 'last': None}
+    period_ns = int(round(1e9 * per_block / args.rate_Hz))
+
+    def tick() -> None:
+        wall = time.perf_counter()
+        if st['last'] is not None:
+            st['intervals'].append(wall - st['last'])
+        st['last'] = wall
+        if st['start'] is None:
+            return
+        elapsed_ns = time.monotonic_ns() - st['start']
+        if 't0_s' not in st:
+            # the ROS time of the start: sample k is stamped by the schedule, t0_s + (k + 1) dt,
+            # as a DAQ's clock stamps it, however late its block leaves
+            st['t0_s'] = (clock.now().nanoseconds - elapsed_ns) * 1e-9
+        due = (elapsed_ns // period_ns + 1) * per_block
+        while st['k'] < due:
+            idx = np.arange(st['k'], st['k'] + per_block) % n
+            pub.publish(encode_batch(st['t0_s'] + (st['k'] + 1) * dt, dt, rows[idx]))
+            st['k'] += per_block
+
+    node.create_timer(per_block / args.rate_Hz, tick)
+    publish_until_done(args, node, [pub], st)
+
+
+def publish_until_done(args, node, pubs, st) -> None:
+    """Spin the publisher's timer from the subscribers' match for ``--seconds``; report."""
     executor = make_executor(args.executor)
     executor.add_node(node)
     stop = []
@@ -208,7 +261,7 @@ def run_bare(args) -> None:
 class Monitor:
     """Estimates, pressure send times and the estimator's input counters."""
 
-    def __init__(self, node, pressure_topic: str) -> None:
+    def __init__(self, node, pressure_topic: Optional[str]) -> None:
         self.stamps = deque(maxlen=200000)     # pressure send times (ns), increasing
         self.pending = deque()                 # (estimate stamp ns, receive ns)
         self.latency_ms = []
@@ -217,8 +270,9 @@ class Monitor:
         self.latency_text = None
         self.view_text = None
         self.diag_count = 0
-        self.subscriptions = [
-            node.create_subscription(FluidPressure, pressure_topic, self.on_p, reliable(1000)),
+        self.subscriptions = [] if pressure_topic is None else [
+            node.create_subscription(FluidPressure, pressure_topic, self.on_p, reliable(1000))]
+        self.subscriptions += [
             node.create_subscription(Temperature, f'{interface.ESTIMATE_PREFIX}/winding_hotspot',
                                      self.on_estimate, reliable(100)),
             node.create_subscription(DiagnosticArray, interface.DIAGNOSTICS_TOPIC, self.on_diag,
@@ -490,6 +544,10 @@ def main() -> None:
                    help='length of the busy-machine live run (0: skip it)')
     p.add_argument('--no-foxglove', action='store_true',
                    help='skip the run with the Foxglove view and a client')
+    p.add_argument('--batched-rate-Hz', type=float, default=4000.0,
+                   help='rate of every input in the batched run (0: skip it)')
+    p.add_argument('--block-ms', type=float, default=10.0,
+                   help='length of a block of the batched run (ms of samples)')
     p.add_argument('--role', choices=('main', 'publisher', 'bare'), default='main',
                    help=argparse.SUPPRESS)
     p.add_argument('--seconds', type=float, default=0.0, help=argparse.SUPPRESS)
@@ -520,10 +578,20 @@ def main() -> None:
     est_cmd += ['-p', 'qos:=reliable', '-p', f'qos_depth:={args.depth}',
                 '-p', f'config_file:={config_file}']
     common = ['--rate-Hz', str(args.rate_Hz), '--stage', str(args.stage), '--depth',
-              str(args.depth), '--executor', args.executor, '--pressure', args.pressure]
+              str(args.depth), '--executor', args.executor, '--pressure', args.pressure,
+              '--block-ms', '0']
     pub_cmd = [sys.executable, __file__, '--role', 'publisher', '--seconds',
                str(args.warmup_s + measure_s)] + common
     bare_cmd = [sys.executable, __file__, '--role', 'bare'] + common
+    batch_common = common + ['--rate-Hz', str(args.batched_rate_Hz), '--block-ms',
+                             str(args.block_ms)]     # the later ones win
+    batch_pub_cmd = [sys.executable, __file__, '--role', 'publisher', '--seconds',
+                     str(args.warmup_s + measure_s)] + batch_common
+    inputs_file = tmp / f'bench_estimator_{domain}.inputs.yaml'
+    inputs_file.write_text(yaml.safe_dump({'inputs': {
+        name: {'topic': BATCH_TOPIC, 'message_type': interface.FLOAT64_ARRAY, 'column': k,
+               'columns': len(inputs), 'unit': unit}
+        for k, (name, unit) in enumerate((n, SI_UNIT[n]) for n in inputs)}}))
     print(f'Estimator benchmark: {len(inputs)} inputs ({", ".join(inputs)}) at '
           f'{args.rate_Hz:g} Hz each, reliable QoS depth {args.depth}, stage {args.stage} '
           f'signals, estimates at 50 Hz, {args.executor} executor; {args.minutes:g} min '
@@ -557,6 +625,10 @@ def main() -> None:
                 args, executor, node, ready,
                 est_cmd + ['-p', f'foxglove_address:=127.0.0.1:{port}'], pub_cmd, env, log,
                 pressure_topic, view_port=port)
+        if args.batched_rate_Hz > 0:
+            batch_fig, batch_mon = run_estimator(
+                args, executor, node, ready, est_cmd + ['-p', f'inputs_file:={inputs_file}'],
+                batch_pub_cmd, env, log, None)
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
@@ -572,6 +644,13 @@ def main() -> None:
                         'estimator with its Foxglove view, one client reading every channel')
         print(f'cost of the Foxglove view: {view_fig["cpu"] - est_fig["cpu"]:+.1f} points of '
               f'one core ({view_fig["cpu"]:.1f} % against {est_fig["cpu"]:.1f} %)', flush=True)
+    if args.batched_rate_Hz > 0:
+        print_estimator(batch_fig, batch_mon, inputs,
+                        f'estimator, batched inputs at {args.batched_rate_Hz:g} Hz in '
+                        f'{args.block_ms:g} ms blocks on {BATCH_TOPIC}')
+        print(f'ratio batched estimator / bare subscriber: '
+              f'{batch_fig["cpu"] / bare_fig["cpu"]:.2f}; batched / per-message estimator: '
+              f'{batch_fig["cpu"] / est_fig["cpu"]:.2f}')
     if args.busy_live_s > 0:
         busy_live(args.busy_live_s, dict(os.environ))
 

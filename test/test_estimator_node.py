@@ -32,6 +32,7 @@ from std_msgs.msg import Float64, Float64MultiArray, String
 from test_foxglove_view import Client
 from wet_eha_thermal import interface
 from wet_eha_thermal.config import default_config_path
+from wet_eha_thermal.inputs import decoders, load_inputs
 from wet_eha_thermal.live_view import CHANNELS, view_topics
 from wet_eha_thermal.ros import topics
 from wet_eha_thermal.ros.estimator_node import EstimatorNode
@@ -202,6 +203,10 @@ def test_current_limits_for_the_drive_every_half_second_and_their_fallback(rig):
     limits, binding = [], []
     rig.probe.create_subscription(JointState, interface.CURRENT_LIMITS_TOPIC, limits.append, 50)
     rig.probe.create_subscription(Float64, interface.CURRENT_LIMIT_TOPIC, binding.append, 50)
+    drive = []
+    rig.probe.create_subscription(
+        Float64MultiArray, interface.DRIVE_LIMITS_TOPIC,
+        lambda m: drive.append(interface.DriveLimits.from_data(m.data)), 50)
     assert rig.feed(10.0, until=lambda: sum(m.header.frame_id == 'ok' for m in limits) >= 4)
     ok = [m for m in limits if m.header.frame_id == 'ok']
     m = ok[-1]
@@ -225,6 +230,20 @@ def test_current_limits_for_the_drive_every_half_second_and_their_fallback(rig):
     stale = [x for x in limits[n:] if 'speed_rad_s' in x.header.frame_id][-1]
     assert stale.header.frame_id == 'fallback: stale inputs: speed_rad_s'
     assert max(stale.effort) <= 10.0
+    # the drive's numbers: the same limits, stamps and status as codes, counted in sequence
+    rig.spin(0.2)
+    by_stamp = {d.stamp_ns: d for d in drive}
+    for m in limits:
+        d = by_stamp[m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec]
+        assert list(d.limits_A) == list(m.effort) and list(d.horizons_s) == list(m.position)
+        assert d.binding_A == m.effort[1] and d.binding_horizon_s == 10.0
+        assert (d.status == interface.LimitStatus.OK) == (m.header.frame_id == 'ok')
+        if m.header.frame_id.startswith('fallback: stale inputs'):
+            assert d.status == interface.LimitStatus.STALE_INPUTS
+    assert by_stamp[stale.header.stamp.sec * 1_000_000_000
+                    + stale.header.stamp.nanosec].status == interface.LimitStatus.STALE_INPUTS
+    assert [d.sequence for d in drive] == list(range(drive[0].sequence,
+                                                     drive[0].sequence + len(drive)))
     assert rig.feed(2.0, skip={'speed_rad_s'}, until=lambda: rig.values('estimate')[
         'current limits status'].startswith('fallback: stale inputs'))
 
@@ -291,6 +310,80 @@ def test_one_differential_pressure_topic(context, tmp_path):
         # the counters are the last diagnostics message's: on a busy machine the first ones
         # came before 200 samples had been taken
         assert rig.feed(6.0, until=lambda: int(rig.values('input dp_Pa')['accepted']) > 200)
+    finally:
+        rig.close()
+
+
+class JointStateBroadcasters:
+    """Plays ros2_control's joint_state_broadcasters as ros2_control_rig.inputs.yaml has them."""
+
+    # the SI values of VALUES in the rig's own units: A amplitude, bar gauge, the rod's sign
+    MOTOR = {'velocity': VALUES['speed_rad_s'], 'effort': VALUES['current_A'] * math.sqrt(2.0)}
+    ROD = -VALUES['position_m']
+    GAUGE_BAR = {f'pressure_{n}': VALUES[f'p_{n}_Pa'] / 1e5 - 1.01325 for n in ('a', 'b', 'acc')}
+
+    def __init__(self, probe):
+        self.probe = probe
+        self.joints = probe.create_publisher(JointState, '/joint_states', 100)
+        self.pressures = probe.create_publisher(
+            JointState, '/pressure_state_broadcaster/joint_states', 100)
+
+    def publish(self):
+        stamp = self.probe.get_clock().now().to_msg()
+        msg = JointState(name=['eha_rod', 'eha_motor'], position=[self.ROD, 12.0],
+                         velocity=[0.0, self.MOTOR['velocity']],
+                         effort=[0.0, self.MOTOR['effort']])
+        msg.header.stamp = stamp
+        self.joints.publish(msg)
+        names = list(self.GAUGE_BAR)
+        msg = JointState(name=names, effort=[self.GAUGE_BAR[n] for n in names])
+        msg.header.stamp = stamp
+        self.pressures.publish(msg)
+
+
+def test_a_ros2_control_rig_connects_with_a_parameters_file(context):
+    params = ROOT / 'config' / 'ros2_control_rig.params.yaml'
+    node = EstimatorNode(context=context, cli_args=[
+        '--ros-args', '--params-file', str(params), '-p', 'diagnostics_rate_Hz:=5.0'])
+    rig = NodeAndProbe(context, node, rclpy.create_node('jsb_probe', context=context))
+    try:
+        jsb = JointStateBroadcasters(rig.probe)
+        estimates, diagnostics = [], []
+        rig.probe.create_subscription(Temperature, f'{interface.ESTIMATE_PREFIX}/oil',
+                                      estimates.append, 100)
+        rig.probe.create_subscription(DiagnosticArray, interface.DIAGNOSTICS_TOPIC,
+                                      diagnostics.append, 10)
+
+        def all_ok():
+            return diagnostics and all(s.level[0] == OK for s in diagnostics[-1].status)
+
+        def enough():
+            return all_ok() and len(estimates) > 20 and min(
+                node.session.health[n].accepted for n in node.session.inputs) > 100
+
+        end = time.monotonic() + 10.0
+        next_t = time.monotonic()
+        while time.monotonic() < end and not enough():
+            if time.monotonic() >= next_t:
+                jsb.publish()
+                next_t = max(next_t + 0.001, time.monotonic() - 0.005)
+            rig.spin(0.0005)
+        assert enough(), [
+            (s.name, s.message) for s in diagnostics[-1].status] if diagnostics else None
+        # each input read from its joint and field, converted to SI, with the header's stamp
+        for name, value in VALUES.items():
+            if name in node.session.inputs:
+                h = node.session.health[name]
+                assert h.last_value == pytest.approx(value, rel=1e-12), name
+                assert h.rejected == 0, name
+        topics_of = {s.name: {kv.key: kv.value for kv in s.values}.get('topic')
+                     for s in diagnostics[-1].status}
+        assert topics_of['wet_eha_thermal: input speed_rad_s'] == '/joint_states'
+        assert topics_of['wet_eha_thermal: input p_acc_Pa'] == \
+            '/pressure_state_broadcaster/joint_states'
+        assert node.count_subscribers('/joint_states') == 1
+        stamps = _stamps(estimates)
+        assert all(b > a for a, b in zip(stamps, stamps[1:]))
     finally:
         rig.close()
 
@@ -633,14 +726,12 @@ def test_a_replay_writes_what_the_node_published_for_the_same_samples(
         by_tc = {topic: tc for tc, topic in plan.thermocouples.items()}
         clock = {'ns': 0}
         node.clock.now_ns = lambda: clock['ns']
+        # the node's callbacks with the decoders of the default inputs (the rig's topics)
+        decoder = {dec.channels[0]: dec for dec in decoders(load_inputs(''), node.session.inputs)}
         for m in iter_raw(bag, list(by_topic) + [plan.ambient] + list(by_tc)):
             clock['ns'] = m.log_time_ns
             if m.topic in by_topic:
-                name = by_topic[m.topic]
-                if name in interface.PRESSURE_INPUTS:
-                    node._on_pressure(name, m.data)
-                else:
-                    node._on_float(name, m.data)
+                node._on_input(decoder[by_topic[m.topic]], m.data)
             elif m.topic in by_tc:
                 node._on_measured(by_tc[m.topic], deserialize_message(m.data, Temperature))
             else:

@@ -17,7 +17,9 @@ Inputs (what the rig publishes; SI units, as the messages define them):
 
 A Float64 carries no stamp: its sample time is the receiving node's clock (the
 ROS clock, so /clock under use_sim_time). Messages with a header use its stamp,
-or the clock when the stamp is zero.
+or the clock when the stamp is zero. These are the defaults: a rig declares its
+own topics, types (JointState, batched blocks) and units in the estimator's
+``inputs_file`` (:mod:`wet_eha_thermal.inputs`).
 
 Outputs of the estimator: /eha/estimate/<name> (sensor_msgs/Temperature, degC,
 variance = uncertainty^2) for every name in ``ESTIMATES``; /eha/state
@@ -40,9 +42,10 @@ here; :mod:`.ros.topics` adds what needs rclpy (QoS profiles, publishing).
 """
 
 from dataclasses import asdict, dataclass, field
+import enum
 import json
 import math
-from typing import Dict, Iterable, Optional, TextIO, Tuple
+from typing import Dict, Iterable, Optional, Sequence, TextIO, Tuple
 
 PREFIX = '/eha'
 #: Message types of the twin's topics, as bags store them (pkg/msg/Type)
@@ -108,6 +111,10 @@ RECORDER_HEALTH_TOPIC = f'{PREFIX}/recorder/health'
 #: shortest horizon's, or the fallback) as a std_msgs/Float64 for the simplest drive
 CURRENT_LIMITS_TOPIC = f'{PREFIX}/current_limits'
 CURRENT_LIMIT_TOPIC = f'{PREFIX}/current_limit'
+#: The same limits as numbers only, for a drive or a PLC bridge that parses no text: a
+#: std_msgs/Float64MultiArray of the layout :class:`DriveLimits` documents (reliable,
+#: depth 10), one message per limit tick
+DRIVE_LIMITS_TOPIC = f'{PREFIX}/drive/limits'
 #: What-if from the live state (docs/live.md#what-if-from-the-live-state), std_msgs/String JSON
 #: both ways, reliable and volatile. The request: {"id": text, one duty of "stage" (1..6),
 #: "table" {"time_s", "flow_L_min", "load_MPa": [...]} or "samples" {"time_s", "current_A",
@@ -177,6 +184,103 @@ def prefixed(topic: str, prefix: str) -> str:
 def limits_frame_id(status: str, reason: str) -> str:
     """Return the header.frame_id of the limits on CURRENT_LIMITS_TOPIC for a status and why."""
     return 'ok' if status == 'ok' else f'fallback: {reason}'
+
+
+class LimitStatus(enum.IntEnum):
+    """
+    The status of the drive's limits as a number (:class:`DriveLimits`): 0 is trusted.
+
+    Any other code is a fallback: every limit is at most the conservative
+    ``estimator.limits.fallback_current_A``. A code this version does not
+    know (a newer estimator's) is a fallback as well.
+    """
+
+    OK = 0              #: computed from a trusted estimate
+    STALE_INPUTS = 1    #: an input is stale: the model runs on its fallback value
+    UNCERTAIN = 2       #: a limited temperature is more uncertain than limits.max_sigma_K
+    BEHIND = 3          #: the estimator is behind its inputs, or had no time to compute them
+    FAILED = 4          #: the computation failed
+    OTHER = 5           #: another fallback (the text of CURRENT_LIMITS_TOPIC says which)
+
+
+#: the first word(s) of a fallback's reason, as the estimator writes them, and the code
+_FALLBACK_CAUSES = {'stale inputs': LimitStatus.STALE_INPUTS, 'uncertain': LimitStatus.UNCERTAIN,
+                    'behind': LimitStatus.BEHIND, 'failed': LimitStatus.FAILED}
+
+
+def limit_status(status: str, reason: str) -> LimitStatus:
+    """Return the code of limits whose status is ``status`` ('ok' or 'fallback') for ``reason``."""
+    if status == 'ok':
+        return LimitStatus.OK
+    return _FALLBACK_CAUSES.get(reason.split(':')[0].strip(), LimitStatus.OTHER)
+
+
+@dataclass(frozen=True)
+class DriveLimits:
+    """
+    The limits of one tick on DRIVE_LIMITS_TOPIC: numbers at fixed places, no text.
+
+    The Float64MultiArray's ``data`` (every number a float64; the counts and
+    codes are whole numbers, exact up to 2^53)::
+
+        [0] layout version (1)      [4] status (:class:`LimitStatus`, 0 = OK)
+        [1] stamp sec               [5] binding limit (A RMS): what a drive with
+        [2] stamp nanosec               one number applies
+        [3] sequence                [6] its horizon (s)
+                                    [7] n: the number of limits that follow
+        [8 + 2 i] horizon i (s; +inf: the continuous limit)
+        [9 + 2 i] limit i (A RMS, >= 0; +inf: none within that horizon)
+
+    The stamp is the sample time the limits belong to (as the header of
+    CURRENT_LIMITS_TOPIC); the sequence counts the estimator's limit
+    messages from 1: a gap is a lost message, a smaller one a restarted
+    estimator. A drive needs the first 7 numbers only; it falls back on its
+    own when the stamp is too old. ``layout.dim[0].label`` names the fields.
+    """
+
+    stamp_ns: int
+    sequence: int
+    status: LimitStatus
+    binding_A: float
+    binding_horizon_s: float
+    horizons_s: Sequence[float]
+    limits_A: Sequence[float]
+
+    VERSION = 1
+    HEAD = 8
+    LABEL = ('wet_eha_thermal drive limits v1: version, stamp_sec, stamp_nanosec, sequence, '
+             'status, binding_A, binding_horizon_s, n, then n x (horizon_s, limit_A)')
+
+    def to_data(self) -> list:
+        """Return the message's ``data``."""
+        sec, nanosec = divmod(int(self.stamp_ns), 1_000_000_000)
+        out = [float(self.VERSION), float(sec), float(nanosec), float(self.sequence),
+               float(int(self.status)), float(self.binding_A), float(self.binding_horizon_s),
+               float(len(self.limits_A))]
+        for h, a in zip(self.horizons_s, self.limits_A):
+            out += [float(h), float(a)]
+        return out
+
+    @classmethod
+    def from_data(cls, data: Sequence[float]) -> 'DriveLimits':
+        """Return the limits of a message's ``data``; ValueError if they are malformed."""
+        if len(data) < cls.HEAD or data[0] != cls.VERSION:
+            raise ValueError(f'not drive limits v{cls.VERSION}: {len(data)} numbers, version '
+                             f'{data[0] if len(data) else None}')
+        n = int(data[7])
+        if n != data[7] or len(data) != cls.HEAD + 2 * n:
+            raise ValueError(f'drive limits: n = {data[7]} for {len(data)} numbers')
+        limits = tuple(data[cls.HEAD + 1::2])
+        if not all(a >= 0.0 for a in limits + (data[5],)):     # NaN fails too
+            raise ValueError('drive limits: a limit is negative or NaN')
+        try:
+            status = LimitStatus(int(data[4]))
+        except ValueError:
+            status = LimitStatus.OTHER
+        return cls(stamp_ns=int(data[1]) * 1_000_000_000 + int(data[2]),
+                   sequence=int(data[3]), status=status, binding_A=float(data[5]),
+                   binding_horizon_s=float(data[6]), horizons_s=tuple(data[cls.HEAD::2]),
+                   limits_A=limits)
 
 
 #: The line of a node's :class:`NodeReport` starts with this, then its JSON.

@@ -51,19 +51,24 @@ values (thresholds, limits, settings); the names in ``settable`` may be set
 from Foxglove within their range. An accepted request is queued for the
 owner (:meth:`LiveView.take_requests`), which applies it on its own thread
 and confirms with :meth:`LiveView.show_parameters`.
+
+The Foxglove SDK (foxglove-sdk, which rosdep has no key for) is imported
+when a view starts, not with this module: the address helpers and the
+schemas serve without it, and an estimator without the view never needs it.
 """
+
+from __future__ import annotations
 
 from collections import deque
 import json
 import math
 import threading
-from typing import Any, Deque, Dict, List, Mapping, Optional, Sequence, Tuple
-
-import foxglove
-from foxglove import Channel, Context, Parameter
-from foxglove.websocket import Capability, ServerListener, StatusLevel
+from typing import Any, Deque, Dict, List, Mapping, Optional, Sequence, Tuple, TYPE_CHECKING
 
 from .interface import limits_frame_id
+
+if TYPE_CHECKING:
+    from foxglove import Parameter
 
 #: Schema name prefix of the view's own JSON schemas.
 SCHEMA_PREFIX = 'wet_eha_thermal.view.'
@@ -262,30 +267,33 @@ def _parameter_value(value: Any) -> Any:
     return '' if value is None else value
 
 
-class _Listener(ServerListener):
-    """The server's parameter requests, answered from the view's table."""
+def _listener(view: LiveView):
+    """Return the server's listener for ``view``: its parameter and what-if requests."""
+    from foxglove.websocket import ServerListener
 
-    def __init__(self, view: 'LiveView') -> None:
-        self.view = view
+    class _Listener(ServerListener):
+        """The server's parameter requests, answered from the view's table."""
 
-    def on_get_parameters(self, client, param_names: List[str],
-                          request_id: Optional[str] = None) -> List[Parameter]:
-        return self.view._parameters(param_names)
+        def on_get_parameters(self, client, param_names: List[str],
+                              request_id: Optional[str] = None) -> List[Parameter]:
+            return view._parameters(param_names)
 
-    def on_set_parameters(self, client, parameters: List[Parameter],
-                          request_id: Optional[str] = None) -> List[Parameter]:
-        return self.view._set_requested(parameters)
+        def on_set_parameters(self, client, parameters: List[Parameter],
+                              request_id: Optional[str] = None) -> List[Parameter]:
+            return view._set_requested(parameters)
 
-    def on_client_advertise(self, client, channel) -> None:
-        if channel.topic == self.view.whatif_request_topic:
-            self.view._request_channels.add((client.id, channel.id))
+        def on_client_advertise(self, client, channel) -> None:
+            if channel.topic == view.whatif_request_topic:
+                view._request_channels.add((client.id, channel.id))
 
-    def on_client_unadvertise(self, client, client_channel_id: int) -> None:
-        self.view._request_channels.discard((client.id, client_channel_id))
+        def on_client_unadvertise(self, client, client_channel_id: int) -> None:
+            view._request_channels.discard((client.id, client_channel_id))
 
-    def on_message_data(self, client, client_channel_id: int, data: bytes) -> None:
-        if (client.id, client_channel_id) in self.view._request_channels:
-            self.view._take_request(data)
+        def on_message_data(self, client, client_channel_id: int, data: bytes) -> None:
+            if (client.id, client_channel_id) in view._request_channels:
+                view._take_request(data)
+
+    return _Listener()
 
 
 class LiveView:
@@ -324,6 +332,10 @@ class LiveView:
         self.whatif_request_topic = whatif_request_topic
         self._request_channels: set = set()   # (client, channel) publishing requests
         self._whatif_requests: Deque[str] = deque(maxlen=PENDING_REQUESTS)
+        import foxglove               # here: only a view needs the SDK
+        from foxglove import Channel, Context
+        from foxglove.websocket import Capability
+
         capabilities = [Capability.Parameters]
         if whatif_request_topic is not None:
             capabilities.append(Capability.ClientPublish)
@@ -331,7 +343,7 @@ class LiveView:
         self._context = Context()
         self.server = foxglove.start_server(
             name=name, host=host, port=port, context=self._context,
-            capabilities=capabilities, server_listener=_Listener(self),
+            capabilities=capabilities, server_listener=_listener(self),
             supported_encodings=['json'], message_backlog_size=BACKLOG_MESSAGES)
         self.port = self.server.port
         self.host = host
@@ -419,6 +431,7 @@ class LiveView:
         """Show new parameter values (to clients subscribed to them too)."""
         with self._lock:
             self._shown.update(values)
+        from foxglove import Parameter
         self.server.publish_parameter_values(
             [Parameter(k, value=_parameter_value(v)) for k, v in values.items()])
 
@@ -431,6 +444,7 @@ class LiveView:
 
     # --------------------------------------------------- the server's thread
     def _parameters(self, names: Sequence[str]) -> List[Parameter]:
+        from foxglove import Parameter
         with self._lock:
             shown = dict(self._shown)
         return [Parameter(k, value=_parameter_value(v)) for k, v in shown.items()
@@ -452,6 +466,7 @@ class LiveView:
                 else:
                     self._requests[p.name] = self._shown[p.name] = float(value)
         if refused:
+            from foxglove.websocket import StatusLevel
             self.server.publish_status('; '.join(refused), StatusLevel.Warning)
         return self._parameters([p.name for p in parameters])
 

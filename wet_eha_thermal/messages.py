@@ -16,7 +16,9 @@ published for the same estimates:
   (:meth:`~wet_eha_thermal.estimator.session.EstimatorSession.alert_summary`);
 - ``/eha/current_limits`` (sensor_msgs/JointState: the horizons as
   ``position``, the limits as ``effort``, the status in ``header.frame_id``)
-  and ``/eha/current_limit`` (std_msgs/Float64, the binding limit).
+  and ``/eha/current_limit`` (std_msgs/Float64, the binding limit); live, the
+  same limits as numbers on ``/eha/drive/limits`` (std_msgs/Float64MultiArray,
+  :class:`~wet_eha_thermal.interface.DriveLimits`), numbered in the order sent.
 
 Topic names are the interface's; a node with a ``topic_prefix`` maps them.
 """
@@ -62,6 +64,23 @@ def limits(lim: CurrentLimits) -> List[Message]:
         (interface.CURRENT_LIMIT_TOPIC, cdr.encode_float64(float(lim.binding_A)), ns)]
 
 
+def drive_limits(lim: CurrentLimits, sequence: int) -> Message:
+    """
+    Return a tick's limits as the drive reads them: numbers at fixed places, no text.
+
+    ``sequence`` numbers the limit messages of a run from 1. The status code
+    comes from the fallback's reason (:func:`~wet_eha_thermal.interface.limit_status`).
+    """
+    ns = int(round(lim.stamp_s * 1e9))
+    shortest = min(range(len(lim.horizons_s)), key=lim.horizons_s.__getitem__)
+    drive = interface.DriveLimits(
+        stamp_ns=ns, sequence=sequence, status=interface.limit_status(lim.status, lim.reason),
+        binding_A=lim.binding_A, binding_horizon_s=lim.horizons_s[shortest],
+        horizons_s=lim.horizons_s, limits_A=lim.limits_A)
+    return (interface.DRIVE_LIMITS_TOPIC,
+            cdr.encode_float64_array(drive.LABEL, np.asarray(drive.to_data())), ns)
+
+
 class EstimateMessages:
     """Build an estimate's messages: the temperatures with their variances, and the state."""
 
@@ -92,7 +111,8 @@ class OutputMessages:
 
     The last estimate of each output (or the held one, stamped with the
     clock), never one stamped at or before the last sent (the stamps start
-    over when the clock jumped); the alert summary; the limits.
+    over when the clock jumped); the alert summary; the limits, then the same
+    limits as the drive's numbers.
     """
 
     def __init__(self, frame_id: str = 'eha', label: str = state_label()) -> None:
@@ -100,6 +120,8 @@ class OutputMessages:
         self._last_ns: Optional[int] = None
         #: estimates sent
         self.published = 0
+        #: limits sent: the sequence of the last drive limits
+        self.limits_sent = 0
 
     def build(self, out: Output) -> List[Message]:
         """Return the messages of ``out`` (see the class)."""
@@ -113,7 +135,9 @@ class OutputMessages:
         if out.alerts is not None:
             msgs.append((interface.ALERT_TOPIC, alerts(out.alerts), self._last_ns))
         for lim in out.limits:
+            self.limits_sent += 1
             msgs += limits(lim)
+            msgs.append(drive_limits(lim, self.limits_sent))
         return msgs
 
     def _estimate(self, est, stamp_s: float) -> List[Message]:

@@ -179,6 +179,11 @@ class Estimator:
         """
         return self._intake.push(channel, stamp_s, value) and self._due(channel, stamp_s)
 
+    def push_many(self, channel: str, stamps_s: np.ndarray, values: np.ndarray) -> bool:
+        """Take a block of samples of one input (a batched message) as :meth:`push` takes one."""
+        return bool(len(stamps_s)) and self._intake.push_many(channel, stamps_s, values) \
+            and self._due(channel, float(stamps_s[-1]))
+
     def _due(self, channel: str, stamp_s: float) -> bool:
         """
         Tell whether ``advance`` may now complete a step, after a sample of ``channel`` (cheap).

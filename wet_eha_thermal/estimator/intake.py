@@ -183,6 +183,28 @@ class Intake:
         buf.top = top + 1
         return True
 
+    def push_many(self, channel: str, stamps_s: np.ndarray, values: np.ndarray) -> bool:
+        """
+        Append a block of samples (SI units) unchecked, as :meth:`push` appends one.
+
+        A batched message's work. Returns False when none found room; those
+        that did not are counted (overflow).
+        """
+        buf = self.buffers[channel]
+        n = len(stamps_s)
+        room = buf.room(n)
+        if room < n:
+            h = self.health[channel]
+            h.received += n - room
+            h.overflow += n - room
+        if not room:
+            return False
+        top = buf.top
+        buf.t[top:top + room] = stamps_s[:room]
+        buf.v[top:top + room] = values[:room]
+        buf.top = top + room
+        return True
+
     def latest_allowed(self) -> float:
         """Return the latest stamp a sample may carry now (the future guard)."""
         return self.clock_s + self.settings.max_future_s if self.clock_s is not None \

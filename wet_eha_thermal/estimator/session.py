@@ -147,6 +147,13 @@ class EstimatorSession:
             return []
         return self.step(now_s)
 
+    def take_many(self, channel: str, stamps_s: np.ndarray, values: np.ndarray,
+                  now_s: Optional[float] = None) -> List[Estimate]:
+        """Take a block of samples of one input (a batched message) as :meth:`take` takes one."""
+        if not self._est.push_many(channel, stamps_s, values):
+            return []
+        return self.step(now_s)
+
     def add(self, channel: str, stamps_s: Sequence[float], values: Sequence[float],
             now_s=None) -> int:
         """

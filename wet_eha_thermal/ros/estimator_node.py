@@ -5,22 +5,28 @@ The node keeps the parameters, the subscriptions and the publishers; one
 :class:`~wet_eha_thermal.estimator.session.EstimatorSession` decides what goes
 out, :mod:`wet_eha_thermal.messages` builds the messages (the bytes a replay
 writes for the same estimates) and the node publishes them. A sample's path is
-one way down and back: callback -> ``session.take`` -> the session's
-``publish`` -> :meth:`EstimatorNode._publish` -> the publishers.
+one way down and back: callback -> ``session.take`` (``take_many`` for a
+batched block) -> the session's ``publish`` -> :meth:`EstimatorNode._publish`
+-> the publishers.
 
-The input topics are taken raw (CDR bytes) and decoded in place
-(:mod:`..bag.cdr`); each sample goes to the session with its stamp (a Float64
-has none: it takes the node's ROS clock, so /clock under use_sim_time), and
-that is all the per-sample work. A sample that can complete a model step steps
-it at once, so the estimate leaves within the step's computing time. A timer at
-``publish_rate_Hz`` calls the session's ``tick`` with the ROS clock, so the
-model keeps stepping on its fallbacks when inputs fall silent. No call steps
-more than ``estimator.max_steps_per_call`` steps: after a stall the model
+The input topics, as the ``inputs_file`` declares them
+(:mod:`wet_eha_thermal.inputs`: Float64, FluidPressure, Temperature, JointState
+by joint and field, or a batched block), are taken raw (CDR bytes), one
+subscription per topic, and decoded in place; each sample, converted to SI,
+goes to the session with its stamp (a Float64 has none: it takes the node's
+ROS clock, so /clock under use_sim_time), and that is all the per-sample work;
+a batched block goes in as arrays. A sample that can complete a model step
+steps it at once, so the estimate leaves within the step's computing time. A
+timer at ``publish_rate_Hz`` calls the session's ``tick`` with the ROS clock,
+so the model keeps stepping on its fallbacks when inputs fall silent. No call
+steps more than ``estimator.max_steps_per_call`` steps: after a stall the model
 catches up over several calls. Each new estimate is published: one
 sensor_msgs/Temperature per name in ``interface.ESTIMATES`` (stamped with the
 estimate's sample time, strictly increasing), the state vector, and the alert
 summary whenever it changes (latched). The rest of each tick's budget
-(``background_budget_ms``) goes to the limits, the forecast and the margin.
+(``background_budget_ms``) goes to the limits, the forecast and the margin;
+each tick's limits go out as the JointState, the binding Float64 and the
+drive's numbers (``/eha/drive/limits``, :class:`~wet_eha_thermal.interface.DriveLimits`).
 Thermocouples (``/eha/measured/<tc>``) go to the session with their header
 stamps: with the live correction on they correct the model, and /diagnostics
 carries one status per thermocouple (used, held, dropped or stale).
@@ -62,11 +68,9 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import NameValidationException, ParameterException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
-from rclpy.serialization import deserialize_message
-from sensor_msgs.msg import FluidPressure, JointState, Temperature
+from sensor_msgs.msg import JointState, Temperature
 from std_msgs.msg import Float64, Float64MultiArray, String
-from wet_eha_thermal import interface, messages
-from wet_eha_thermal.bag import cdr
+from wet_eha_thermal import inputs, interface, messages
 from wet_eha_thermal.config import ConfigError, load_config
 from wet_eha_thermal.estimator.session import EstimatorSession, Output
 from wet_eha_thermal.live_view import parse_address
@@ -85,6 +89,10 @@ PARAMETERS = {
     'config_file': ('', descriptor(
         'estimator configuration YAML (the estimator: section and the rig); '
         "'' = the shipped config/reference_eha.yaml")),
+    'inputs_file': ('', descriptor(
+        'YAML of the inputs: topic, message type, field and unit of each '
+        '(wet_eha_thermal/inputs.py); a name not found is looked for in the shipped config/; '
+        "'' = the /eha topics of the simulated rig")),
     'publish_rate_Hz': (50.0, descriptor(
         'rate of the estimate, state and alert publication (and of advance(now))', 1.0, 500.0,
         read_only=False)),
@@ -115,6 +123,7 @@ class EstimatorNode(Node):
         super().__init__(NODE_NAME, **kwargs)
         p, view_at = self._read_parameters()
         self.cfg = load_config(p['config_file'] or None)
+        input_spec = inputs.load_inputs(p['inputs_file'])
         self.hardware_id = p['hardware_id']
         self.session = EstimatorSession(self.cfg, outlook='background', publish=self._publish,
                                         budget_s=p['background_budget_ms'] * 1e-3,
@@ -128,12 +137,12 @@ class EstimatorNode(Node):
         gc.collect()
         gc.freeze()
         self.clock = FastClock(self)
-        self.prefix = p['topic_prefix'].rstrip('/')
+        self.prefix = p['topic_prefix']        # resolved: '' is the namespace
         in_qos = topics.input_qos(p['qos'], p['qos_depth'])   # ValueError names a bad kind
         self._init_counters()
         self.messages = messages.OutputMessages(p['frame_id'], messages.state_label(
             self._topic(interface.STATE_NAMES_TOPIC)))
-        input_subs = self._subscribe(in_qos)
+        input_subs = self._subscribe(in_qos, input_spec)
         self._advertise(QoSProfile(depth=10))       # reliable, volatile
         self.view = EstimatorView(self, self.session, self._topic, self._failed)
         if view_at is not None:
@@ -178,17 +187,17 @@ class EstimatorNode(Node):
         # the topic of every input and of every thermocouple (measured/<name>), as subscribed
         self.topic_names: Dict[str, str] = {}
 
-    def _subscribe(self, in_qos: QoSProfile) -> list:
+    def _subscribe(self, in_qos: QoSProfile, input_spec: inputs.Inputs) -> list:
         """Subscribe to the inputs (raw), the ambient, the thermocouples and the acks."""
-        # inputs, raw: decoded here in a fraction of rclpy's deserialisation
+        # inputs, raw: decoded here in a fraction of rclpy's deserialisation; one
+        # subscription per topic, whatever number of inputs it carries
         input_subs = []
-        for name in self.session.inputs:
-            topic = self._topic(interface.INPUT_TOPICS[name])
-            pressure = name in interface.PRESSURE_INPUTS
-            cb = functools.partial(self._on_pressure if pressure else self._on_float, name)
-            input_subs.append(self.create_subscription(FluidPressure if pressure else Float64,
-                                                       topic, cb, in_qos, raw=True))
-            self.topic_names[name] = topic
+        for dec in inputs.decoders(input_spec, self.session.inputs):
+            topic = self._topic(dec.topic)
+            cb = functools.partial(self._on_batch if dec.batched else self._on_input, dec)
+            kind = topics.message_class(dec.message_type)
+            input_subs.append(self.create_subscription(kind, topic, cb, in_qos, raw=True))
+            self.topic_names.update(dict.fromkeys(dec.channels, topic))
         self.create_subscription(Temperature, self._topic(interface.AMBIENT_TOPIC),
                                  self._on_ambient, in_qos)
         for tc in interface.THERMOCOUPLES:
@@ -208,6 +217,8 @@ class EstimatorNode(Node):
         # the drive's limits: reliable, a few deep (a drive reads every one it can)
         pubs[interface.CURRENT_LIMITS_TOPIC] = (JointState, QoSProfile(depth=10))
         pubs[interface.CURRENT_LIMIT_TOPIC] = (Float64, QoSProfile(depth=10))
+        # the same limits for a drive that reads numbers only (interface.DriveLimits)
+        pubs[interface.DRIVE_LIMITS_TOPIC] = (Float64MultiArray, QoSProfile(depth=10))
         #: the publisher of each topic, by its name without the prefix
         self.pubs = {topic: self.create_publisher(cls, self._topic(topic), qos)
                      for topic, (cls, qos) in pubs.items()}
@@ -245,38 +256,40 @@ class EstimatorNode(Node):
         self.get_logger().error(f'{where}: {type(exc).__name__}: {exc}',
                                 throttle_duration_sec=5.0)
 
-    # ----------------------------------------------------------- callbacks
-    def _on_float(self, channel: str, data: bytes) -> None:
-        self._t_rx = time.perf_counter()
-        try:
-            ns = self.clock.now_ns()
-            if not ns:
-                self.waiting_for_clock += 1
-                return
-            now = ns * 1e-9
-            value = cdr.float64_data(data) if cdr.is_plain_le(data) \
-                else deserialize_message(data, Float64).data
-            self.session.take(channel, now, value, now)
-        except Exception as exc:  # noqa: B902 - a callback never raises
-            self._failed(channel, exc)
+    def _input_failed(self, dec: inputs.TopicDecoder, exc: BaseException) -> None:
+        """Count a failed input message against each input it carries; log it once."""
+        for channel in dec.channels[1:]:
+            self.callback_errors[channel] = self.callback_errors.get(channel, 0) + 1
+        self._failed(dec.channels[0], exc)
 
-    def _on_pressure(self, channel: str, data: bytes) -> None:
+    # ----------------------------------------------------------- callbacks
+    def _on_input(self, dec: inputs.TopicDecoder, data: bytes) -> None:
+        """Take a message of per-message samples: a Float64's stamped on arrival."""
         self._t_rx = time.perf_counter()
         try:
-            if cdr.is_plain_le(data):
-                ns, value = cdr.header_stamp_and_value(data)
-            else:
-                msg = deserialize_message(data, FluidPressure)
-                ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-                value = msg.fluid_pressure
-            if not ns:
-                ns = self.clock.now_ns()     # a zero stamp: the clock, as for a Float64
-                if not ns:
+            stamp_ns, values = dec.decode(data)
+            now_ns = self.clock.now_ns()
+            if not stamp_ns:
+                stamp_ns = now_ns          # no stamp, or a zero one: the clock
+                if not stamp_ns:
                     self.waiting_for_clock += 1
                     return
-            self.session.take(channel, ns * 1e-9, value, self._now_s())
+            now = now_ns * 1e-9 if now_ns else None
+            for channel, value in zip(dec.channels, values):
+                self.session.take(channel, stamp_ns * 1e-9, value, now)
+        except Exception as exc:  # noqa: B902 - a callback never raises
+            self._input_failed(dec, exc)
+
+    def _on_batch(self, dec: inputs.TopicDecoder, data: bytes) -> None:
+        """Take a batched block: every sample with its own stamp."""
+        self._t_rx = time.perf_counter()
+        try:
+            stamps, values = dec.decode_batch(data)
+            now = self._now_s()
+            for k, channel in enumerate(dec.channels):
+                self.session.take_many(channel, stamps, values[:, k], now)
         except Exception as exc:  # noqa: B902
-            self._failed(channel, exc)
+            self._input_failed(dec, exc)
 
     def _on_ambient(self, msg: Temperature) -> None:
         try:

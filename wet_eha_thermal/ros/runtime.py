@@ -27,9 +27,8 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 from rclpy.utilities import remove_ros_args
 from std_msgs.msg import String
-from wet_eha_thermal import interface
 from wet_eha_thermal.config import Config
-from wet_eha_thermal.ros.topics import latched_qos
+from wet_eha_thermal.ros.topics import FROM_NAMESPACE, latched_qos, PREFIX_DOC, resolve_prefix
 
 EXECUTORS = ('events', 'single')
 #: What a node's ``qos`` parameter may name (:func:`~.topics.input_qos`).
@@ -200,8 +199,7 @@ def shared_parameters(*names: str) -> Dict[str, Tuple[object, ParameterDescripto
         'qos': ('sensor_data', descriptor(
             "QoS of the sensor topics: 'sensor_data' (best effort) or 'reliable'")),
         'qos_depth': (1000, descriptor('history depth of the sensor subscriptions', 1, 100000)),
-        'topic_prefix': (interface.PREFIX, descriptor(
-            "replaces '/eha' in every topic name (not /diagnostics); starts with /")),
+        'topic_prefix': (FROM_NAMESPACE, descriptor(PREFIX_DOC)),
         'executor': ('events', descriptor(
             "executor used by main(): 'events' (rclpy.experimental.EventsExecutor) or 'single' "
             '(SingleThreadedExecutor); the --executor option overrides it')),
@@ -215,7 +213,8 @@ def declare_parameters(node: Node, parameters: Mapping[str, Tuple[object, Parame
     Declare ``parameters`` (name -> (default, descriptor)) on ``node``; return their values.
 
     The shared ones (:func:`shared_parameters`) are checked here: ValueError
-    names the parameter, its value and what is allowed.
+    names the parameter, its value and what is allowed; ``topic_prefix``
+    comes back resolved (:func:`~wet_eha_thermal.ros.topics.resolve_prefix`).
     """
     accept_whole_numbers(node, {name: default for name, (default, _) in parameters.items()})
     values = {name: node.declare_parameter(name, default, desc).value
@@ -225,9 +224,8 @@ def declare_parameters(node: Node, parameters: Mapping[str, Tuple[object, Parame
         if name in values and values[name] not in kinds:
             raise ValueError(f'parameter {name} = {values[name]!r}: expected one of '
                              f'{", ".join(kinds)}')
-    if 'topic_prefix' in values and not values['topic_prefix'].startswith('/'):
-        raise ValueError(f"parameter topic_prefix = {values['topic_prefix']!r}: must start "
-                         'with /')
+    if 'topic_prefix' in values:       # the prefix itself: '' is the node's namespace
+        values['topic_prefix'] = resolve_prefix(node, values['topic_prefix'])
     return values
 
 

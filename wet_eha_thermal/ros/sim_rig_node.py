@@ -24,20 +24,20 @@ Topics (``topic_prefix`` replaces ``/eha``; see :mod:`.topics`):
   publish lag, CPU, the truth model's hot-spot (and its peak), magnet and
   oil, and with ``honour_limit`` the drive's limit and clamp.
 
-A drive that honours the limit (``honour_limit:=true``): the rig follows the
-estimator's current limits (sensor_msgs/JointState on
-``<prefix>/current_limits``, :data:`~wet_eha_thermal.interface.CURRENT_LIMITS_TOPIC`)
-and its simulated drive carries at most the binding one, the shortest
-horizon's entry, where the duty asks for more (the load yields:
+A drive that honours the limit (``honour_limit:=true``): the rig reads the
+estimator's current limits as a real drive would, numbers at fixed places
+(std_msgs/Float64MultiArray on ``<prefix>/drive/limits``,
+:class:`~wet_eha_thermal.interface.DriveLimits`), and its simulated drive
+carries at most the binding one where the duty asks for more (the load yields:
 :meth:`~wet_eha_thermal.model.kinetics.KineticModel.sample_limited`); the
 truth model heats with what the drive carried. Its watchdog, as a drive's
 should be: a limit whose stamp (the sample time it belongs to) is older than
 ``limit_watchdog_s`` by the rig's clock, or none yet, gives way to
-``limit_fallback_A``; a limit the estimator marks as its fallback
-(``frame_id`` "fallback: <why>") is applied, never above ``limit_fallback_A``.
-The limit is taken once per block (``block_s``). Counted: the time clamped,
-the first clamp (duty time), the largest cut (demanded minus carried
-current), the time on a fallback.
+``limit_fallback_A``; a limit whose status code is not OK (the estimator's
+fallback) is applied, never above ``limit_fallback_A``. The limit is taken
+once per block (``block_s``). Counted: the time clamped, the first clamp
+(duty time), the largest cut (demanded minus carried current), the time on
+a fallback, the limit messages missed (gaps of their sequence).
 
 Sensor noise (1 sigma, Gaussian, seeded by ``seed``; off with ``noise:=false``):
 current 0.05 A (the reading is an RMS value, so its magnitude is kept),
@@ -81,13 +81,13 @@ import rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import qos_profile_sensor_data
-from sensor_msgs.msg import FluidPressure, JointState, Temperature
-from std_msgs.msg import Float64, String
+from sensor_msgs.msg import FluidPressure, Temperature
+from std_msgs.msg import Float64, Float64MultiArray, String
 from wet_eha_thermal.config import ConfigError, load_config
-from wet_eha_thermal.interface import (AMBIENT_TOPIC, CURRENT_LIMITS_TOPIC, DIAGNOSTICS_TOPIC,
-                                       INPUT_TOPICS, MEASURED_PREFIX, NodeReport,
-                                       prefixed, PRESSURE_INPUTS, READY_TOPIC, RIG_NODE,
-                                       THERMOCOUPLES)
+from wet_eha_thermal.interface import (AMBIENT_TOPIC, DIAGNOSTICS_TOPIC, DRIVE_LIMITS_TOPIC,
+                                       DriveLimits, INPUT_TOPICS, LimitStatus, MEASURED_PREFIX,
+                                       NodeReport, prefixed, PRESSURE_INPUTS,
+                                       READY_TOPIC, RIG_NODE, THERMOCOUPLES)
 from wet_eha_thermal.model.kinetics import DutyError, load_duty_csv, stage_duty, STAGES
 from wet_eha_thermal.model.uncertainty import as_built
 from wet_eha_thermal.offline.simulated_rig import (AMBIENT_SIGMA_K, NOISE_SIGMA, SimulatedRig,
@@ -135,12 +135,12 @@ class DriveLimit:
     """
     The current limit the simulated drive applies: the estimator's, or its own fallback.
 
-    :meth:`take` keeps the last limits message (sensor_msgs/JointState, one
-    entry per horizon: effort A RMS, position the horizon in s); its
-    shortest horizon's entry binds. :meth:`applied` says what the drive
-    carries at most now: that limit while its stamp is at most
-    ``watchdog_s`` old, else (or before any) ``fallback_A``; a message the
-    estimator marks as its fallback is applied up to ``fallback_A`` only.
+    :meth:`take` keeps the binding limit of the last limits message (the
+    ``data`` of a Float64MultiArray, :class:`~wet_eha_thermal.interface.DriveLimits`).
+    :meth:`applied` says what the drive carries at most now: that limit
+    while its stamp is at most ``watchdog_s`` old, else (or before any)
+    ``fallback_A``; one whose status code is not OK is applied up to
+    ``fallback_A`` only.
     """
 
     def __init__(self, watchdog_s: float, fallback_A: float) -> None:
@@ -148,25 +148,31 @@ class DriveLimit:
         self.fallback_A = fallback_A
         self.value_A: Optional[float] = None        # the last message's binding limit
         self.stamp_ns = 0
-        self.status = ''                            # the last message's frame_id
+        self.status = LimitStatus.OK                # the last message's status code
         self.received = 0
         self.rejected = 0
+        self.missed = 0                             # gaps in the sequence
+        self.sequence = 0
 
-    def take(self, msg: JointState) -> None:
+    def take(self, msg: Float64MultiArray) -> None:
         """
         Take one limits message; a malformed one is counted and left to the watchdog.
 
-        Malformed: no entry, a position per effort missing, an effort NaN or
-        negative (+inf is no limit within that horizon).
+        Malformed: not the layout (version, count), or a limit NaN or negative
+        (+inf is no limit within that horizon).
         """
-        n = len(msg.effort)
-        if not n or len(msg.position) != n or not all(e >= 0.0 for e in msg.effort):
+        try:
+            limits = DriveLimits.from_data(msg.data)
+        except ValueError:
             self.rejected += 1
             return
         self.received += 1
-        self.value_A = float(msg.effort[min(range(n), key=lambda i: msg.position[i])])
-        self.stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-        self.status = msg.header.frame_id
+        if limits.sequence > self.sequence + 1 and self.sequence:
+            self.missed += limits.sequence - self.sequence - 1
+        self.sequence = limits.sequence
+        self.value_A = limits.binding_A
+        self.stamp_ns = limits.stamp_ns
+        self.status = limits.status
 
     def applied(self, now_ns: int) -> Tuple[float, str]:
         """Return the limit to carry at ``now_ns`` (the rig's clock, ns) and whose it is."""
@@ -175,8 +181,9 @@ class DriveLimit:
         age_s = (now_ns - self.stamp_ns) * 1e-9
         if age_s > self.watchdog_s:
             return self.fallback_A, f'fallback: the last limit is {age_s:.1f} s old'
-        if self.status != 'ok':
-            return min(self.value_A, self.fallback_A), f'estimator {self.status}'
+        if self.status != LimitStatus.OK:
+            return min(self.value_A, self.fallback_A), \
+                f'estimator fallback: {self.status.name.lower()}'
         return self.value_A, 'estimator'
 
 
@@ -244,7 +251,7 @@ class SimRigNode(Node):
             self.drive = DriveLimit(p['limit_watchdog_s'], p['limit_fallback_A']
                                     or self.cfg.estimator.limits.fallback_current_A)
             # best effort: the watchdog, not the transport, deals with a lost limit
-            self.create_subscription(JointState, prefixed(CURRENT_LIMITS_TOPIC, prefix),
+            self.create_subscription(Float64MultiArray, prefixed(DRIVE_LIMITS_TOPIC, prefix),
                                      self.drive.take, qos_profile_sensor_data)
         # schedule: sample k (1, 2, ...) has duty time k * period and is due at t0 + k * period
         self.t0_ns: Optional[int] = None
@@ -493,7 +500,8 @@ class SimRigNode(Node):
                 'limit_first_clamp_s': rig.first_clamp_s,
                 'limit_largest_cut_A': rig.largest_cut_A,
                 'limit_fallback_s': self.limit_fallback_s,
-                'limits_received': self.drive.received, 'limits_rejected': self.drive.rejected}
+                'limits_received': self.drive.received, 'limits_rejected': self.drive.rejected,
+                'limits_missed': self.drive.missed}
 
     def report(self) -> NodeReport:
         """Return the run's counts and figures as data: what ``live`` summarises."""

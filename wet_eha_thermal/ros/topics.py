@@ -23,6 +23,29 @@ def message_class(type_name: str):
     return getattr(module, parts[2])
 
 
+#: What ``topic_prefix`` says by default: the node's namespace (or /eha at the root).
+FROM_NAMESPACE = ''
+PREFIX_DOC = ("replaces '/eha' in every topic name (not /diagnostics); '' = the node's "
+              'namespace, or /eha when it has none: -r __ns:=/left moves every topic to /left')
+
+
+def resolve_prefix(node, prefix: str) -> str:
+    """
+    Return the prefix of ``node``'s topics: ``prefix``, or its namespace, or /eha at the root.
+
+    So two actuators run side by side as ``-r __ns:=/left`` and ``-r __ns:=/right``
+    while a node started plainly keeps the /eha topics. ValueError for a
+    prefix that is not absolute.
+    """
+    if prefix == FROM_NAMESPACE:
+        namespace = node.get_namespace()
+        return interface.PREFIX if namespace == '/' else namespace.rstrip('/')
+    if not prefix.startswith('/'):
+        raise ValueError(f'parameter topic_prefix = {prefix!r}: must start with /, or be empty '
+                         "(the node's namespace)")
+    return prefix.rstrip('/') or '/'
+
+
 def publish_inputs(publishers, messages, is_pressure, values, stamp) -> None:
     """Publish one sample of every input; pressures carry ``stamp`` in their header."""
     for pub, msg, pressure, value in zip(publishers, messages, is_pressure, values):

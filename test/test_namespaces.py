@@ -1,0 +1,91 @@
+"""
+Two actuators side by side, each an estimator and its simulated rig started with ``-r __ns:=``.
+
+Every topic of a node follows its namespace (``topic_prefix`` left empty):
+the left pair and the right pair share no topic but /diagnostics, and each
+estimator estimates from its own rig. A node started plainly keeps /eha.
+"""
+
+import os
+import time
+
+import pytest
+import rclpy
+from rclpy.experimental import EventsExecutor
+from rclpy.parameter import Parameter
+from rclpy.task import Future
+from ros_domains import claim_domain
+from sensor_msgs.msg import Temperature
+from wet_eha_thermal.ros import topics
+from wet_eha_thermal.ros.estimator_node import EstimatorNode
+from wet_eha_thermal.ros.sim_rig_node import SimRigNode
+
+# this module's own domain, this machine only; conftest puts it in ROS_DOMAIN_ID while it runs
+DOMAIN_ID = claim_domain()
+os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+#: what every node has whatever its namespace: the aggregator's topic and rclpy's own
+SHARED = {'/diagnostics', '/rosout', '/parameter_events'}
+
+
+def _published(node):
+    return {name for name, _ in node.get_publisher_names_and_types_by_node(
+        node.get_name(), node.get_namespace())}
+
+
+def _subscribed(node):
+    return {name for name, _ in node.get_subscriber_names_and_types_by_node(
+        node.get_name(), node.get_namespace())}
+
+
+def test_two_actuators_by_namespace_share_no_topic(context):
+    nodes, estimates = {}, {'left': [], 'right': []}
+    executor = EventsExecutor(context=context)
+    probe = rclpy.create_node('namespace_probe', context=context)
+    try:
+        for side, stage in (('left', 6), ('right', 1)):
+            ns = ['--ros-args', '-r', f'__ns:=/{side}']
+            # light: two of each in one thread on a shared machine
+            nodes[side, 'estimator'] = EstimatorNode(
+                context=context, cli_args=ns,
+                parameter_overrides=[Parameter('background_budget_ms', value=0.0)])
+            nodes[side, 'rig'] = SimRigNode(context=context, cli_args=ns, parameter_overrides=[
+                Parameter('stage', value=stage), Parameter('rate_Hz', value=50.0),
+                Parameter('noise', value=False)])
+            probe.create_subscription(Temperature, f'/{side}/estimate/winding_hotspot',
+                                      estimates[side].append, 100)
+        for node in [*nodes.values(), probe]:
+            executor.add_node(node)
+        never = Future()
+        end = time.monotonic() + 40.0
+        while time.monotonic() < end and min(len(v) for v in estimates.values()) < 20:
+            executor.spin_until_future_complete(never, timeout_sec=0.2)
+        counts = {side: len(v) for side, v in estimates.items()}
+        assert min(counts.values()) >= 20, counts
+        for side in ('left', 'right'):
+            est, rig = nodes[side, 'estimator'], nodes[side, 'rig']
+            assert est.get_fully_qualified_name() == f'/{side}/eha_thermal_estimator'
+            assert est.prefix == f'/{side}' and est.topic_names['current_A'] == f'/{side}/current'
+            own = (_published(est) | _subscribed(est) | _published(rig) | _subscribed(rig)) \
+                - SHARED
+            assert own and all(t.startswith(f'/{side}/') for t in own), own
+            # each estimator takes its own rig's samples
+            assert est.session.health['current_A'].accepted > 20
+        # stage 1 and stage 6 drive different currents: the estimates part
+        left = nodes['left', 'estimator'].session.health['current_A'].last_value
+        right = nodes['right', 'estimator'].session.health['current_A'].last_value
+        assert left != right
+    finally:
+        executor.shutdown()
+        for node in [*nodes.values(), probe]:
+            node.destroy_node()
+
+
+def test_a_plain_node_keeps_eha_and_a_prefix_must_be_absolute(context):
+    node = rclpy.create_node('prefix_probe', context=context)
+    try:
+        assert topics.resolve_prefix(node, '') == '/eha'
+        assert topics.resolve_prefix(node, '/rig_b/') == '/rig_b'
+        with pytest.raises(ValueError, match="topic_prefix = 'left': must start with /"):
+            topics.resolve_prefix(node, 'left')
+    finally:
+        node.destroy_node()
