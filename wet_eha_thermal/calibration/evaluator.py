@@ -10,7 +10,7 @@ parameter sets over logs inline, in forked processes or on a Dask client:
 the same numbers either way.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 import multiprocessing
 import time
@@ -35,7 +35,8 @@ def run_config(cfg: Config, log: LogData) -> Config:
     correction = getattr(cfg.estimator, 'correction', None)
     if getattr(correction, 'enabled', False):
         values['estimator.correction.enabled'] = False
-    return with_values(cfg, values)
+    # a fit compares estimates, not their sigmas: no copies of the model to propagate them
+    return replace(with_values(cfg, values), uncertainty=None)
 
 
 def simulate_log(log: LogData, cfg: Config,
