@@ -204,13 +204,13 @@ def test_estimator_on_sim_time_stamps_within_the_bag(played, bag3):
     stamps = [m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for m in played.estimates]
     # 50 Hz estimates over the 3 s of the bag when the estimator keeps up (this process
     # also takes every message raw: under load it falls behind and drops a few)
-    assert len(stamps) > 50, played.estimator.est.health
+    assert len(stamps) > 50, played.estimator.session.health
     assert all(b > a for a, b in zip(stamps, stamps[1:]))
     assert info.start_time_ns * 1e-9 <= stamps[0] and stamps[-1] <= info.end_time_ns * 1e-9
     assert all(15.0 < m.temperature < 80.0 for m in played.estimates)
     # /clock came first: no sample had to wait for it
     assert played.estimator.waiting_for_clock == 0
-    assert all(h.received > 0 for h in played.estimator.est.health.values())
+    assert all(h.received > 0 for h in played.estimator.session.health.values())
 
 
 def test_step_follows_the_scaled_timeline_and_the_clock_jumps_back_in_loops(context, tmp_path):
