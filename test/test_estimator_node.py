@@ -144,7 +144,7 @@ def rig(context):
 
 def open_loop_sigma(rig, name):
     """Return the estimator's propagated 1 sigma of ``name`` (K), without the fallback growth."""
-    est = rig.node.est
+    est = rig.node.session._est      # the estimator behind the session: its propagation
     return float(est.propagation.sigma_K()[est.model.quantities.names.index(name)])
 
 
