@@ -65,8 +65,16 @@ def compiled_model():
 
 @pytest.fixture(scope='session')
 def cfg():
-    """Return the reference configuration (frozen: the tests share one)."""
-    return load_config()
+    """
+    Return the reference configuration (frozen: the tests share one), copies once a minute.
+
+    The uncertainty's copies step over each ``uncertainty.copy_period_s``;
+    tests drive estimators in long steps through long silences, where 31
+    copies every 10 s of sample time cost several times the model (a live
+    node at 0.02 s steps spends a fifth of its time on them). The sigma's
+    own tests (test_uncertainty.py) and the nodes run the shipped 10 s.
+    """
+    return load_config(overrides={'uncertainty.copy_period_s': 60.0})
 
 
 @pytest.fixture(scope='module', autouse=True)

@@ -22,7 +22,9 @@ def test_thermocouples_read_the_mean_or_the_mid_stack_point(points):
     motor, out = rig.truth.motor, rig.truth.outputs()
     slot = motor.T[motor.idx_copper[:2]]
     frame = motor.T[motor.idx_frame]
-    assert abs(slot[1] - slot[0]) > 0.01       # the two readings can tell mean from point
+    # the two readings can tell mean from point: they differ by a million times the 1e-9 K
+    # the comparisons below allow (about 5 mK; the oil warms along the stack)
+    assert abs(slot[1] - slot[0]) > 1e-3
     if points:
         assert tc['winding'] == pytest.approx(np.mean(slot), abs=1e-9)
         assert tc['frame'] == pytest.approx(np.mean(frame), abs=1e-9)

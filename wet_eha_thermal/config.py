@@ -470,10 +470,6 @@ class Config:
         if abs(per_step - round(per_step)) > 1e-9 * per_step:
             raise ConfigError(f'uncertainty.copy_period_s = {u.copy_period_s!r}: not a whole '
                               f'number of estimator.step_s = {self.estimator.step_s!r}')
-        if self.motor.slices * u.structural.slices_factor > 50:
-            raise ConfigError(f'uncertainty.structural.slices_factor = '
-                              f'{u.structural.slices_factor!r}: times motor.slices = '
-                              f'{self.motor.slices!r} exceeds the 50 slices allowed')
 
 
 def config_dir() -> Path:

@@ -45,8 +45,9 @@ class Structural:
     """What no parameter covers: the discretisation, the choice of law, the rest."""
 
     slices_factor: int = spec(1, 10, default=2, doc=(
-        'a copy of the model with this many times motor.slices: its difference from the '
-        'configured model counts as one sigma of the axial discretisation (1: none)'))
+        'a copy of the model with this many times motor.slices (at most the 50 allowed): its '
+        'difference from the configured model counts as one sigma of the axial '
+        'discretisation (1: none)'))
     other_laws: bool = spec(default=True, doc=(
         'copies with each other choice of ' + ' and '.join(LAW_KEYS) + ': the difference '
         'between two laws the literature offers for one surface counts as one sigma'))

@@ -19,7 +19,7 @@ each other law the configuration can select, taken as one sigma), plus
 
 Cost and time: the copies step once per ``copy_period_s`` of sample time, one
 model step over the period's duty (the estimator's steps, as their means:
-the current as the RMS), so 31 copies of the reference rig cost about 31
+the current as the RMS; a silence the estimator held, a step of its own), so 31 copies of the reference rig cost about 31
 model steps per 10 s. They are worked in the background between estimates
 (:meth:`Propagation.work`) and any still pending when the next period ends
 are stepped there and then, so the uncertainty depends on the samples alone:
@@ -66,8 +66,9 @@ class Propagation:
             m.motor.check_rotor_validity = False     # the copies' validity is not reported
             m.oil_substep_s = s.forecast_substep_s
             self.models.append(m)
-        self._samples: List[tuple] = []       # this period's step means
-        self._job: Optional[SampleBlock] = None
+        self._samples: List[np.ndarray] = []  # this period's step means, a row per group
+        self._held: List[bool] = []           # whether each of them is a held block's
+        self._job: Optional[List[SampleBlock]] = None   # the waiting period, in segments
         self._last_s = 0.0                    # the last step's end (model time s)
         self._pending = False                 # a period stepped (or being) but not taken
         self._next = 0                        # next copy the job steps
@@ -94,7 +95,7 @@ class Propagation:
         """Start the copies where the estimator's model starts."""
         for m in self.models:
             m.initialise(ambient_K, first)
-        self._samples = []
+        self._samples, self._held = [], []
         self._job = None
         self._pending = False
         self._last_s = float(first.t_s[-1])
@@ -120,13 +121,22 @@ class Propagation:
         groups = max(1, n // per)
         ends = np.linspace(0, n, groups + 1).round().astype(int)[1:]
         starts = np.concatenate([[0], ends[:-1]])
-        for a, b in zip(starts, ends):
-            self._samples.append((self._last_s - span * (n - b) / n,
-                                  math.sqrt(float(np.mean(block.current_A[a:b] ** 2))),
-                                  *(float(np.mean(x[a:b])) for x in (
-                                      block.speed_rad_s, block.p_a_Pa, block.p_b_Pa,
-                                      block.p_acc_Pa)),
-                                  float(block.position_m[b - 1])))
+        count = (ends - starts).astype(float)
+
+        def means(x):
+            return np.add.reduceat(x, starts) / count
+
+        rows = np.column_stack((
+            self._last_s - span * (n - ends) / n, np.sqrt(means(block.current_A ** 2)),
+            means(block.speed_rad_s), means(block.p_a_Pa), means(block.p_b_Pa),
+            means(block.p_acc_Pa), block.position_m[ends - 1]))
+        held = steps_after - steps_before > 1
+        if held and self._held and self._held[-1] \
+                and np.array_equal(self._samples[-1][0, 1:], rows[0, 1:]):
+            self._samples[-1] = rows      # the same silence, held longer: one step crosses it
+        else:
+            self._samples.append(rows)
+            self._held.append(held)
         p = self.period_steps
         if steps_after // p == steps_before // p:
             return False
@@ -141,8 +151,20 @@ class Propagation:
         """Make the duty recorded since the last period the copies' job."""
         # contiguous rows: the kernels of the estimator's own steps, not strided variants
         # that numba would load (or compile) at the first period's end, inside a callback
-        self._job = SampleBlock(*(np.ascontiguousarray(c) for c in np.array(self._samples).T))
-        self._samples = []
+        # a held block (a silence crossed) is a segment of its own: the copies cross it in
+        # one exact step, as the estimator did, not in oil sub-steps over all of it
+        segments, run = [], []
+        for rows, held in zip(self._samples, self._held):
+            if held:
+                segments += [run, [rows]] if run else [[rows]]
+                run = []
+            else:
+                run.append(rows)
+        if run:
+            segments.append(run)
+        self._job = [SampleBlock(*(np.ascontiguousarray(c) for c in np.concatenate(seg).T))
+                     for seg in segments]
+        self._samples, self._held = [], []
         self._next = 0
         self._ambient_K = ambient_K
 
@@ -173,11 +195,10 @@ class Propagation:
     def _step_next(self) -> None:
         """Step the next copy over the waiting period."""
         t0 = time.process_time()
-        job = self._job
         k = self._next
         m = self.models[k]
-        span = float(job.t_s[-1] - m.time_s)
-        m.step(job, self._ambient_K, max_substep_s=span)
+        for block in self._job:
+            m.step(block, self._ambient_K, max_substep_s=float(block.t_s[-1] - m.time_s))
         out = m.outputs()
         self._y[k] = [out[n] for n in self.names]
         if k <= len(self.params):

@@ -110,8 +110,10 @@ def structural_perturbations(cfg: Config) -> List[Perturbation]:
     """Return the structural alternatives: finer slices, each other selectable law."""
     s = cfg.uncertainty.structural
     alternatives = []
-    if s.slices_factor > 1:
-        alternatives.append(('motor.slices', cfg.motor.slices * s.slices_factor))
+    # finer slices, as many as allowed (none when the model already has the most)
+    finer = min(cfg.motor.slices * s.slices_factor, _meta(cfg, 'motor.slices')['high'])
+    if finer > cfg.motor.slices:
+        alternatives.append(('motor.slices', finer))
     if s.other_laws:
         for key in LAW_KEYS:
             nominal = config_value(cfg, key)
