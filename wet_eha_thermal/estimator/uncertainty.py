@@ -17,14 +17,15 @@ part is the same difference for the copies of
 each other law the configuration can select, taken as one sigma), plus
 ``rise_fraction`` of each temperature's rise above ambient.
 
-Cost and time: the copies step once per ``copy_period_s`` of sample time, one
-model step over the period's duty (the estimator's steps, as their means:
-the current as the RMS; a silence the estimator held, a step of its own),
-so 31 copies of the reference rig cost about 31 model steps per 10 s. They are worked in the background between estimates
+Cost and time: the copies step once per ``copy_period_s`` of sample time,
+one model step over the period's duty (the estimator's steps, as their
+means: the current as the RMS; a silence the estimator held, a step of its
+own), so 31 copies of the reference rig cost about 31 model steps per 10
+s. They are worked in the background between estimates
 (:meth:`Propagation.work`) and any still pending when the next period ends
-are stepped there and then, so the uncertainty depends on the samples alone:
-a replay gives the live sigmas bit for bit. The sigmas published during a
-period are those of the copies at its start (one period late).
+are stepped there and then, so the uncertainty depends on the samples
+alone: a replay gives the live sigmas bit for bit. The sigmas published
+during a period are those of the copies at its start (one period late).
 
 With the live correction on, the filter (:mod:`.correction`) takes the
 parameter part as process noise: at each period, the covariance of the
