@@ -32,10 +32,11 @@ from std_msgs.msg import Float64, Float64MultiArray, String
 from test_foxglove_view import Client
 from wet_eha_thermal import interface
 from wet_eha_thermal.config import default_config_path
-from wet_eha_thermal.inputs import decoders, load_inputs
+from wet_eha_thermal.inputs import AMBIENT, decoders, load_inputs, thermocouple_channel
 from wet_eha_thermal.live_view import CHANNELS, view_topics
 from wet_eha_thermal.ros import topics
 from wet_eha_thermal.ros.estimator_node import EstimatorNode
+from wet_eha_thermal.units import C_TO_K
 import yaml
 
 pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
@@ -321,12 +322,16 @@ class JointStateBroadcasters:
     MOTOR = {'velocity': VALUES['speed_rad_s'], 'effort': VALUES['current_A'] * math.sqrt(2.0)}
     ROD = -VALUES['position_m']
     GAUGE_BAR = {f'pressure_{n}': VALUES[f'p_{n}_Pa'] / 1e5 - 1.01325 for n in ('a', 'b', 'acc')}
+    # the air and the frame's thermocouple, degC (the frame at what a cold start estimates)
+    TEMPERATURES_C = {'ambient': 23.5, 'tc_frame': 23.5}
 
     def __init__(self, probe):
         self.probe = probe
         self.joints = probe.create_publisher(JointState, '/joint_states', 100)
         self.pressures = probe.create_publisher(
             JointState, '/pressure_state_broadcaster/joint_states', 100)
+        self.temperatures = probe.create_publisher(
+            JointState, '/temperature_state_broadcaster/joint_states', 10)
 
     def publish(self):
         stamp = self.probe.get_clock().now().to_msg()
@@ -339,6 +344,10 @@ class JointStateBroadcasters:
         msg = JointState(name=names, effort=[self.GAUGE_BAR[n] for n in names])
         msg.header.stamp = stamp
         self.pressures.publish(msg)
+        names = list(self.TEMPERATURES_C)
+        msg = JointState(name=names, effort=[self.TEMPERATURES_C[n] for n in names])
+        msg.header.stamp = stamp
+        self.temperatures.publish(msg)
 
 
 def test_a_ros2_control_rig_connects_with_a_parameters_file(context):
@@ -382,6 +391,11 @@ def test_a_ros2_control_rig_connects_with_a_parameters_file(context):
         assert topics_of['wet_eha_thermal: input p_acc_Pa'] == \
             '/pressure_state_broadcaster/joint_states'
         assert node.count_subscribers('/joint_states') == 1
+        # the air and the thermocouple from their joints, in degC, at the message's stamp
+        assert node.session.ambient_K == pytest.approx(23.5 + C_TO_K, rel=1e-12)
+        assert node.session.measured_C['frame'][1] == pytest.approx(23.5, rel=1e-12)
+        assert topics_of['wet_eha_thermal: thermocouple frame'] == \
+            '/temperature_state_broadcaster/joint_states'
         stamps = _stamps(estimates)
         assert all(b > a for a, b in zip(stamps, stamps[1:]))
     finally:
@@ -722,20 +736,18 @@ def test_a_replay_writes_what_the_node_published_for_the_same_samples(
         published = defaultdict(list)
         for topic, pub in node.pubs.items():
             pub.publish = functools.partial(lambda t, msg: published[t].append(msg), topic)
-        by_topic = {topic: name for name, topic in plan.inputs.items()}
-        by_tc = {topic: tc for tc, topic in plan.thermocouples.items()}
         clock = {'ns': 0}
         node.clock.now_ns = lambda: clock['ns']
-        # the node's callbacks with the decoders of the default inputs (the rig's topics)
-        decoder = {dec.channels[0]: dec for dec in decoders(load_inputs(''), node.session.inputs)}
-        for m in iter_raw(bag, list(by_topic) + [plan.ambient] + list(by_tc)):
+        # the node's callback with the decoders of the default inputs, ambient and
+        # thermocouples (the rig's topics)
+        channels = list(node.session.inputs) + [AMBIENT] + [
+            thermocouple_channel(tc) for tc in interface.THERMOCOUPLES]
+        decoder = {dec.topic: dec for dec in decoders(load_inputs(''), channels)}
+        topics_read = list(plan.inputs.values()) + [plan.ambient] + list(
+            plan.thermocouples.values())
+        for m in iter_raw(bag, topics_read):
             clock['ns'] = m.log_time_ns
-            if m.topic in by_topic:
-                node._on_input(decoder[by_topic[m.topic]], m.data)
-            elif m.topic in by_tc:
-                node._on_measured(by_tc[m.topic], deserialize_message(m.data, Temperature))
-            else:
-                node._on_ambient(deserialize_message(m.data, Temperature))
+            node._on_input(decoder[m.topic], m.data)
             while node.session.work(1.0):       # the limits never wait (replay's are inline)
                 pass
         assert not node.callback_errors and node.session.model_errors == 0

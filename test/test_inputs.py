@@ -17,7 +17,7 @@ from wet_eha_thermal.config import ConfigError, load_config
 from wet_eha_thermal.estimator.core import INPUTS
 from wet_eha_thermal.estimator.session import EstimatorSession
 from wet_eha_thermal.inputs import (decoders, encode_batch, Inputs, inputs_from_yaml,
-                                    load_inputs, TopicDecoder)
+                                    load_inputs, thermocouple_channel, TopicDecoder)
 import yaml
 
 
@@ -97,6 +97,37 @@ def test_units_scale_offset_and_sign():
         [pytest.approx(-0.004, rel=1e-15)]
     assert by_channel['current_A'].decode(cdr.encode_float64(10.0))[1] == \
         [pytest.approx(10.0 / math.sqrt(2.0), rel=1e-15)]
+
+
+def test_temperatures_in_degc_degf_or_kelvin_by_name():
+    s = spec("""
+        ambient: {topic: /air, message_type: std_msgs/msg/Float64, unit: degF}
+        thermocouples:
+          frame: {topic: /tc, message_type: std_msgs/msg/Float64MultiArray, columns: 2,
+                  column: 1, unit: K}
+          winding: {topic: /tc, message_type: std_msgs/msg/Float64MultiArray, columns: 2,
+                    column: 0, unit: degC, offset: -0.4}""")
+    channels = ['ambient'] + [thermocouple_channel(tc) for tc in interface.THERMOCOUPLES]
+    by_topic = {d.topic: d for d in decoders(s, channels)}
+    # 68 degF is 20 degC (NIST SP 811: T/K = (t/degF + 459.67) / 1.8)
+    assert by_topic['/air'].decode(cdr.encode_float64(68.0))[1] == \
+        [pytest.approx(293.15, rel=1e-15)]
+    # one block carries two thermocouples; the winding's reads 0.4 K high
+    block = by_topic['/tc']
+    assert block.channels == (thermocouple_channel('winding'), thermocouple_channel('frame'))
+    _, values = block.decode_batch(encode_batch(5.0, 0.1, np.array([[30.4, 303.15]])))
+    assert values.tolist() == [[pytest.approx(303.15, rel=1e-15)] * 2]
+    # the thermocouples not named keep today's topic, a Temperature in degC
+    pump = s.signal(thermocouple_channel('pump_case'))
+    assert (pump.topic, pump.message_type) == ('/eha/measured/pump_case', interface.TEMPERATURE)
+    assert pump.to_si() == (1.0, 273.15)
+    for text, message in [
+            ('thermocouples: {elbow: {topic: /x, message_type: std_msgs/msg/Float64, unit: K}}',
+             'inputs.thermocouples: unknown elbow; allowed: winding, frame, '),
+            ('ambient: {topic: /x, message_type: std_msgs/msg/Float64, unit: bar}',
+             "inputs.ambient.unit = 'bar': not a unit of K; allowed: K, degC, degF")]:
+        with pytest.raises(ConfigError, match=message):
+            spec(text)
 
 
 ROS2_CONTROL = """

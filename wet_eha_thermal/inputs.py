@@ -8,6 +8,10 @@ blocks: a YAML file with one ``inputs:`` mapping, loaded into :class:`Inputs`
 and checked before the node subscribes (one :class:`~.config.ConfigError`
 naming the key). An input left out keeps its default, today's topic of
 :mod:`.interface`; with no file at all the estimator listens as it always did.
+The same blocks declare the ``ambient`` temperature and, under
+``thermocouples:``, each thermocouple of the live correction by its name in
+:data:`.interface.THERMOCOUPLES` (a temperature in K, degC or degF; by
+default a ``sensor_msgs/Temperature`` in degC on today's topic).
 
 Per input (:class:`InputSignal`):
 
@@ -21,7 +25,8 @@ Per input (:class:`InputSignal`):
   topic (one /joint_states carries speed, current and position): it is
   subscribed once and decoded once per message.
 - ``unit`` (a name of :data:`.units.BY_NAME`: A, A_peak, mA, rad/s, r/min,
-  deg/s, Pa, kPa, MPa, bar, psi, m, mm), ``scale``, ``offset`` and ``sign``:
+  deg/s, Pa, kPa, MPa, bar, psi, m, mm, K, degC, degF), ``scale``, ``offset``
+  and ``sign``:
   the SI value the estimator takes is ``(sign * scale * raw + offset)``
   expressed in ``unit``, converted to SI. A gauge pressure sensor in bar takes
   ``offset: 1.01325`` (the estimator's pressures are absolute).
@@ -70,7 +75,16 @@ TYPES = (FLOAT64, FLUID_PRESSURE, TEMPERATURE, JOINT_STATE, BATCH)
 JOINT_FIELDS = ('position', 'velocity', 'effort')
 #: The SI unit of each input (what the estimator takes).
 SI_UNIT = {'current_A': 'A', 'speed_rad_s': 'rad/s', 'p_a_Pa': 'Pa', 'p_b_Pa': 'Pa',
-           'p_acc_Pa': 'Pa', 'dp_Pa': 'Pa', 'position_m': 'm'}
+           'p_acc_Pa': 'Pa', 'dp_Pa': 'Pa', 'position_m': 'm', 'ambient': 'K'}
+#: The channel of the ambient temperature (taken in degC by the session).
+AMBIENT = 'ambient'
+
+
+def thermocouple_channel(tc: str) -> str:
+    """Return the channel of thermocouple ``tc``: its topic's name under /eha (``measured/tc``)."""
+    return f'{interface.MEASURED_PREFIX}/{tc}'
+
+
 #: The fewest leading numbers of a batched block: t0_s and dt_s.
 BATCH_HEAD = 2
 
@@ -121,13 +135,19 @@ class InputSignal:
     def to_si(self) -> Tuple[float, float]:
         """Return (gain, bias): the estimator's value is ``gain * raw + bias`` (SI)."""
         factor = units.BY_NAME[self.unit][1]
-        return self.sign * self.scale * factor, self.offset * factor
+        return self.sign * self.scale * factor, \
+            (self.offset + units.ZERO.get(self.unit, 0.0)) * factor
 
 
 def _default(name: str) -> InputSignal:
     """Return today's input ``name``: its interface topic, Float64 or FluidPressure, SI."""
     return InputSignal(topic=interface.INPUT_TOPICS[name],
                        message_type=interface.INPUT_TYPES[name], unit=SI_UNIT[name])
+
+
+def _temperature(topic: str) -> InputSignal:
+    """Return today's temperature on ``topic``: a sensor_msgs/Temperature in degC."""
+    return InputSignal(topic=topic, message_type=TEMPERATURE, unit='degC')
 
 
 def _default_field(name: str, doc: str):
@@ -150,16 +170,35 @@ class Inputs:
     p_acc_Pa: InputSignal = _default_field('p_acc_Pa', 'accumulator pressure, absolute (Pa)')
     dp_Pa: InputSignal = _default_field('dp_Pa', 'port A minus port B (Pa)')
     position_m: InputSignal = _default_field('position_m', 'rod position (m)')
+    ambient: InputSignal = spec(
+        default_factory=lambda: _temperature(interface.AMBIENT_TOPIC),
+        doc="the air around the actuator: the housings' heat loss (default: the model's)")
+    thermocouples: Dict[str, InputSignal] = spec(default_factory=dict, doc=(
+        "the live correction's thermocouples by name (" + ', '.join(interface.THERMOCOUPLES)
+        + '); one left out is a sensor_msgs/Temperature in degC on /eha/measured/<name>'))
+
+    def signal(self, channel: str) -> InputSignal:
+        """Return the signal of ``channel``: an input, ``ambient`` or a thermocouple's."""
+        prefix = thermocouple_channel('')
+        if channel.startswith(prefix):
+            tc = channel[len(prefix):]
+            return self.thermocouples.get(tc) or _temperature(channel)
+        return getattr(self, channel)
 
     def check(self, key: str) -> None:
-        """Check each unit is of its input's quantity."""
-        for f in fields(self):
-            sig = getattr(self, f.name)
-            si = units.BY_NAME[sig.unit][0]
-            if si != SI_UNIT[f.name]:
-                allowed = [u for u, (s, _) in units.BY_NAME.items() if s == SI_UNIT[f.name]]
-                raise ConfigError(f'{key}.{f.name}.unit = {sig.unit!r}: not a unit of '
-                                  f'{SI_UNIT[f.name]}; allowed: {", ".join(allowed)}')
+        """Check each unit is of its input's quantity, and each thermocouple's name."""
+        unknown = sorted(set(self.thermocouples) - set(interface.THERMOCOUPLES))
+        if unknown:
+            raise ConfigError(f'{key}.thermocouples: unknown {", ".join(unknown)}; allowed: '
+                              f'{", ".join(interface.THERMOCOUPLES)}')
+        named = [(f.name, getattr(self, f.name), SI_UNIT[f.name])
+                 for f in fields(self) if f.name != 'thermocouples']
+        named += [(f'thermocouples.{tc}', sig, 'K') for tc, sig in self.thermocouples.items()]
+        for name, sig, si_unit in named:
+            if units.BY_NAME[sig.unit][0] != si_unit:
+                allowed = [u for u, (s, _) in units.BY_NAME.items() if s == si_unit]
+                raise ConfigError(f'{key}.{name}.unit = {sig.unit!r}: not a unit of '
+                                  f'{si_unit}; allowed: {", ".join(allowed)}')
 
 
 def inputs_from_yaml(text: str, origin: str = 'inputs') -> Inputs:
@@ -368,7 +407,7 @@ def decoders(spec: Inputs, channels: Sequence[str]) -> List[TopicDecoder]:
     """Return one decoder per topic carrying any of ``channels``, in the order first named."""
     by_topic: Dict[str, list] = {}
     for name in channels:
-        sig = getattr(spec, name)
+        sig = spec.signal(name)
         by_topic.setdefault(sig.topic, []).append((name, sig))
     return [TopicDecoder(topic, signals) for topic, signals in by_topic.items()]
 

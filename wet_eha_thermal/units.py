@@ -52,4 +52,9 @@ BY_NAME = {
     'Pa': ('Pa', 1.0), 'kPa': ('Pa', KPA), 'MPa': ('Pa', MPA), 'bar': ('Pa', BAR),
     'psi': ('Pa', PSI),
     'm': ('m', 1.0), 'mm': ('m', MM),
+    'K': ('K', 1.0), 'degC': ('K', 1.0), 'degF': ('K', 5.0 / 9.0),
 }
+#: The units whose zero is not the SI zero: the value of absolute zero in the unit, negated
+#: (a reading ``x`` in the unit is ``(x + ZERO[unit]) * factor`` in SI: 20 degC is 293.15 K,
+#: 68 degF is (68 + 459.67) * 5/9 = 293.15 K).
+ZERO = {'degC': C_TO_K, 'degF': 459.67}

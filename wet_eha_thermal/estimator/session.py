@@ -436,6 +436,11 @@ class EstimatorSession:
         return self._est.ambient_K - C_TO_K
 
     @property
+    def ambient_K(self) -> float:
+        """Return the ambient the model runs on (K): the configured one, or the last reading."""
+        return self._est.ambient_K
+
+    @property
     def measured_C(self) -> Dict[str, Tuple[float, float]]:
         """Return the latest reading of each thermocouple: (stamp s, degC), a copy."""
         return dict(self._est.measured_C)

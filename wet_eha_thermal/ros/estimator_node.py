@@ -27,9 +27,11 @@ summary whenever it changes (latched). The rest of each tick's budget
 (``background_budget_ms``) goes to the limits, the forecast and the margin;
 each tick's limits go out as the JointState, the binding Float64 and the
 drive's numbers (``/eha/drive/limits``, :class:`~wet_eha_thermal.interface.DriveLimits`).
-Thermocouples (``/eha/measured/<tc>``) go to the session with their header
-stamps: with the live correction on they correct the model, and /diagnostics
-carries one status per thermocouple (used, held, dropped or stale).
+The ambient temperature and the thermocouples are declared in the same file
+(by default sensor_msgs/Temperature in degC on ``/eha/ambient`` and
+``/eha/measured/<tc>``) and go to the session in degC: with the live
+correction on the thermocouples correct the model, and /diagnostics carries
+one status per thermocouple (used, held, dropped or stale).
 
 Time: samples stamped more than ``estimator.max_future_s`` ahead of the clock
 are rejected; the clock going back by more than ``estimator.clock_jump_s``
@@ -80,6 +82,7 @@ from wet_eha_thermal.ros.runtime import (declare_parameters, descriptor, FastClo
                                          prepare_model_step, Readiness, run_node,
                                          shared_parameters)
 from wet_eha_thermal.ros.whatif_service import WhatIfService
+from wet_eha_thermal.units import C_TO_K
 
 NODE_NAME = interface.ESTIMATOR_NODE
 
@@ -191,20 +194,22 @@ class EstimatorNode(Node):
         """Subscribe to the inputs (raw), the ambient, the thermocouples and the acks."""
         # inputs, raw: decoded here in a fraction of rclpy's deserialisation; one
         # subscription per topic, whatever number of inputs it carries
+        # the ambient and the thermocouples too: a temperature in K, taken in degC
+        s = self.session
+        self._takers = {name: functools.partial(s.take, name) for name in s.inputs}
+        self._takers[inputs.AMBIENT] = lambda t, v, now: s.add_ambient(t, v - C_TO_K)
+        for tc in interface.THERMOCOUPLES:
+            self._takers[inputs.thermocouple_channel(tc)] = functools.partial(
+                lambda name, t, v, now: s.add_measured(name, t, v - C_TO_K), tc)
         input_subs = []
-        for dec in inputs.decoders(input_spec, self.session.inputs):
+        for dec in inputs.decoders(input_spec, list(self._takers)):
             topic = self._topic(dec.topic)
             cb = functools.partial(self._on_batch if dec.batched else self._on_input, dec)
             kind = topics.message_class(dec.message_type)
-            input_subs.append(self.create_subscription(kind, topic, cb, in_qos, raw=True))
+            sub = self.create_subscription(kind, topic, cb, in_qos, raw=True)
+            if any(c in s.inputs for c in dec.channels):
+                input_subs.append(sub)
             self.topic_names.update(dict.fromkeys(dec.channels, topic))
-        self.create_subscription(Temperature, self._topic(interface.AMBIENT_TOPIC),
-                                 self._on_ambient, in_qos)
-        for tc in interface.THERMOCOUPLES:
-            key = f'{interface.MEASURED_PREFIX}/{tc}'
-            self.topic_names[key] = self._topic(key)
-            self.create_subscription(Temperature, self.topic_names[key],
-                                     functools.partial(self._on_measured, tc), in_qos)
         self.create_subscription(String, self._topic(interface.ACK_TOPIC), self._on_ack,
                                  QoSProfile(depth=10))
         return input_subs
@@ -240,11 +245,6 @@ class EstimatorNode(Node):
         ns = self.clock.now_ns()
         return ns * 1e-9 if ns > 0 else None
 
-    def _header_s(self, stamp: TimeMsg) -> Optional[float]:
-        if stamp.sec == 0 and stamp.nanosec == 0:
-            return self._now_s()
-        return stamp.sec + 1e-9 * stamp.nanosec
-
     def destroy_node(self) -> None:
         """Stop the Foxglove view and the what-if worker, then destroy the node."""
         self.view.close()
@@ -276,7 +276,7 @@ class EstimatorNode(Node):
                     return
             now = now_ns * 1e-9 if now_ns else None
             for channel, value in zip(dec.channels, values):
-                self.session.take(channel, stamp_ns * 1e-9, value, now)
+                self._takers[channel](stamp_ns * 1e-9, value, now)
         except Exception as exc:  # noqa: B902 - a callback never raises
             self._input_failed(dec, exc)
 
@@ -287,25 +287,13 @@ class EstimatorNode(Node):
             stamps, values = dec.decode_batch(data)
             now = self._now_s()
             for k, channel in enumerate(dec.channels):
-                self.session.take_many(channel, stamps, values[:, k], now)
+                if channel in self.session.inputs:
+                    self.session.take_many(channel, stamps, values[:, k], now)
+                else:               # a temperature in a block: rare, sample by sample
+                    for t, v in zip(stamps.tolist(), values[:, k].tolist()):
+                        self._takers[channel](t, v, now)
         except Exception as exc:  # noqa: B902
             self._input_failed(dec, exc)
-
-    def _on_ambient(self, msg: Temperature) -> None:
-        try:
-            t = self._header_s(msg.header.stamp)
-            if t is not None:
-                self.session.add_ambient(t, float(msg.temperature))
-        except Exception as exc:  # noqa: B902
-            self._failed('ambient', exc)
-
-    def _on_measured(self, name: str, msg: Temperature) -> None:
-        try:
-            t = self._header_s(msg.header.stamp)
-            if t is not None:
-                self.session.add_measured(name, t, float(msg.temperature))
-        except Exception as exc:  # noqa: B902
-            self._failed(f'measured/{name}', exc)
 
     def _on_ack(self, msg: String) -> None:
         try:
