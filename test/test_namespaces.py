@@ -9,6 +9,7 @@ estimator estimates from its own rig. A node started plainly keeps /eha.
 import os
 import time
 
+from diagnostic_msgs.msg import DiagnosticArray
 import pytest
 import rclpy
 from rclpy.experimental import EventsExecutor
@@ -38,7 +39,7 @@ def _subscribed(node):
 
 
 def test_two_actuators_by_namespace_share_no_topic(context):
-    nodes, estimates = {}, {'left': [], 'right': []}
+    nodes, estimates, status_names = {}, {'left': [], 'right': []}, set()
     executor = EventsExecutor(context=context)
     probe = rclpy.create_node('namespace_probe', context=context)
     try:
@@ -53,14 +54,23 @@ def test_two_actuators_by_namespace_share_no_topic(context):
                 Parameter('noise', value=False)])
             probe.create_subscription(Temperature, f'/{side}/estimate/winding_hotspot',
                                       estimates[side].append, 100)
+        probe.create_subscription(
+            DiagnosticArray, '/diagnostics',
+            lambda msg: status_names.update(s.name for s in msg.status), 100)
+        # on the one /diagnostics, each node's statuses carry its namespace
+        wanted = {f'wet_eha_thermal/{side}: estimate' for side in ('left', 'right')} | {
+            f'eha_sim_rig/{side}: rig' for side in ('left', 'right')}
         for node in [*nodes.values(), probe]:
             executor.add_node(node)
         never = Future()
         end = time.monotonic() + 40.0
-        while time.monotonic() < end and min(len(v) for v in estimates.values()) < 20:
+        while time.monotonic() < end and (min(len(v) for v in estimates.values()) < 20
+                                          or not wanted <= status_names):
             executor.spin_until_future_complete(never, timeout_sec=0.2)
         counts = {side: len(v) for side, v in estimates.items()}
         assert min(counts.values()) >= 20, counts
+        assert wanted <= status_names, sorted(status_names)
+        assert not any(n.startswith('wet_eha_thermal: ') for n in status_names), status_names
         for side in ('left', 'right'):
             est, rig = nodes[side, 'estimator'], nodes[side, 'rig']
             assert est.get_fully_qualified_name() == f'/{side}/eha_thermal_estimator'

@@ -129,6 +129,27 @@ DRIVE_LIMITS_TOPIC = f'{PREFIX}/drive/limits'
 WHATIF_REQUEST_TOPIC = f'{PREFIX}/whatif/request'
 WHATIF_RESPONSE_TOPIC = f'{PREFIX}/whatif/response'
 DIAGNOSTICS_TOPIC = '/diagnostics'
+#: The first word of the package's diagnostic status names (``wet_eha_thermal: estimate``).
+STATUS_PREFIX = 'wet_eha_thermal'
+
+
+def status_name(what: str, namespace: str = '/', node: str = STATUS_PREFIX) -> str:
+    """
+    Return the diagnostic status name ``node: what``, the node's namespace after ``node``.
+
+    Every node publishes on the one /diagnostics: two actuators' estimators
+    started in namespaces /left and /right report ``wet_eha_thermal/left:
+    estimate`` and ``wet_eha_thermal/right: estimate``, apart in an
+    aggregator; a node in the root namespace keeps ``wet_eha_thermal: estimate``.
+
+    >>> status_name('estimate', '/left')
+    'wet_eha_thermal/left: estimate'
+    >>> status_name('rig', '/', 'eha_sim_rig')
+    'eha_sim_rig: rig'
+    """
+    return f'{node}{namespace.rstrip("/")}: {what}'
+
+
 #: Splits of ``live``'s recording (``--max-bag-duration``, ``--max-bag-size``): a new file
 #: every 10 minutes or 1 GiB, whichever comes first. A file is strictly readable (the mcap
 #: library, rosbags, ros2 bag) once closed with its summary: a crash or a full disk leaves at

@@ -128,6 +128,8 @@ class EstimatorNode(Node):
         self.cfg = load_config(p['config_file'] or None)
         input_spec = inputs.load_inputs(p['inputs_file'])
         self.hardware_id = p['hardware_id']
+        self._status_name = functools.partial(interface.status_name,
+                                              namespace=self.get_namespace())
         self.session = EstimatorSession(self.cfg, outlook='background', publish=self._publish,
                                         budget_s=p['background_budget_ms'] * 1e-3,
                                         hardware_id=self.hardware_id)
@@ -375,7 +377,7 @@ class EstimatorNode(Node):
             arr = DiagnosticArray()
             arr.header.stamp = _stamp_msg(now_ns)
             arr.status = [
-                DiagnosticStatus(level=bytes([d.level]), name=f'wet_eha_thermal: {d.name}',
+                DiagnosticStatus(level=bytes([d.level]), name=self._status_name(d.name),
                                  message=d.message, hardware_id=self.hardware_id,
                                  values=[KeyValue(key=k, value=str(v)) for k, v in d.values])
                 for d in diagnostics.statuses(s, counters, now_ns * 1e-9, self.topic_names,

@@ -97,7 +97,6 @@ from wet_eha_thermal.ros.runtime import (declare_parameters, descriptor, FastClo
 import yaml
 
 NODE_NAME = interface.RECORDER_NODE
-STATUS_NAME = 'wet_eha_thermal: recorder'
 DIAGNOSTICS_PERIOD_S = 1.0
 #: The writer's state is looked at this often (steady clock, s): a change (a fault, a file
 #: closed, writing resumed) is reported at once, not at the next second.
@@ -437,7 +436,8 @@ class RecorderNode(Node):
             arr = DiagnosticArray()
             arr.header.stamp = self.get_clock().now().to_msg()
             arr.status = [DiagnosticStatus(
-                level=bytes([health['level']]), name=STATUS_NAME, message=health['message'],
+                level=bytes([health['level']]), message=health['message'],
+                name=interface.status_name('recorder', self.get_namespace()),
                 hardware_id=self.hardware_id,
                 values=[KeyValue(key=k, value=str(v)) for k, v in values])]
             self.diag_pub.publish(arr)

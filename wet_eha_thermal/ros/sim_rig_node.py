@@ -87,7 +87,7 @@ from wet_eha_thermal.config import ConfigError, load_config
 from wet_eha_thermal.interface import (AMBIENT_TOPIC, DIAGNOSTICS_TOPIC, DRIVE_LIMITS_TOPIC,
                                        DriveLimits, INPUT_TOPICS, LimitStatus, MEASURED_PREFIX,
                                        NodeReport, prefixed, PRESSURE_INPUTS,
-                                       READY_TOPIC, RIG_NODE, THERMOCOUPLES)
+                                       READY_TOPIC, RIG_NODE, status_name, THERMOCOUPLES)
 from wet_eha_thermal.model.kinetics import DutyError, load_duty_csv, stage_duty, STAGES
 from wet_eha_thermal.model.uncertainty import as_built
 from wet_eha_thermal.offline.simulated_rig import (AMBIENT_SIGMA_K, NOISE_SIGMA, SimulatedRig,
@@ -530,7 +530,8 @@ class SimRigNode(Node):
             s['truth_oil_C'] = out['oil'] - C_TO_K
         if self.drive is not None:
             s['limit_source'] = self.limit_source
-        st = DiagnosticStatus(name=f'{NODE_NAME}: rig', hardware_id=NODE_NAME)
+        st = DiagnosticStatus(name=status_name('rig', self.get_namespace(), NODE_NAME),
+                              hardware_id=NODE_NAME)
         late = s['publish_lag_p99_ms'] > 10.0 or self.skipped > 0
         st.level = DiagnosticStatus.WARN if late else DiagnosticStatus.OK
         st.message = 'falling behind the schedule' if late else 'running'
