@@ -754,7 +754,8 @@ def test_a_replay_writes_what_the_node_published_for_the_same_samples(
     finally:
         node.destroy_node()
     for topic in [f'{interface.ESTIMATE_PREFIX}/{n}' for n in interface.ESTIMATES] + [
-            interface.STATE_TOPIC, interface.CURRENT_LIMITS_TOPIC, interface.CURRENT_LIMIT_TOPIC]:
+            interface.STATE_TOPIC, interface.CURRENT_LIMITS_TOPIC, interface.CURRENT_LIMIT_TOPIC,
+            interface.DRIVE_LIMITS_TOPIC]:
         assert len(published[topic]) == len(replayed[topic]) > 0, topic
         assert published[topic] == replayed[topic], topic
     assert len(published[interface.STATE_TOPIC]) == len(result.stamp_s) > 250

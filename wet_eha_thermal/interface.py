@@ -188,6 +188,7 @@ def topic_table(prefix: str = PREFIX) -> Dict[str, Tuple[str, str]]:
     found[ALERT_TOPIC] = (STRING, LATCHED)
     found[CURRENT_LIMITS_TOPIC] = (JOINT_STATE, OUTPUT)
     found[CURRENT_LIMIT_TOPIC] = (FLOAT64, OUTPUT)
+    found[DRIVE_LIMITS_TOPIC] = (FLOAT64_ARRAY, OUTPUT)
     found[READY_TOPIC] = (STRING, LATCHED)
     found[RECORDER_HEALTH_TOPIC] = (STRING, LATCHED)
     found[ACK_TOPIC] = (STRING, OUTPUT)

@@ -78,8 +78,9 @@ def write_mcap(result: ReplayResult, path: Path) -> Path:
     own variance) and ``/eha/state`` (its names once, latched); the alert
     summaries the session published (JSON, on ``/eha/alerts``); with the
     outlook, every tick's limits (a JointState on CURRENT_LIMITS_TOPIC, the
-    binding limit as a Float64 on CURRENT_LIMIT_TOPIC). Each is logged at its
-    sample time, in the order the node publishes them.
+    binding limit as a Float64 on CURRENT_LIMIT_TOPIC, the drive's numbers on
+    DRIVE_LIMITS_TOPIC, numbered from 1 as the node numbers them). Each is
+    logged at its sample time, in the order the node publishes them.
     """
     from ... import messages
     from ...bag.writer import BagWriter, offered_qos
@@ -96,14 +97,18 @@ def write_mcap(result: ReplayResult, path: Path) -> Path:
     if result.outlook:
         # the live node's publishers: reliable, volatile, 10 deep
         topics += [(interface.CURRENT_LIMITS_TOPIC, interface.JOINT_STATE, offered_qos(depth=10)),
-                   (interface.CURRENT_LIMIT_TOPIC, interface.FLOAT64, offered_qos(depth=10))]
+                   (interface.CURRENT_LIMIT_TOPIC, interface.FLOAT64, offered_qos(depth=10)),
+                   (interface.DRIVE_LIMITS_TOPIC, interface.FLOAT64_ARRAY,
+                    offered_qos(depth=10))]
     # the alerts and limits in time order behind the estimates (a summary before the first
     # estimate goes out with it)
     later = sorted([(-math.inf if s is None else s, 0, (
         interface.ALERT_TOPIC, messages.alerts(a), None if s is None else int(round(s * 1e9))))
                     for s, a in result.alerts]
-                   + [(lim.stamp_s, 1, m) for lim in result.current_limits
-                      for m in messages.limits(lim)], key=lambda x: (x[0], x[1]))
+                   + [(lim.stamp_s, 1, m)
+                      for seq, lim in enumerate(result.current_limits, start=1)
+                      for m in messages.limits(lim) + [messages.drive_limits(lim, seq)]],
+                   key=lambda x: (x[0], x[1]))
     build = messages.EstimateMessages()
     temps = [result.temperatures_C[n].tolist() for n in interface.ESTIMATES]
     sigma = [result.uncertainty_K[n].tolist() for n in interface.ESTIMATES]
