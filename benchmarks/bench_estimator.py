@@ -118,6 +118,15 @@ def reliable(depth: int) -> QoSProfile:
 
 
 # ------------------------------------------------------------------ publisher
+def _ticked(st: dict) -> bool:
+    """Note a publisher tick's wall interval since the last; return whether publishing began."""
+    wall = time.perf_counter()
+    if st['last'] is not None:
+        st['intervals'].append(wall - st['last'])
+    st['last'] = wall
+    return st['start'] is not None
+
+
 def run_publisher(args) -> None:
     """Publish the inputs at ``args.rate_Hz`` for ``args.seconds``; print a JSON report."""
     cfg = bench_config(args.pressure)
@@ -143,11 +152,7 @@ def run_publisher(args) -> None:
     period_ns = int(round(1e9 / args.rate_Hz))
 
     def tick() -> None:
-        wall = time.perf_counter()
-        if st['last'] is not None:
-            st['intervals'].append(wall - st['last'])
-        st['last'] = wall
-        if st['start'] is None:
+        if not _ticked(st):
             return
         due = (time.monotonic_ns() - st['start']) // period_ns + 1
         while st['k'] < due:
@@ -170,11 +175,7 @@ def publish_blocks(args, node, q, rows: np.ndarray) -> None:
     period_ns = int(round(1e9 * per_block / args.rate_Hz))
 
     def tick() -> None:
-        wall = time.perf_counter()
-        if st['last'] is not None:
-            st['intervals'].append(wall - st['last'])
-        st['last'] = wall
-        if st['start'] is None:
+        if not _ticked(st):
             return
         elapsed_ns = time.monotonic_ns() - st['start']
         if 't0_s' not in st:

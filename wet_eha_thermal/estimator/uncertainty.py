@@ -20,8 +20,8 @@ each other law the configuration can select, taken as one sigma), plus
 Cost and time: the copies step once per ``copy_period_s`` of sample time,
 one model step over the period's duty (the estimator's steps, as their
 means: the current as the RMS; a silence the estimator held, a step of its
-own), so 31 copies of the reference rig cost about 31 model steps per 10
-s. They are worked in the background between estimates
+own), so 31 copies of the reference rig cost about 31 model steps per
+period. They are worked in the background between estimates
 (:meth:`Propagation.work`) and any still pending when the next period ends
 are stepped there and then, so the uncertainty depends on the samples
 alone: a replay gives the live sigmas bit for bit. The sigmas published
