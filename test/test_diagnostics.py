@@ -12,8 +12,7 @@ VALUES = {'current_A': 15.0, 'speed_rad_s': 800.0, 'p_a_Pa': 3e6, 'p_b_Pa': 1e6,
 
 
 def counters(**kw):
-    base = {'hardware_id': 'rig-7', 'published': 3, 'model_errors': 0, 'model_error': None,
-            'background_errors': 0, 'callback_errors': {}, 'waiting_for_clock': 0,
+    base = {'hardware_id': 'rig-7', 'published': 3, 'callback_errors': {}, 'waiting_for_clock': 0,
             'latency_ms': [], 'view': 'off'}
     return dg.NodeCounters(**{**base, **kw})
 
@@ -68,12 +67,20 @@ def test_a_silent_input_is_stale_holding_its_last_value(est):
     assert s['input current_A'].level == dg.OK
 
 
-def test_rejections_warn_and_a_failing_model_is_an_error(est):
+def test_rejections_warn_and_a_failing_model_is_an_error(est, monkeypatch):
     t = feed(est, 0.0, 1.0)
     s = report(est, t, new_rejected={'current_A': 4})
     assert (s['input current_A'].level, s['input current_A'].message) == (
         dg.WARN, '4 samples rejected since the last report')
-    s = report(est, t, node=counters(model_error='ValueError: boom', model_errors=2))
+
+    def boom(*args, **kwargs):
+        raise ValueError('boom')
+
+    monkeypatch.setattr(est._est, 'advance', boom)      # the model's step fails, twice
+    est.step(t)
+    est.step(t)
+    assert est.status().model_error == 'ValueError: boom'
+    s = report(est, t)
     assert s['estimate'].level == dg.ERROR
     assert s['estimate'].message.endswith('ValueError: boom')
     assert dict(s['estimate'].values)['model errors'] == 2
@@ -92,3 +99,15 @@ def test_with_the_correction_every_thermocouple_has_a_status():
     frame = s['thermocouple frame']
     assert (frame.level, frame.message) == (dg.OK, 'no reading yet')
     assert dict(frame.values)['topic'] == '/eha/measured/frame'
+
+
+def test_the_status_is_a_snapshot_of_the_session(est):
+    before = est.status()
+    assert not before.ready and before.t_model_s is None and before.last_sample_s is None
+    t = feed(est, 0.0, 2.0)
+    st = est.status()
+    assert st.ready and st.t_model_s is not None and st.last_sample_s == pytest.approx(t)
+    assert {n: c.accepted for n, c in st.inputs.items()} == dict.fromkeys(INPUTS, 2000)
+    # a copy: later silences do not change a snapshot taken before them
+    feed(est, t + 10.0, 1.0)
+    assert est.status().gaps.count == 1 and st.gaps.count == 0 == before.gaps.count

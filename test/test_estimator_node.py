@@ -257,7 +257,7 @@ def test_latched_alert_and_acknowledge(context, tmp_path):
     path.write_text(yaml.safe_dump(cfg))
     rig = Rig(context, [Parameter('config_file', value=str(path))])
     try:
-        assert rig.feed(8.0, until=lambda: rig.node.session.alert_level >= WARN)
+        assert rig.feed(8.0, until=lambda: rig.node.session.status().alert_level >= WARN)
         assert rig.feed(2.0, until=lambda: rig.level('estimate') == WARN)
         # a subscriber created after the alert still gets it (transient local)
         late = []
@@ -750,7 +750,7 @@ def test_a_replay_writes_what_the_node_published_for_the_same_samples(
             node._on_input(decoder[m.topic], m.data)
             while node.session.work(1.0):       # the limits never wait (replay's are inline)
                 pass
-        assert not node.callback_errors and node.session.model_errors == 0
+        assert not node.callback_errors and node.session.status().model_errors == 0
     finally:
         node.destroy_node()
     for topic in [f'{interface.ESTIMATE_PREFIX}/{n}' for n in interface.ESTIMATES] + [

@@ -27,10 +27,12 @@ last good estimate goes out again, stamped with the clock
 since the last summary (alerts raised or cleared, gaps, clock steps).
 
 The message building (:mod:`wet_eha_thermal.messages`) turns these records
-into the estimator's topics, for the node and for replay alike.
+into the estimator's topics, for the node and for replay alike. What the
+session has done so far (ready, behind, gaps, clock jumps, the limits' status,
+the counts) is one :class:`SessionStatus` (:meth:`EstimatorSession.status`).
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import math
 from types import MappingProxyType
 from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
@@ -39,8 +41,10 @@ import numpy as np
 
 from .alerts import AlertEvent, AlertRule
 from .core import Estimate, Estimator
+from .intake import DataGaps
 from .limits import CurrentLimits
 from ..config import Config
+from ..interface import InputCounts
 from ..model.eha import EHAModel
 from ..units import C_TO_K
 
@@ -84,6 +88,39 @@ class Samples:
     first_s: Optional[float] = None            # the earliest stamp of the block
 
 
+@dataclass(frozen=True)
+class SessionStatus:
+    """
+    A session at one moment (:meth:`EstimatorSession.status`): what /diagnostics,
+    the node's report and replay's show, read in one call.
+
+    Sample times in s; ``None`` where there is nothing yet.
+    """
+
+    ready: bool                     # an estimate exists (the model has stepped)
+    behind: bool                    # complete steps wait for the next call (step limit hit)
+    t_model_s: Optional[float]      # the sample time the model has stepped to
+    last_sample_s: Optional[float]  # the latest accepted sample's stamp, any input
+    steps: int
+    held_blocks: int                # silences crossed in one held block
+    stale: Tuple[str, ...]          # the inputs on their fallback value
+    inputs: Dict[str, InputCounts]  # each input's samples
+    gaps: DataGaps                  # a copy: the silences of every input at once
+    clock_jumps: int
+    last_clock_jump: Optional[Tuple[float, float]]   # (from s, to s)
+    alert_level: int                # the highest reported: 0 OK, 1 WARN, 2 CRITICAL
+    alert_message: str              # 'OK' or the alerts, worst first
+    limits: Optional[CurrentLimits]     # the latest published, with its status
+    limits_published: int
+    limits_fallback: int            # of those, sent as the fallback
+    limit_ticks_behind: int         # ticks given up (not computed in time)
+    outlook_failures: int           # limits and forecasts that failed
+    forecasts_skipped: int          # a forecast tick while one was under way
+    model_errors: int
+    model_error: Optional[str]      # the failing step's error while the model fails, else None
+    background_errors: int
+
+
 def json_safe(value):
     """Return ``value`` with enums as ints and non-finite floats as None, for strict JSON."""
     if isinstance(value, dict):
@@ -115,12 +152,12 @@ class EstimatorSession:
         #: wall time (s) given to the outlook after each step that made estimates
         self.budget_s = budget_s
         self.hardware_id = hardware_id
-        self.model_errors = 0
-        self.model_error = ''
-        self.model_failing = False
-        self.background_errors = 0
-        self.limits_published = 0      # limits sent, and those as the fallback
-        self.limits_fallback = 0
+        self._model_errors = 0
+        self._model_error = ''
+        self._model_failing = False
+        self._background_errors = 0
+        self._limits_published = 0      # limits sent, and those as the fallback
+        self._limits_fallback = 0
         #: the latest limits published (None before the first)
         self.limits: Optional[CurrentLimits] = None
         self._last: Optional[Estimate] = None
@@ -215,12 +252,12 @@ class EstimatorSession:
         out = Output()
         try:
             out.estimates = est.advance_all(now_s) if all_steps else est.advance(now_s)
-            self.model_failing = False
+            self._model_failing = False
         except Exception as exc:  # noqa: B902 - any failure of the step is the model's
-            self.model_errors += 1
-            self.model_error = f'{type(exc).__name__}: {exc}'
-            self.model_failing = True
-            out.log.append(('error', f'model step failed: {self.model_error}'))
+            self._model_errors += 1
+            self._model_error = f'{type(exc).__name__}: {exc}'
+            self._model_failing = True
+            out.log.append(('error', f'model step failed: {self._model_error}'))
         out.restarted = est.clock_jumps != jumps
         self._report(out, now_s)
         self.publish(out)
@@ -232,7 +269,7 @@ class EstimatorSession:
             if self.budget_s > 0.0:
                 est.background(self.budget_s)
         except Exception as exc:  # noqa: B902 - the slow work never stops the estimates
-            self.background_errors += 1
+            self._background_errors += 1
             later.log.append(('error', f'forecast/margin failed: {type(exc).__name__}: {exc}'))
         later.limits = self._take_limits()
         if not later.empty:
@@ -301,7 +338,7 @@ class EstimatorSession:
                 self._events.append(ev.message)
         if out.estimates:
             self._last = out.estimates[-1]
-        elif self.model_failing and self._last is not None and now_s is not None:
+        elif self._model_failing and self._last is not None and now_s is not None:
             out.held = (self._last, now_s)
         out.limits = self._take_limits() if out.estimates else []
         for e in out.estimates:
@@ -325,8 +362,8 @@ class EstimatorSession:
                 limits = limits.fallback(est.settings.limits.fallback_current_A,
                                          'behind: the model is catching up with its inputs')
             out.append(limits)
-            self.limits_published += 1
-            self.limits_fallback += limits.status != 'ok'
+            self._limits_published += 1
+            self._limits_fallback += limits.status != 'ok'
         if out:
             self.limits = out[-1]
             if est.latest is not None:
@@ -360,6 +397,29 @@ class EstimatorSession:
         return json_safe(summary)
 
     # ------------------------------------------------------ read-only views
+    def status(self) -> SessionStatus:
+        """Return the session as it stands: what /diagnostics and the reports show."""
+        est = self._est
+        o = est._outlook
+        health = est.health
+        stamps = [h.last_stamp_s for h in health.values() if h.last_stamp_s is not None]
+        return SessionStatus(
+            ready=est.latest is not None, behind=est.behind, t_model_s=est.t_model,
+            last_sample_s=max(stamps) if stamps else None, steps=est.steps,
+            held_blocks=est.held_blocks,
+            stale=tuple(n for n in est.inputs if health[n].stale),
+            inputs={n: InputCounts(h.received, h.accepted, h.rejected, h.stale_events)
+                    for n, h in health.items()},
+            gaps=replace(est.gaps), clock_jumps=est.clock_jumps,
+            last_clock_jump=est._intake.last_clock_jump,
+            alert_level=int(est._alerts.worst()),
+            alert_message=est._alerts.summary()['message'], limits=self.limits,
+            limits_published=self._limits_published, limits_fallback=self._limits_fallback,
+            limit_ticks_behind=o.limits_behind, outlook_failures=o.failures,
+            forecasts_skipped=o.forecasts_skipped, model_errors=self._model_errors,
+            model_error=self._model_error if self._model_failing else None,
+            background_errors=self._background_errors)
+
     @property
     def cfg(self) -> Config:
         """Return the configuration the session runs on."""
@@ -391,11 +451,6 @@ class EstimatorSession:
         return self._est.clock_jumps
 
     @property
-    def last_clock_jump(self) -> Optional[Tuple[float, float]]:
-        """Return the last clock jump (from s, to s), or None."""
-        return self._est._intake.last_clock_jump
-
-    @property
     def rest(self) -> Mapping[str, float]:
         """Return each input's resting value (its fallback before any sample)."""
         return MappingProxyType(self._est._intake.rest)
@@ -414,11 +469,6 @@ class EstimatorSession:
     def steps(self) -> int:
         """Return how many model steps were made."""
         return self._est.steps
-
-    @property
-    def held_blocks(self) -> int:
-        """Return how many held blocks crossed silences."""
-        return self._est.held_blocks
 
     @property
     def latest(self) -> Optional[Estimate]:
@@ -461,16 +511,6 @@ class EstimatorSession:
         return list(self._est._alerts.rules)
 
     @property
-    def alert_level(self) -> int:
-        """Return the highest reported alert level (0 OK, 1 WARN, 2 CRITICAL)."""
-        return int(self._est._alerts.worst())
-
-    @property
-    def alert_message(self) -> str:
-        """Return the alerts in one line ('OK' or the alerts, worst first)."""
-        return self._est._alerts.summary()['message']
-
-    @property
     def outlook_mode(self) -> str:
         """Return how the outlook is worked on: 'off', 'background' or 'inline'."""
         return self._est.outlook_mode
@@ -479,13 +519,6 @@ class EstimatorSession:
     def outlook_busy(self) -> bool:
         """Tell whether limit or forecast work waits for :meth:`work`."""
         return self._est._outlook.busy
-
-    @property
-    def outlook_counts(self) -> Dict[str, int]:
-        """Return the outlook's failures, ticks given up (behind) and forecasts skipped."""
-        o = self._est._outlook
-        return {'failures': o.failures, 'limits_behind': o.limits_behind,
-                'forecasts_skipped': o.forecasts_skipped}
 
     @property
     def correcting(self) -> bool:

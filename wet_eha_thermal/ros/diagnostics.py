@@ -14,7 +14,7 @@ from typing import List, Mapping, Optional, Sequence, Tuple
 import numpy as np
 from wet_eha_thermal import interface
 from wet_eha_thermal.estimator.limits import CurrentLimits
-from wet_eha_thermal.estimator.session import EstimatorSession
+from wet_eha_thermal.estimator.session import EstimatorSession, SessionStatus
 from wet_eha_thermal.model.quantity_table import LIMITED
 
 # the levels of diagnostic_msgs/DiagnosticStatus
@@ -37,9 +37,6 @@ class NodeCounters:
 
     hardware_id: str
     published: int                  # estimates published
-    model_errors: int
-    model_error: Optional[str]      # the failing step's error while the model fails, else None
-    background_errors: int
     callback_errors: Mapping[str, int]   # per input (or other callback) name
     waiting_for_clock: int          # samples received before the clock
     latency_ms: Sequence[float]     # closing sample received -> estimate published
@@ -60,7 +57,7 @@ def statuses(est: EstimatorSession, node: NodeCounters, now_s: float, topic_of: 
     ``new_rejected`` counts each input's samples rejected since the last
     report, ``new_implausible`` the implausible steps.
     """
-    out = [estimate_status(est, node)]
+    out = [estimate_status(est, est.status(), node)]
     out += [input_status(est, name, now_s, topic_of[name], new_rejected[name],
                          node.callback_errors.get(name, 0)) for name in est.inputs]
     out.append(plausibility_status(est, new_implausible))
@@ -70,26 +67,26 @@ def statuses(est: EstimatorSession, node: NodeCounters, now_s: float, topic_of: 
     return out
 
 
-def estimate_status(est: EstimatorSession, node: NodeCounters) -> Status:
+def estimate_status(est: EstimatorSession, st: SessionStatus, node: NodeCounters) -> Status:
     """Return the status of the estimate: alerts, fallbacks, the latest values, the counters."""
     latest = est.latest
-    stale = [n for n in est.inputs if est.health[n].stale]
+    stale = st.stale
     values = [('hardware_id', node.hardware_id)]
     if latest is None:
         return Status('estimate', STALE,
                       'no estimate yet: waiting for the clock or the first step',
                       values + [('inputs on fallback', ', '.join(stale) or 'none')])
-    alerts = est.alert_message
-    level = est.alert_level       # OK/WARN/CRITICAL = OK/WARN/ERROR
+    alerts = st.alert_message
+    level = st.alert_level        # OK/WARN/CRITICAL = OK/WARN/ERROR
     message = 'estimating' if alerts == 'OK' else alerts
     if stale:
         message += f'; on fallback: {", ".join(stale)}'
     if len(stale) == len(est.inputs):
         level = STALE
         message = 'every input stale (data gap): estimates run on held values; ' + alerts
-    if node.model_error is not None:
+    if st.model_error is not None:
         level = ERROR
-        message = f'model step failed, republishing the last estimate: {node.model_error}'
+        message = f'model step failed, republishing the last estimate: {st.model_error}'
     sigma = max(latest.uncertainty_K.values()) if latest.uncertainty_K else None
     values += [('stamp [s]', f'{latest.stamp_s:.3f}'), ('step', latest.step)]
     values += [(f'{n} [degC]', fmt(latest.temperatures_C.get(n))) for n in interface.ESTIMATES]
@@ -102,7 +99,7 @@ def estimate_status(est: EstimatorSession, node: NodeCounters) -> Status:
         values.append((f'time_to_limit {q} [s]', text))
         values.append((f'limit {q} [degC]', fmt(latest.limits_C.get(q), '.1f')))
     values.append(('forecast started at [s]', fmt(latest.forecast_stamp_s, '.3f')))
-    values += limit_values(latest.current_limits)
+    values += limit_values(st.limits)
     if node.latency_ms:
         lat = np.percentile(node.latency_ms, [50, 99])
         values.append(('step latency p50/p99/max [ms]',
@@ -116,23 +113,23 @@ def estimate_status(est: EstimatorSession, node: NodeCounters) -> Status:
                            f'{t_meas:.2f} (estimate {name} '
                            f'{latest.temperatures_C[name] - t_meas:+.2f} K)'))
     values += correction_values(est)
-    gaps = est.gaps
+    gaps = st.gaps
     gap_text = f'{gaps.count}, longest {gaps.longest_s:.1f} s, total {gaps.total_s:.1f} s'
     if gaps.open_since_s is not None:
         gap_text = f'every input silent since {gaps.open_since_s:.3f} s; ' + gap_text
-    jump = est.last_clock_jump
+    jump = st.last_clock_jump
     values += [('alerts', alerts),
                ('data gaps (every input silent)', gap_text),
-               ('held blocks (silences crossed)', est.held_blocks),
-               ('clock jumps', est.clock_jumps if jump is None else
-                f'{est.clock_jumps} (last from {jump[0]:.3f} s to {jump[1]:.3f} s)'),
+               ('held blocks (silences crossed)', st.held_blocks),
+               ('clock jumps', st.clock_jumps if jump is None else
+                f'{st.clock_jumps} (last from {jump[0]:.3f} s to {jump[1]:.3f} s)'),
                ('inputs on fallback', ', '.join(stale) or 'none'),
                ('estimates published', node.published),
-               ('model errors', node.model_errors),
-               ('forecast and limit failures', est.outlook_counts['failures']),
-               ('limit ticks behind (fallback)', est.outlook_counts['limits_behind']),
-               ('forecasts skipped (one under way)', est.outlook_counts['forecasts_skipped']),
-               ('background errors', node.background_errors),
+               ('model errors', st.model_errors),
+               ('forecast and limit failures', st.outlook_failures),
+               ('limit ticks behind (fallback)', st.limit_ticks_behind),
+               ('forecasts skipped (one under way)', st.forecasts_skipped),
+               ('background errors', st.background_errors),
                ('callback errors', sum(node.callback_errors.values())),
                ('samples before the clock', node.waiting_for_clock),
                ('foxglove view', node.view)]

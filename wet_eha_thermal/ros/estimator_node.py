@@ -369,9 +369,7 @@ class EstimatorNode(Node):
             self._implausible_prev = implausible
             counters = diagnostics.NodeCounters(
                 hardware_id=self.hardware_id, published=self.messages.published,
-                model_errors=s.model_errors,
-                model_error=s.model_error if s.model_failing else None,
-                background_errors=s.background_errors, callback_errors=dict(self.callback_errors),
+                callback_errors=dict(self.callback_errors),
                 waiting_for_clock=self.waiting_for_clock, latency_ms=self.latency_ms,
                 view=self.view.text())
             arr = DiagnosticArray()
@@ -389,16 +387,14 @@ class EstimatorNode(Node):
 
     def report(self) -> interface.NodeReport:
         """Return the run's counts as data: per input, estimates, gaps, errors."""
-        s = self.session
-        inputs = {name: interface.InputCounts(h.received, h.accepted, h.rejected,
-                                              h.stale_events) for name, h in s.health.items()}
-        return interface.NodeReport(node=NODE_NAME, inputs=inputs, figures={
-            'estimates': self.messages.published, 'steps': s.steps, 'data_gaps': s.gaps.count,
-            'longest_gap_s': s.gaps.longest_s, 'clock_jumps': s.clock_jumps,
+        st = self.session.status()
+        return interface.NodeReport(node=NODE_NAME, inputs=st.inputs, figures={
+            'estimates': self.messages.published, 'steps': st.steps, 'data_gaps': st.gaps.count,
+            'longest_gap_s': st.gaps.longest_s, 'clock_jumps': st.clock_jumps,
             'callback_errors': sum(self.callback_errors.values()),
-            'model_errors': s.model_errors, 'limits_published': s.limits_published,
-            'limits_fallback': s.limits_fallback,
-            'limit_ticks_behind': s.outlook_counts['limits_behind']})
+            'model_errors': st.model_errors, 'limits_published': st.limits_published,
+            'limits_fallback': st.limits_fallback,
+            'limit_ticks_behind': st.limit_ticks_behind})
 
     def summary(self) -> str:
         """Return a one-line account of the run for a log: samples per input, gaps, jumps."""

@@ -235,6 +235,7 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
     n = len(OUTPUT_ESTIMATES)
     ahead = table[:, 4 + n:]          # the outlook's columns (none when it is off)
     held_s, current_A = tick_current.in_force(step_s)
+    status = session.status()
     return ReplayResult(
         plan=plan, stamp_s=table[:, 0],
         temperatures_C={name: table[:, 1 + k] for k, name in enumerate(OUTPUT_ESTIMATES)},
@@ -244,8 +245,8 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
                        np.concatenate(v) if v else np.zeros(0))
                   for tc, (t, v) in measured.items()},
         inputs={name: d.arrays() for name, d in inputs_plot.items()},
-        alert_events=events, messages=blocks.message_count, steps=session.steps,
-        sample_time_s=session.steps * step_s, wall_s=wall, truncated=blocks.truncated,
+        alert_events=events, messages=blocks.message_count, steps=status.steps,
+        sample_time_s=status.steps * step_s, wall_s=wall, truncated=blocks.truncated,
         problem=blocks.problem,
         health={name: dict(vars(h)) for name, h in session.health.items()},
         implausible=session.implausible_counts, correction=session.correction_summary(),
