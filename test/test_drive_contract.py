@@ -3,8 +3,12 @@
 import math
 
 import pytest
-from wet_eha_thermal.estimator.limits import fallback_limits
-from wet_eha_thermal.interface import DriveLimits, limit_status, LimitStatus
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+from wet_eha_thermal import messages
+from wet_eha_thermal.estimator.limits import current_limits, fallback_limits
+from wet_eha_thermal.interface import DriveLimits, LimitStatus
 
 
 def test_layout_round_trip_at_fixed_places():
@@ -35,15 +39,30 @@ def test_an_unknown_status_code_reads_as_a_fallback():
     assert DriveLimits.from_data(data).status == LimitStatus.OTHER
 
 
-@pytest.mark.parametrize('reason, code', [
-    ('stale inputs: speed_rad_s', LimitStatus.STALE_INPUTS),
-    ('uncertain: magnet 1 sigma 12.0 K > 10 K', LimitStatus.UNCERTAIN),
-    ('behind: the estimator had no time to compute them', LimitStatus.BEHIND),
-    ('behind: the model is catching up with its inputs', LimitStatus.BEHIND),
-    ('failed: the limits could not be computed', LimitStatus.FAILED),
-    ('a reason not known here', LimitStatus.OTHER),
+@pytest.mark.parametrize('code, detail, text', [
+    (LimitStatus.STALE_INPUTS, 'speed_rad_s', 'fallback: stale inputs: speed_rad_s'),
+    (LimitStatus.UNCERTAIN, 'magnet 1 sigma 12.0 K > 10 K',
+     'fallback: uncertain: magnet 1 sigma 12.0 K > 10 K'),
+    (LimitStatus.BEHIND, 'the model is catching up with its inputs',
+     'fallback: behind: the model is catching up with its inputs'),
+    (LimitStatus.FAILED, 'the limits could not be computed',
+     'fallback: failed: the limits could not be computed'),
+    (LimitStatus.OTHER, 'a reason not known here', 'fallback: a reason not known here'),
 ])
-def test_each_fallback_reason_has_its_code(reason, code):
-    limits = fallback_limits(3.0, (10.0, 60.0), 10.0, reason)
-    assert limit_status(limits.status, limits.reason) == code
-    assert limit_status('ok', '') == LimitStatus.OK
+def test_the_code_is_carried_and_the_text_made_from_it(code, detail, text):
+    limits = fallback_limits(3.0, (10.0, 60.0), 10.0, code, detail)
+    assert (limits.code, limits.status, limits.frame_id) == (code, 'fallback', text)
+    # the drive's numbers carry the code itself, the JointState the text made from it
+    (_, joint, _), (_, single, _) = messages.limits(limits)
+    assert deserialize_message(joint, JointState).header.frame_id == text
+    _, data, _ = messages.drive_limits(limits, 7)
+    drive = DriveLimits.from_data(deserialize_message(data, Float64MultiArray).data.tolist())
+    assert (drive.status, drive.sequence, drive.binding_A) == (code, 7, 10.0)
+
+
+def test_trusted_limits_say_ok_in_both_forms():
+    limits = current_limits(3.0, (10.0,), (20.0, 'winding_hotspot'), [(30.0, 'magnet')])
+    assert (limits.code, limits.status, limits.reason, limits.frame_id) == (
+        LimitStatus.OK, 'ok', '', 'ok')
+    _, data, _ = messages.drive_limits(limits, 1)
+    assert deserialize_message(data, Float64MultiArray).data[4] == 0.0

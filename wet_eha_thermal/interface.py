@@ -203,11 +203,6 @@ def prefixed(topic: str, prefix: str) -> str:
     return prefix.rstrip('/') + topic[len(PREFIX):]
 
 
-def limits_frame_id(status: str, reason: str) -> str:
-    """Return the header.frame_id of the limits on CURRENT_LIMITS_TOPIC for a status and why."""
-    return 'ok' if status == 'ok' else f'fallback: {reason}'
-
-
 class LimitStatus(enum.IntEnum):
     """
     The status of the drive's limits as a number (:class:`DriveLimits`): 0 is trusted.
@@ -225,16 +220,33 @@ class LimitStatus(enum.IntEnum):
     OTHER = 5           #: another fallback (the text of CURRENT_LIMITS_TOPIC says which)
 
 
-#: the first word(s) of a fallback's reason, as the estimator writes them, and the code
-_FALLBACK_CAUSES = {'stale inputs': LimitStatus.STALE_INPUTS, 'uncertain': LimitStatus.UNCERTAIN,
-                    'behind': LimitStatus.BEHIND, 'failed': LimitStatus.FAILED}
+#: the words that name each fallback's cause in the limits' text (OTHER's detail says it all)
+_FALLBACK_CAUSES = {LimitStatus.STALE_INPUTS: 'stale inputs', LimitStatus.UNCERTAIN: 'uncertain',
+                    LimitStatus.BEHIND: 'behind', LimitStatus.FAILED: 'failed'}
 
 
-def limit_status(status: str, reason: str) -> LimitStatus:
-    """Return the code of limits whose status is ``status`` ('ok' or 'fallback') for ``reason``."""
-    if status == 'ok':
-        return LimitStatus.OK
-    return _FALLBACK_CAUSES.get(reason.split(':')[0].strip(), LimitStatus.OTHER)
+def limits_cause(code: LimitStatus) -> str:
+    """Return the words of a status's cause: ``stale inputs``, ``behind``...; ``ok``, ``other``."""
+    return 'ok' if code == LimitStatus.OK else _FALLBACK_CAUSES.get(code, 'other')
+
+
+def limits_reason(code: LimitStatus, detail: str) -> str:
+    """
+    Return why limits of status ``code`` fell back, in words: the cause, then ``detail``.
+
+    The text is made from the code, never the other way round; '' for OK.
+
+    >>> limits_reason(LimitStatus.STALE_INPUTS, 'speed_rad_s')
+    'stale inputs: speed_rad_s'
+    """
+    if code == LimitStatus.OK:
+        return ''
+    return f'{_FALLBACK_CAUSES[code]}: {detail}' if code in _FALLBACK_CAUSES else detail
+
+
+def limits_frame_id(code: LimitStatus, detail: str) -> str:
+    """Return the header.frame_id of the limits on CURRENT_LIMITS_TOPIC: ok, fallback: <why>."""
+    return 'ok' if code == LimitStatus.OK else f'fallback: {limits_reason(code, detail)}'
 
 
 @dataclass(frozen=True)

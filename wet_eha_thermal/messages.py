@@ -59,7 +59,7 @@ def limits(lim: CurrentLimits) -> List[Message]:
     """Return a tick's limits: the JointState of every horizon and the binding Float64."""
     ns = int(round(lim.stamp_s * 1e9))
     return [(interface.CURRENT_LIMITS_TOPIC, cdr.encode_joint_state(
-        ns, interface.limits_frame_id(lim.status, lim.reason), lim.names, lim.horizons_s, (),
+        ns, lim.frame_id, lim.names, lim.horizons_s, (),
         lim.limits_A), ns),
         (interface.CURRENT_LIMIT_TOPIC, cdr.encode_float64(float(lim.binding_A)), ns)]
 
@@ -68,13 +68,13 @@ def drive_limits(lim: CurrentLimits, sequence: int) -> Message:
     """
     Return a tick's limits as the drive reads them: numbers at fixed places, no text.
 
-    ``sequence`` numbers the limit messages of a run from 1. The status code
-    comes from the fallback's reason (:func:`~wet_eha_thermal.interface.limit_status`).
+    ``sequence`` numbers the limit messages of a run from 1; the status is
+    the limits' own code.
     """
     ns = int(round(lim.stamp_s * 1e9))
     shortest = min(range(len(lim.horizons_s)), key=lim.horizons_s.__getitem__)
     drive = interface.DriveLimits(
-        stamp_ns=ns, sequence=sequence, status=interface.limit_status(lim.status, lim.reason),
+        stamp_ns=ns, sequence=sequence, status=lim.code,
         binding_A=lim.binding_A, binding_horizon_s=lim.horizons_s[shortest],
         horizons_s=lim.horizons_s, limits_A=lim.limits_A)
     return (interface.DRIVE_LIMITS_TOPIC,

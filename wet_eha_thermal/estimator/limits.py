@@ -53,6 +53,7 @@ from scipy.optimize import brentq
 
 from .correction import filter_layout
 from .kalman import copper_gain, coupled_transition
+from ..interface import limits_frame_id, limits_reason, LimitStatus
 from ..model.eha import EHAModel, SampleBlock
 from ..model.quantities import PEAK
 from ..units import C_TO_K
@@ -124,8 +125,10 @@ class CurrentLimits:
     current (A) for each; ``binds`` the quantity that sets each (``rating``:
     none, the motor's peak rating). ``binding_A`` is the one a drive with a
     single number applies: the shortest horizon's, refreshed every period.
-    ``status`` is ``ok`` or ``fallback`` (then every limit is at most the
-    configured conservative value and ``reason`` says why).
+    ``code`` is the drive's status (:class:`~wet_eha_thermal.interface.LimitStatus`):
+    OK, or a fallback (then every limit is at most the configured
+    conservative value); ``detail`` adds what the code cannot say (which
+    inputs are stale...). The texts are made from the two.
     """
 
     stamp_s: float
@@ -133,41 +136,56 @@ class CurrentLimits:
     horizons_s: Tuple[float, ...]
     limits_A: Tuple[float, ...]
     binds: Tuple[str, ...]
-    status: str = 'ok'
-    reason: str = ''
+    code: LimitStatus = LimitStatus.OK
+    detail: str = ''
+
+    @property
+    def status(self) -> str:
+        """Return ``ok`` or ``fallback``, as the reports write it."""
+        return 'ok' if self.code == LimitStatus.OK else 'fallback'
+
+    @property
+    def reason(self) -> str:
+        """Return why these limits fell back, in words ('' when they did not)."""
+        return limits_reason(self.code, self.detail)
+
+    @property
+    def frame_id(self) -> str:
+        """Return the text of the JointState's header.frame_id: ``ok`` or ``fallback: <why>``."""
+        return limits_frame_id(self.code, self.detail)
 
     @property
     def binding_A(self) -> float:
         """Return the shortest horizon's limit (A RMS): the one a simple drive applies."""
         return self.limits_A[int(np.argmin(self.horizons_s))]
 
-    def fallback(self, current_A: float, reason: str) -> 'CurrentLimits':
-        """Return these limits capped at the conservative ``current_A``, saying why."""
+    def fallback(self, current_A: float, code: LimitStatus, detail: str) -> 'CurrentLimits':
+        """Return these limits capped at the conservative ``current_A``, with why."""
         return CurrentLimits(
             stamp_s=self.stamp_s, names=self.names, horizons_s=self.horizons_s,
             limits_A=tuple(min(v, current_A) for v in self.limits_A),
             binds=tuple(FALLBACK if v > current_A else b
                         for v, b in zip(self.limits_A, self.binds)),
-            status='fallback', reason=reason)
+            code=code, detail=detail)
 
 
 def current_limits(stamp_s: float, horizons_s: Sequence[float], continuous: Tuple[float, str],
-                   per_horizon: Sequence[Tuple[float, str]], status: str = 'ok',
-                   reason: str = '') -> CurrentLimits:
+                   per_horizon: Sequence[Tuple[float, str]], code: LimitStatus = LimitStatus.OK,
+                   detail: str = '') -> CurrentLimits:
     """Return a tick's :class:`CurrentLimits`: the continuous (A, binds), then each horizon's."""
     both = [continuous] + list(per_horizon)
     return CurrentLimits(stamp_s=stamp_s,
                          names=(CONTINUOUS,) + tuple(horizon_name(h) for h in horizons_s),
                          horizons_s=(math.inf,) + tuple(float(h) for h in horizons_s),
                          limits_A=tuple(float(v) for v, _ in both),
-                         binds=tuple(b for _, b in both), status=status, reason=reason)
+                         binds=tuple(b for _, b in both), code=code, detail=detail)
 
 
 def fallback_limits(stamp_s: float, horizons_s: Sequence[float], current_A: float,
-                    reason: str) -> CurrentLimits:
-    """Return the conservative limits for a tick with nothing better (``reason``: why)."""
+                    code: LimitStatus, detail: str) -> CurrentLimits:
+    """Return the conservative limits for a tick with nothing better (``code``: why)."""
     return current_limits(stamp_s, horizons_s, (current_A, FALLBACK),
-                          [(current_A, FALLBACK)] * len(horizons_s), 'fallback', reason)
+                          [(current_A, FALLBACK)] * len(horizons_s), code, detail)
 
 
 class LimitProblem:

@@ -33,6 +33,7 @@ import numpy as np
 from .limits import (ceiling_K, current_limits, CurrentLimits, fallback_limits, HeldDuty,
                      limit_steps, probing, RATING, step_statistics)
 from ..config import Config
+from ..interface import LimitStatus
 from ..model.eha import EHAModel, SampleBlock
 from ..model.motor import MotorInputs, WetMotor
 from ..units import C_TO_K
@@ -171,7 +172,7 @@ class Outlook:
             return
         tick = steps_after // p
         held = self.held_duty()
-        why = self._distrust(sigma_K, stale)
+        why = self._distrust(sigma_K, stale)     # (code, detail) of a fallback, or None
         forecast_tick = tick % self.forecast_ticks == 0 or not self._forecast_tick_numbers
         # the state saved only for work that reads it (1 ms inside the estimator's step)
         saved = pickle.dumps(self.model, pickle.HIGHEST_PROTOCOL) \
@@ -188,7 +189,7 @@ class Outlook:
         if why:
             # behind the ticks still worked on, so that the stamps go out in order
             fallback = fallback_limits(stamp_s, self.lim.horizons_s,
-                                       self.lim.fallback_current_A, why)
+                                       self.lim.fallback_current_A, *why)
             if self._jobs:
                 self._jobs.append(_LimitJob(stamp_s, None, None, ready=fallback))
             else:
@@ -206,15 +207,16 @@ class Outlook:
         if self.inline:
             self.run(math.inf)
 
-    def _distrust(self, sigma_K: Dict[str, float], stale: Sequence[str]) -> str:
-        """Return why a tick's limits cannot be trusted ('' if they can)."""
+    def _distrust(self, sigma_K: Dict[str, float],
+                  stale: Sequence[str]) -> Optional[Tuple[LimitStatus, str]]:
+        """Return why a tick's limits cannot be trusted, (code, detail); None if they can."""
         if stale:
-            return 'stale inputs: ' + ', '.join(stale)
+            return LimitStatus.STALE_INPUTS, ', '.join(stale)
         worst = max(self.limits_C, key=lambda q: sigma_K.get(q, 0.0))
         if sigma_K.get(worst, 0.0) > self.lim.max_sigma_K:
-            return (f'uncertain: {worst} 1 sigma {sigma_K[worst]:.1f} K > '
-                    f'{self.lim.max_sigma_K:g} K')
-        return ''
+            return (LimitStatus.UNCERTAIN,
+                    f'{worst} 1 sigma {sigma_K[worst]:.1f} K > {self.lim.max_sigma_K:g} K')
+        return None
 
     def _give_up(self, job: _LimitJob) -> None:
         """Publish a waiting tick's limits as the fallback: not computed in time (behind)."""
@@ -223,8 +225,8 @@ class Outlook:
             return
         self.limits_behind += 1
         self._finish(fallback_limits(job.stamp_s, self.lim.horizons_s,
-                                     self.lim.fallback_current_A,
-                                     'behind: the estimator had no time to compute them'))
+                                     self.lim.fallback_current_A, LimitStatus.BEHIND,
+                                     'the estimator had no time to compute them'))
 
     def _finish(self, limits: CurrentLimits) -> None:
         """Make ``limits`` the latest and queue them for publishing."""
@@ -285,8 +287,8 @@ class Outlook:
             self.failures += 1
             self._jobs.popleft()
             self._finish(fallback_limits(job.stamp_s, self.lim.horizons_s,
-                                         self.lim.fallback_current_A,
-                                         'failed: the limits could not be computed'))
+                                         self.lim.fallback_current_A, LimitStatus.FAILED,
+                                         'the limits could not be computed'))
 
     def _margin_step(self) -> None:
         """Do a slice of the oldest margin job; a failure leaves that tick's margin unknown."""

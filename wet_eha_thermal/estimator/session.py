@@ -44,7 +44,7 @@ from .core import Estimate, Estimator
 from .intake import DataGaps
 from .limits import CurrentLimits
 from ..config import Config
-from ..interface import InputCounts
+from ..interface import InputCounts, LimitStatus
 from ..model.eha import EHAModel
 from ..units import C_TO_K
 
@@ -91,10 +91,10 @@ class Samples:
 @dataclass(frozen=True)
 class SessionStatus:
     """
-    A session at one moment (:meth:`EstimatorSession.status`): what /diagnostics,
-    the node's report and replay's show, read in one call.
+    A session at one moment (:meth:`EstimatorSession.status`), read in one call.
 
-    Sample times in s; ``None`` where there is nothing yet.
+    What /diagnostics, the node's report and replay's show. Sample times in
+    s; ``None`` where there is nothing yet.
     """
 
     ready: bool                     # an estimate exists (the model has stepped)
@@ -358,12 +358,13 @@ class EstimatorSession:
         est = self._est
         out = []
         for limits in est._outlook.take_limits(est.t_model):
-            if est.behind and limits.status == 'ok':
+            if est.behind and limits.code == LimitStatus.OK:
                 limits = limits.fallback(est.settings.limits.fallback_current_A,
-                                         'behind: the model is catching up with its inputs')
+                                         LimitStatus.BEHIND,
+                                         'the model is catching up with its inputs')
             out.append(limits)
             self._limits_published += 1
-            self._limits_fallback += limits.status != 'ok'
+            self._limits_fallback += limits.code != LimitStatus.OK
         if out:
             self.limits = out[-1]
             if est.latest is not None:

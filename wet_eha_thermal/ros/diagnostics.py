@@ -140,9 +140,8 @@ def limit_values(limits: Optional[CurrentLimits]) -> List[Tuple[str, object]]:
     """Return the estimate status's key-values of the latest current limits."""
     if limits is None:
         return [('current limit [A RMS]', 'pending')]
-    status = interface.limits_frame_id(limits.status, limits.reason)
     out = [('current limit [A RMS]', f'{limits.binding_A:.1f}'),
-           ('current limits status', status),
+           ('current limits status', limits.frame_id),
            ('current limits stamp [s]', f'{limits.stamp_s:.3f}')]
     for name, value, binds in zip(limits.names, limits.limits_A, limits.binds):
         out.append((f'current limit {name} [A RMS]', f'{value:.1f} ({binds})'))

@@ -258,7 +258,7 @@ def _limits_lines(result: ReplayResult) -> List[str]:
               f'{held[fallback].sum():.1f} s of {held.sum():.1f} s.']
     causes: Dict[str, List[int]] = {}
     for k in np.flatnonzero(fallback).tolist():
-        causes.setdefault(result.current_limits[k].reason.split(':')[0], []).append(k)
+        causes.setdefault(interface.limits_cause(result.current_limits[k].code), []).append(k)
     if causes:
         lines += [''] + markdown_table(
             ('cause', 'time (s)', 'first at (s)', 'first reason'),
