@@ -33,7 +33,7 @@ import numpy as np
 from .limits import (ceiling_K, current_limits, CurrentLimits, fallback_limits, HeldDuty,
                      limit_steps, probing, RATING, step_statistics)
 from ..config import Config
-from ..interface import LimitStatus
+from ..interface import INPUTS, LimitStatus
 from ..model.eha import EHAModel, SampleBlock
 from ..model.motor import MotorInputs, WetMotor
 from ..units import C_TO_K
@@ -48,6 +48,9 @@ MARGIN_DELAY_S = 10.0
 #: as the fallback, behind; a dropped forecast tick's continuous limit is not computed, so
 #: the next ticks keep the one before, where a replay, never behind, has the new one)
 MAX_LIMIT_JOBS = 2
+#: The inputs as a forecast repeats them, in the SampleBlock's order: the current as
+#: each step's RMS, the others but the position as step means, the position by its motion
+CURRENT, *MEAN_INPUTS, POSITION = INPUTS
 
 
 def copy_model(saved: bytes) -> EHAModel:
@@ -350,10 +353,9 @@ class Outlook:
         blocks = f.blocks
         # the step's means, I^2 for the current: a forecast step of seconds then costs
         # about a millisecond
-        duty = {a: np.array([getattr(b, a).mean() for b in blocks])
-                for a in ('speed_rad_s', 'p_a_Pa', 'p_b_Pa', 'p_acc_Pa')}
-        duty['current_A'] = np.array([math.sqrt(np.mean(b.current_A ** 2)) for b in blocks])
-        x = np.array([b.position_m[-1] for b in blocks])
+        duty = {a: np.array([getattr(b, a).mean() for b in blocks]) for a in MEAN_INPUTS}
+        duty[CURRENT] = np.array([math.sqrt(np.mean(getattr(b, CURRENT) ** 2)) for b in blocks])
+        x = np.array([getattr(b, POSITION)[-1] for b in blocks])
         # repeat the motion, not the positions: increments with the window's net drift
         # removed, so the repeated duty is periodic and stays inside the stroke
         dx = np.diff(x, prepend=x[0])
@@ -387,8 +389,7 @@ class Outlook:
         span = n * s.step_s
         t = f.model.time_s + (np.arange(1, n + 1) / n) * span
         x = f.model.last_position_m + np.cumsum(f.duty['dx_m'][idx])
-        block = SampleBlock(t, *(f.duty[a][idx] for a in ('current_A', 'speed_rad_s', 'p_a_Pa',
-                                                          'p_b_Pa', 'p_acc_Pa')), x)
+        block = SampleBlock(t, *(f.duty[a][idx] for a in (CURRENT, *MEAN_INPUTS)), x)
         before = f.model.state
         f.model.step(block, f.ambient_K, max_substep_s=span)
         f.t_s += span
