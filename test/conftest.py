@@ -19,7 +19,8 @@ import yaml
 # runs them one after another, as a serial run does: never two at once on the cores' slack.
 # Each has a domain of its own (test/ros_domains.py).
 ROS_GRAPH_MODULES = ('test_estimator_node.py', 'test_live.py', 'test_player.py',
-                     'test_recorder.py', 'test_sim_rig_limit.py', 'test_namespaces.py')
+                     'test_recorder.py', 'test_sim_rig_limit.py', 'test_namespaces.py',
+                     'test_managed_estimator.py')
 
 
 class ModuleScopes:

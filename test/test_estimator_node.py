@@ -428,7 +428,7 @@ def test_params_file_and_ranges(context):
         assert node.get_parameter('publish_rate_Hz').value == 20.0
         assert node.get_parameter('qos').value == 'sensor_data'
         assert node.get_parameter('executor').value == 'events'
-        assert node.publish_timer.timer_period_ns == 50_000_000
+        assert node.runner.publish_timer.timer_period_ns == 50_000_000
         d = node.describe_parameter('publish_rate_Hz')
         assert d.floating_point_range[0].to_value == 500.0 and d.description
     finally:
@@ -509,7 +509,7 @@ def test_model_failure_keeps_publishing_and_reports_error(rig):
     assert int(rig.values('input current_A')['callback_errors']) > 0
     # a rate change at run time takes effect; read-only parameters refuse
     assert rig.node.set_parameters([Parameter('publish_rate_Hz', value=10.0)])[0].successful
-    assert rig.node.publish_timer.timer_period_ns == 100_000_000
+    assert rig.node.runner.publish_timer.timer_period_ns == 100_000_000
     assert not rig.node.set_parameters([Parameter('qos', value='reliable')])[0].successful
 
 
@@ -558,7 +558,7 @@ def test_thermocouple_corrects_the_estimate_and_goes_stale(context):
         assert rig.status('thermocouple winding').message == 'no reading yet'
         # silent for the stale timeout (2 s of sample time): STALE, not used, and the
         # estimates keep coming: stamped past the timeout, in order
-        timeout_s = rig.node.cfg.estimator.correction.stale_timeout_s
+        timeout_s = rig.node.runner.cfg.estimator.correction.stale_timeout_s
         n = len(frame)
         assert feed(lambda: rig.level('thermocouple frame') == STALE, readings=False)
         assert rig.clock_ns * 1e-9 > sent[-1] + timeout_s
@@ -575,7 +575,7 @@ def test_foxglove_view_shows_the_published_estimates(context):
     rig = Rig(context, overrides=[Parameter('foxglove_address', value='127.0.0.1:0')])
     client = None
     try:
-        view = rig.node.view.view           # the node's Foxglove glue, and its LiveView
+        view = rig.node.runner.view.view           # the node's Foxglove glue, and its LiveView
         assert view is not None and view.port > 0
         client = Client(view.port)
         client.read(lambda: len(client.channels) == len(CHANNELS))
@@ -604,7 +604,7 @@ def test_foxglove_view_shows_the_published_estimates(context):
             {'name': 'publish_rate_Hz', 'value': 10.0}]}))
         assert rig.feed(5.0, until=lambda: rig.node.get_parameter('publish_rate_Hz').value
                         == 10.0)
-        assert rig.node.publish_timer.timer_period_ns == 100_000_000
+        assert rig.node.runner.publish_timer.timer_period_ns == 100_000_000
         assert rig.feed(5.0, until=lambda: rig.level('estimate') is not None
                         and 'ws://127.0.0.1:' in rig.values('estimate')['foxglove view'])
         # a second estimator on the same address runs without the view, and says why
@@ -734,10 +734,10 @@ def test_a_replay_writes_what_the_node_published_for_the_same_samples(
         Parameter('config_file', value=str(cfg_file))])
     try:
         published = defaultdict(list)
-        for topic, pub in node.pubs.items():
+        for topic, pub in node.runner.pubs.items():
             pub.publish = functools.partial(lambda t, msg: published[t].append(msg), topic)
         clock = {'ns': 0}
-        node.clock.now_ns = lambda: clock['ns']
+        node.runner.clock.now_ns = lambda: clock['ns']
         # the node's callback with the decoders of the default inputs, ambient and
         # thermocouples (the rig's topics)
         channels = list(node.session.inputs) + [AMBIENT] + [
@@ -747,10 +747,10 @@ def test_a_replay_writes_what_the_node_published_for_the_same_samples(
             plan.thermocouples.values())
         for m in iter_raw(bag, topics_read):
             clock['ns'] = m.log_time_ns
-            node._on_input(decoder[m.topic], m.data)
+            node.runner._on_input(decoder[m.topic], m.data)
             while node.session.work(1.0):       # the limits never wait (replay's are inline)
                 pass
-        assert not node.callback_errors and node.session.status().model_errors == 0
+        assert not node.runner.callback_errors and node.session.status().model_errors == 0
     finally:
         node.destroy_node()
     for topic in [f'{interface.ESTIMATE_PREFIX}/{n}' for n in interface.ESTIMATES] + [

@@ -218,11 +218,13 @@ class LimitStatus(enum.IntEnum):
     BEHIND = 3          #: the estimator is behind its inputs, or had no time to compute them
     FAILED = 4          #: the computation failed
     OTHER = 5           #: another fallback (the text of CURRENT_LIMITS_TOPIC says which)
+    STOPPED = 6         #: the estimator stopped publishing limits (deactivated): none follow
 
 
 #: the words that name each fallback's cause in the limits' text (OTHER's detail says it all)
 _FALLBACK_CAUSES = {LimitStatus.STALE_INPUTS: 'stale inputs', LimitStatus.UNCERTAIN: 'uncertain',
-                    LimitStatus.BEHIND: 'behind', LimitStatus.FAILED: 'failed'}
+                    LimitStatus.BEHIND: 'behind', LimitStatus.FAILED: 'failed',
+                    LimitStatus.STOPPED: 'stopped'}
 
 
 def limits_cause(code: LimitStatus) -> str:

@@ -42,7 +42,7 @@ import numpy as np
 from .alerts import AlertEvent, AlertRule
 from .core import Estimate, Estimator
 from .intake import DataGaps
-from .limits import CurrentLimits
+from .limits import CurrentLimits, fallback_limits
 from ..config import Config
 from ..interface import InputCounts, LimitStatus
 from ..model.eha import EHAModel
@@ -321,6 +321,29 @@ class EstimatorSession:
                             log=[('info', e.message) for e in events]))
         return events
 
+    def stop_limits(self, why: str) -> None:
+        """
+        Publish the drive's last limits: the fallback, status STOPPED, saying ``why``.
+
+        For a node that stops publishing (a managed node deactivated): the
+        drive falls back at once instead of when its watchdog finds the
+        limits old. Ticks still waiting are given up first (as behind), so
+        none follows; the stamp is the model's time, never before the last
+        limits. Nothing while the model has not stepped.
+        """
+        est = self._est
+        if est.t_model is None:
+            return
+        out = self._take_limits(math.inf)
+        lim = est.settings.limits
+        stamp_s = max(est.t_model, self.limits.stamp_s if self.limits is not None else -math.inf)
+        last = fallback_limits(stamp_s, lim.horizons_s, lim.fallback_current_A,
+                               LimitStatus.STOPPED, why)
+        self._limits_published += 1
+        self._limits_fallback += 1
+        self.limits = last
+        self.publish(Output(limits=out + [last]))
+
     def announce(self) -> None:
         """Publish the alert summary as it is now (a node's first, latched)."""
         self.publish(Output(alerts=self.alert_summary(force=True)))
@@ -346,18 +369,20 @@ class EstimatorSession:
         if out.estimates or now_s is not None:
             out.alerts = self.alert_summary()
 
-    def _take_limits(self) -> List[CurrentLimits]:
+    def _take_limits(self, model_time_s: Optional[float] = None) -> List[CurrentLimits]:
         """
         Return the current limits finished since the last call, oldest first, to publish.
 
         A tick waiting longer than ``estimator.limits.max_age_s`` of model
-        time is given up (its fallback goes out instead); while the model
+        time (``model_time_s``, by default the model's) is given up (its
+        fallback goes out instead); while the model
         itself is behind its inputs, a finished tick's limits are for a state
         already past, and go out as the fallback too.
         """
         est = self._est
         out = []
-        for limits in est._outlook.take_limits(est.t_model):
+        for limits in est._outlook.take_limits(
+                est.t_model if model_time_s is None else model_time_s):
             if est.behind and limits.code == LimitStatus.OK:
                 limits = limits.fallback(est.settings.limits.fallback_current_A,
                                          LimitStatus.BEHIND,

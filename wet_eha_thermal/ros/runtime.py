@@ -15,6 +15,7 @@ import json
 import signal
 import sys
 import time
+from types import MappingProxyType
 from typing import Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Type
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
@@ -229,17 +230,21 @@ def declare_parameters(node: Node, parameters: Mapping[str, Tuple[object, Parame
     return values
 
 
-def parse_node_options(argv: List[str], prog: str, description: str) -> argparse.Namespace:
+def parse_node_options(argv: List[str], prog: str, description: str,
+                       flags: Mapping[str, str] = MappingProxyType({})) -> argparse.Namespace:
     """
     Parse a node's own options from ``argv`` (with the program name), ROS arguments removed.
 
-    The one option is ``--executor``; None means the node's ``executor`` parameter.
+    ``--executor``, None meaning the node's ``executor`` parameter, and the
+    node's own on/off ``flags`` (name of ``--name``: its help).
     """
     parser = argparse.ArgumentParser(prog=prog, description=description)
     parser.add_argument('--executor', choices=EXECUTORS, default=None,
                         help="'events' (rclpy.experimental.EventsExecutor) or 'single' "
                              '(SingleThreadedExecutor); default: the executor parameter, '
                              'which defaults to events')
+    for name, text in flags.items():
+        parser.add_argument(f'--{name}', action='store_true', help=text)
     return parser.parse_args(remove_ros_args(argv)[1:])
 
 
@@ -247,7 +252,8 @@ def run_node(args: Optional[List[str]], prog: str, description: str,
              make_node: Callable[[], Node], bad_input: Tuple[Type[BaseException], ...], *,
              error_prefix: Optional[str] = None, log_executor: bool = False,
              after_spin: Optional[Callable[[Node, object], None]] = None,
-             close: Optional[Callable[[Node], int]] = None) -> int:
+             close: Optional[Callable[[Node], int]] = None,
+             flags: Mapping[str, str] = MappingProxyType({})) -> int:
     """
     Run one node of this package as a program until Ctrl-C, SIGTERM or shutdown.
 
@@ -258,16 +264,17 @@ def run_node(args: Optional[List[str]], prog: str, description: str,
     ``--executor``, else the node's ``executor`` parameter, else events.
     ``after_spin(node, executor)`` runs once spinning stopped (a recorder
     drains); ``close(node)`` runs before the node is destroyed and returns
-    the exit status (default 0).
+    the exit status (default 0). ``flags``: the node's own on/off options
+    (name of ``--name``: help), given to ``make_node`` by name.
     """
     argv = list(sys.argv if args is None else args)
-    opts = parse_node_options(argv, prog, description)
+    opts = parse_node_options(argv, prog, description, flags)
     rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     status = 0
     try:
         try:
-            node = make_node()
+            node = make_node(**{name: getattr(opts, name) for name in flags})
         except bad_input as exc:
             print(f'{error_prefix or prog}: {exc}', file=sys.stderr)
             return 2

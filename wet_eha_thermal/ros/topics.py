@@ -70,6 +70,22 @@ def input_qos(kind: str, depth: int = 100):
     raise ValueError(f'qos {kind!r}: expected sensor_data or reliable')
 
 
+#: History depth of the nodes' outputs (reliable: a drive reads every limits message it can)
+OUTPUT_DEPTH = 10
+_TABLE = interface.topic_table()
+
+
+def profile_of(topic: str, sensor: str = 'sensor_data', depth: int = OUTPUT_DEPTH) -> tuple:
+    """
+    Return the message class and QoS of one of the interface's topics (named under /eha).
+
+    Both from :func:`~wet_eha_thermal.interface.topic_table`, the one home of
+    every topic's type and QoS kind; ``sensor`` and ``depth`` as in :func:`qos_profile`.
+    """
+    type_name, kind = _TABLE[topic]
+    return message_class(type_name), qos_profile(kind, sensor, depth)
+
+
 def qos_profile(kind: str, sensor: str = 'sensor_data', depth: int = 100):
     """
     Return the rclpy QoS of a topic's kind (:func:`~wet_eha_thermal.interface.topic_table`).
