@@ -65,7 +65,6 @@ import math
 import threading
 from typing import Any, Deque, Dict, List, Mapping, Optional, Sequence, Tuple, TYPE_CHECKING
 
-
 if TYPE_CHECKING:
     from foxglove import Parameter
 
@@ -595,8 +594,7 @@ class LiveView:
         out = {**head, 'margin_current_A': _num(est.margin_current_A),
                'forecast_started_s': _num(est.forecast_stamp_s),
                'current_limit_A': _num(lim.binding_A if lim is not None else None),
-               'current_limits_status': 'pending' if lim is None else (
-                   lim.frame_id)}
+               'current_limits_status': 'pending' if lim is None else lim.frame_id}
         rules = (self._summary or {}).get('quantities', {})
         for q in self.limited:
             value, limit = est.temperatures_C[q], est.limits_C[q]
