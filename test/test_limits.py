@@ -10,6 +10,7 @@ from wet_eha_thermal.config import load_config
 from wet_eha_thermal.estimator.core import Estimator, INPUTS
 from wet_eha_thermal.estimator.limits import limit_steps, probing, RATING
 from wet_eha_thermal.estimator.session import EstimatorSession
+from wet_eha_thermal.interface import LimitStatus
 from wet_eha_thermal.units import C_TO_K
 
 pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
@@ -216,3 +217,28 @@ def test_a_tick_not_worked_on_in_time_is_published_as_the_fallback():
     assert behind and all(lim.reason.startswith('behind') for lim in behind)
     assert est._outlook.limits_behind == len(behind)
     assert [lim.stamp_s for lim in limits] == sorted(lim.stamp_s for lim in limits)
+
+
+def test_stopping_gives_up_the_waiting_ticks_then_says_stopped():
+    # a managed node deactivated: what waits goes out as behind, then one STOPPED, nothing after
+    cfg = load_config(overrides=LOW_LIMITS)
+    live = []
+    session = EstimatorSession(cfg, outlook='background',
+                               publish=lambda out: live.extend(out.limits), budget_s=0.0)
+    for k in range(1, 3001):           # no budget: every tick waits for the CPU
+        t = k / 1000.0
+        for ch in INPUTS:
+            session.take(ch, t, DUTY[ch], now_s=t)
+    n = len(live)
+    session.stop_limits('the estimator was deactivated')
+    last = live[-1]
+    assert last.frame_id == 'fallback: stopped: the estimator was deactivated'
+    assert last.code == LimitStatus.STOPPED and last.stamp_s == session.t_model > 2.9
+    assert max(last.limits_A) == cfg.estimator.limits.fallback_current_A
+    given_up = live[n:-1]
+    assert given_up and all(lim.code == LimitStatus.BEHIND for lim in given_up)
+    stamps = [lim.stamp_s for lim in live]
+    assert stamps == sorted(stamps)
+    st = session.status()
+    assert st.limits is last and st.limits_published == len(live)
+    assert st.limits_fallback == sum(lim.code != LimitStatus.OK for lim in live)
