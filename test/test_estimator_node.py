@@ -612,7 +612,7 @@ def test_foxglove_view_shows_the_published_estimates(context):
             Parameter('foxglove_address', value=f'127.0.0.1:{view.port}'),
             Parameter('topic_prefix', value='/eha_taken_port')])
         try:
-            assert other.view.view is None and 'in use' in other.view.error
+            assert other.runner.view.view is None and 'in use' in other.runner.view.error
         finally:
             other.destroy_node()
     finally:

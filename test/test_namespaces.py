@@ -74,7 +74,8 @@ def test_two_actuators_by_namespace_share_no_topic(context):
         for side in ('left', 'right'):
             est, rig = nodes[side, 'estimator'], nodes[side, 'rig']
             assert est.get_fully_qualified_name() == f'/{side}/eha_thermal_estimator'
-            assert est.prefix == f'/{side}' and est.topic_names['current_A'] == f'/{side}/current'
+            assert est.runner.prefix == f'/{side}'
+            assert est.runner.topic_names['current_A'] == f'/{side}/current'
             own = (_published(est) | _subscribed(est) | _published(rig) | _subscribed(rig)) \
                 - SHARED
             assert own and all(t.startswith(f'/{side}/') for t in own), own

@@ -19,7 +19,9 @@ outlook's slices within ``budget_s``), the current limits that work
 finished. The session decides the limits' status (a tick finished while the
 model is behind its inputs goes out as the fallback), so the drive, the view
 and /diagnostics see the same limits with the same status
-(:attr:`EstimatorSession.limits`, ``Estimate.current_limits``). A failure of
+(:attr:`EstimatorSession.limits`, ``Estimate.current_limits``); a caller
+that stops publishing says so with :meth:`EstimatorSession.stop_limits`
+(the drive's last limits, the fallback). A failure of
 the model's step is counted and never raised; while the model fails the
 last good estimate goes out again, stamped with the clock
 (:attr:`Output.held`). The alert summary (the JSON the node publishes on

@@ -79,9 +79,10 @@ from wet_eha_thermal.units import C_TO_K
 PUBLISHED = messages.ESTIMATE_TOPICS + (
     interface.STATE_TOPIC, interface.ALERT_TOPIC, interface.CURRENT_LIMITS_TOPIC,
     interface.CURRENT_LIMIT_TOPIC, interface.DRIVE_LIMITS_TOPIC)
-#: The limits' topics: a stopping runner waits (at most this long, s) for their last message
+#: The limits' topics: a stopping runner waits until their last message is acknowledged...
 LIMIT_TOPICS = (interface.CURRENT_LIMITS_TOPIC, interface.CURRENT_LIMIT_TOPIC,
                 interface.DRIVE_LIMITS_TOPIC)
+#: ... for at most this long (s)
 LAST_LIMITS_WAIT_S = 1.0
 
 
