@@ -9,6 +9,11 @@ and shutdown end it.
 """
 
 import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import threading
 import time
 
 from lifecycle_msgs.msg import State, Transition
@@ -16,6 +21,7 @@ from lifecycle_msgs.srv import ChangeState, GetState
 from node_probe import NodeAndProbe
 import pytest
 import rclpy
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from ros_domains import claim_domain
 from sensor_msgs.msg import FluidPressure, JointState, Temperature
@@ -31,6 +37,7 @@ pytestmark = pytest.mark.slow
 # this module's own domain, this machine only; conftest puts it in ROS_DOMAIN_ID while it runs
 DOMAIN_ID = claim_domain()
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+ROOT = Path(__file__).resolve().parents[1]
 VALUES = {'current_A': 20.0, 'speed_rad_s': 800.0, 'p_a_Pa': 1.0e6, 'p_b_Pa': 1.0e6,
           'p_acc_Pa': 1.0e6, 'position_m': 0.002}
 
@@ -177,3 +184,51 @@ def test_a_bad_configuration_fails_configure_and_stays_unconfigured(context, tmp
         assert op.node.session is None
     finally:
         op.close()
+
+
+def test_an_operator_starts_it_with_managed_and_stops_it_with_ctrl_c(context):
+    env = dict(os.environ, OPENBLAS_NUM_THREADS='1', PYTHONUNBUFFERED='1')
+    proc = subprocess.Popen(
+        [sys.executable, '-m', 'wet_eha_thermal.ros.estimator_node', '--managed', '--ros-args',
+         '-r', '__ns:=/managed_main'], cwd=ROOT, env=env, stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT, text=True)
+    lines = []
+    reader = threading.Thread(target=lambda: lines.extend(proc.stdout), daemon=True)
+    reader.start()
+    client = rclpy.create_node('lifecycle_cli', context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(client)
+    try:
+        service = f'/managed_main/{NODE_NAME}'
+        change = client.create_client(ChangeState, f'{service}/change_state')
+        get = client.create_client(GetState, f'{service}/get_state')
+        assert get.wait_for_service(timeout_sec=60.0), ''.join(lines)
+
+        def call(cli, request):
+            future = cli.call_async(request)
+            # configure loads the compiled model: minutes on a cold cache
+            executor.spin_until_future_complete(future, timeout_sec=300.0)
+            assert future.done(), ''.join(lines)
+            return future.result()
+
+        assert call(get, GetState.Request()).current_state.id == \
+            State.PRIMARY_STATE_UNCONFIGURED
+        for transition in (Transition.TRANSITION_CONFIGURE, Transition.TRANSITION_ACTIVATE):
+            assert call(change, ChangeState.Request(
+                transition=Transition(id=transition))).success, ''.join(lines)
+        assert call(get, GetState.Request()).current_state.id == State.PRIMARY_STATE_ACTIVE
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=30) == 0, ''.join(lines)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        executor.shutdown()
+        client.destroy_node()
+    reader.join(timeout=5)
+    text = ''.join(lines)
+    assert 'Traceback' not in text, text
+    # the same report line as the plain node's, for live and the logs
+    report = interface.NodeReport.find(text.splitlines())
+    assert report is not None and report.node == NODE_NAME, text
+    assert set(report.inputs) >= {'current_A', 'speed_rad_s'}
