@@ -209,7 +209,7 @@ def test_estimator_on_sim_time_stamps_within_the_bag(played, bag3):
     assert info.start_time_ns * 1e-9 <= stamps[0] and stamps[-1] <= info.end_time_ns * 1e-9
     assert all(15.0 < m.temperature < 80.0 for m in played.estimates)
     # /clock came first: no sample had to wait for it
-    assert played.estimator.waiting_for_clock == 0
+    assert played.estimator.runner.waiting_for_clock == 0
     assert all(h.received > 0 for h in played.estimator.session.health.values())
 
 
