@@ -37,6 +37,7 @@ Run it with ``wet-eha-thermal-estimator [--managed] --ros-args --params-file
 config/estimator.params.yaml`` or ``python -m wet_eha_thermal.ros.estimator_node``.
 """
 
+import gc
 import sys
 from typing import List, Optional, Tuple
 
@@ -121,6 +122,9 @@ class _Estimator:
             self.runner.close()
             self._report = self.runner.report(NODE_NAME)
             self.runner = None
+            # the runner froze its model out of the collector's sight: let the collector
+            # have it back (a configure freezes what is left again)
+            gc.unfreeze()
 
     @property
     def session(self):
