@@ -47,6 +47,9 @@ os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 
 ROOT = Path(__file__).resolve().parents[1]
 OK, WARN, ERROR, STALE = 0, 1, 2, 3
+#: a busy machine slows the node and this probe alike: a condition's deadline is this many
+#: times the seconds it takes on a quiet one (a deadline, never a rate)
+PATIENCE = 5.0
 VALUES = {'current_A': 20.0, 'speed_rad_s': 800.0, 'p_a_Pa': 1.0e6, 'p_b_Pa': 1.0e6,
           'p_acc_Pa': 1.0e6, 'dp_Pa': 0.0, 'position_m': 0.002}
 
@@ -59,6 +62,7 @@ class Rig(NodeAndProbe):
             Parameter('diagnostics_rate_Hz', value=5.0), Parameter('qos', value=qos),
             *overrides]), rclpy.create_node('estimator_test_probe', context=context))
         self.clock_ns = 1000 * 10**9 if sim_time else None
+        self.rounds = 0         # publish_samples calls
         self.in_qos = in_qos = topics.input_qos(qos, 100)
         self.pubs = {name: self.probe.create_publisher(
             FluidPressure if name in interface.PRESSURE_INPUTS else Float64,
@@ -82,6 +86,7 @@ class Rig(NodeAndProbe):
             stamp = _time(self.clock_ns)
         else:
             stamp = self.probe.get_clock().now().to_msg()
+        self.rounds += 1
         for name, pub in self.pubs.items():
             if name in skip:
                 continue
@@ -95,8 +100,13 @@ class Rig(NodeAndProbe):
             pub.publish(msg)
 
     def feed(self, seconds, until=None, skip=()):
-        """Publish at 1 kHz for ``seconds`` or until ``until()``; return whether it held."""
-        end = time.monotonic() + seconds
+        """
+        Publish at 1 kHz for ``seconds``, or until ``until()``; return whether it held.
+
+        With ``until``, ``seconds`` is what a quiet machine needs and the
+        deadline ``PATIENCE`` times that.
+        """
+        end = time.monotonic() + seconds * (1.0 if until is None else PATIENCE)
         next_t = time.monotonic()
         while time.monotonic() < end:
             now = time.monotonic()
@@ -370,7 +380,7 @@ def test_a_ros2_control_rig_connects_with_a_parameters_file(context):
             return all_ok() and len(estimates) > 20 and min(
                 node.session.health[n].accepted for n in node.session.inputs) > 100
 
-        end = time.monotonic() + 10.0
+        end = time.monotonic() + 10.0 * PATIENCE
         next_t = time.monotonic()
         while time.monotonic() < end and not enough():
             if time.monotonic() >= next_t:
@@ -408,7 +418,7 @@ def test_use_sim_time_stamps_follow_clock(context):
         def enough():
             return len(rig.estimates['oil']) >= 10
 
-        end = time.monotonic() + 8.0
+        end = time.monotonic() + 8.0 * PATIENCE
         while time.monotonic() < end and not enough():
             rig.publish_samples()
             rig.spin(0.0003)
@@ -622,7 +632,7 @@ def test_foxglove_view_shows_the_published_estimates(context):
 
 
 def test_whatif_is_answered_while_the_estimates_go_on(rig):
-    """A what-if of ten minutes runs beside the estimator: its estimates keep their rate."""
+    """A what-if of ten minutes runs beside the estimator: its estimates keep their pace."""
     answers, arrivals = [], []
     rig.probe.create_subscription(String, interface.WHATIF_RESPONSE_TOPIC,
                                   lambda m: answers.append(json.loads(m.data)),
@@ -641,10 +651,14 @@ def test_whatif_is_answered_while_the_estimates_go_on(rig):
         rig.spin(0.01)
     assert answers and answers[0]['id'] == 'early' and 'no state yet' in answers[0]['error']
     assert rig.feed(10.0, until=lambda: len(arrivals) > 100)
-    before = len(arrivals)
+    # the pace: estimates per round of samples the probe published. The node and the probe
+    # share one executor, so a busy machine slows both alike; a what-if that took the
+    # executor's time or the estimator's would lower it
+    before, rounds = len(arrivals), rig.rounds
     rig.feed(2.0)
     t0 = time.monotonic()
-    rate_before = (len(arrivals) - before) / 2.0
+    pace_before = (len(arrivals) - before) / (rig.rounds - rounds)
+    rounds = rig.rounds
     pub.publish(String(data='{"id": "hour", "stage": 6, "duration_s": 600}'))
     pub.publish(String(data='{"id": "second", "stage": 6, "duration_s": 60}'))
     assert rig.feed(120.0, until=lambda: any(a['id'] == 'hour' for a in answers))
@@ -656,12 +670,13 @@ def test_whatif_is_answered_while_the_estimates_go_on(rig):
     assert hour['start_stamp_s'] is not None and set(hour['temperatures_C']) == set(
         interface.ESTIMATES)
     during = [t for t in arrivals if t0 <= t <= t1]
-    rate_during = len(during) / (t1 - t0)
+    pace_during = len(during) / (rig.rounds - rounds)
     gaps = np.diff(during)
     print(f'what-if of 10 min of stage 6: {t1 - t0:.1f} s wall ({hour["wall_s"]:.1f} s in the '
-          f'worker); estimates {rate_before:.1f}/s before, {rate_during:.1f}/s during, longest '
-          f'gap {gaps.max() * 1e3:.0f} ms')
-    assert rate_during > 0.8 * rate_before and gaps.max() < 0.5
+          f'worker); estimates per 1000 sample rounds {1e3 * pace_before:.1f} before, '
+          f'{1e3 * pace_during:.1f} during, longest gap {gaps.max() * 1e3:.0f} ms')
+    # and no stall: a what-if worked in the node would hold the estimates for its own time
+    assert pace_during > 0.8 * pace_before and gaps.max() < max(0.5, 0.25 * hour['wall_s'])
 
 
 def test_whatif_command_asks_the_running_estimator(rig, tmp_path, capsys):
