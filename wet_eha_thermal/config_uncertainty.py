@@ -69,6 +69,10 @@ class Uncertainty:
         'the perturbed copies of the model are stepped over each period of this much '
         "sample time (a whole number of estimator steps) on the estimator's duty; the "
         'uncertainty published until the next period ends is the one at its start'))
+    copy_substep_s: float = spec(1e-4, 10.0, default=1.0, doc=(
+        "longest sub-step of the copies' oil volumes (s): the copies give differences "
+        "between models stepped alike, which a coarser sub-step than the estimate's moves "
+        'by about 1 % (docs/model.md, Uncertainty)'))
     parameters: Dict[str, UncertainParameter] = spec(doc=(
         'dotted key of a number under motor or hydraulics: its 1 sigma and source'))
     structural: Structural = spec(default_factory=Structural, doc=(

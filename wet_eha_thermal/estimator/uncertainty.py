@@ -65,7 +65,7 @@ class Propagation:
             m = EHAModel(c, coefficient_filter_s=s.coefficient_filter_s)
             m.circuit.keep_transition = False
             m.motor.check_rotor_validity = False     # the copies' validity is not reported
-            m.oil_substep_s = s.forecast_substep_s
+            m.oil_substep_s = u.copy_substep_s
             self.models.append(m)
         self._samples: List[np.ndarray] = []  # this period's step means, a row per group
         self._held: List[bool] = []           # whether each of them is a held block's

@@ -69,3 +69,9 @@ def compile_estimator(cfg: Config) -> float:
         # gives (a thermocouple is first watched for its noise and for being stuck)
         est._correction.warm_up(est.model, cfg.estimator.step_s)
     return time.perf_counter() - start
+
+
+if __name__ == '__main__':      # `scripts/dev` compiles once, before the test workers start
+    from ..config import load_config
+    print(f'model and estimator kernels ready in {compile_estimator(load_config()):.1f} s',
+          flush=True)
