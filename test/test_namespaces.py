@@ -19,6 +19,7 @@ from ros_domains import claim_domain
 from sensor_msgs.msg import Temperature
 from wet_eha_thermal.ros import topics
 from wet_eha_thermal.ros.estimator_node import EstimatorNode
+from wet_eha_thermal.ros.runtime import declare_parameters, shared_parameters
 from wet_eha_thermal.ros.sim_rig_node import SimRigNode
 
 # this module's own domain, this machine only; conftest puts it in ROS_DOMAIN_ID while it runs
@@ -39,7 +40,7 @@ def _subscribed(node):
 
 
 def test_two_actuators_by_namespace_share_no_topic(context):
-    nodes, estimates, status_names = {}, {'left': [], 'right': []}, set()
+    nodes, estimates, statuses = {}, {'left': [], 'right': []}, {}
     executor = EventsExecutor(context=context)
     probe = rclpy.create_node('namespace_probe', context=context)
     try:
@@ -56,21 +57,26 @@ def test_two_actuators_by_namespace_share_no_topic(context):
                                       estimates[side].append, 100)
         probe.create_subscription(
             DiagnosticArray, '/diagnostics',
-            lambda msg: status_names.update(s.name for s in msg.status), 100)
-        # on the one /diagnostics, each node's statuses carry its namespace
-        wanted = {f'wet_eha_thermal/{side}: estimate' for side in ('left', 'right')} | {
-            f'eha_sim_rig/{side}: rig' for side in ('left', 'right')}
+            lambda msg: statuses.update((s.name, s.hardware_id) for s in msg.status), 100)
+        # on the one /diagnostics, each node's statuses carry its namespace and node name
+        wanted = {f'{side}/eha_thermal_estimator: estimate' for side in ('left', 'right')} | {
+            f'{side}/eha_sim_rig: rig' for side in ('left', 'right')}
         for node in [*nodes.values(), probe]:
             executor.add_node(node)
         never = Future()
         end = time.monotonic() + 40.0
         while time.monotonic() < end and (min(len(v) for v in estimates.values()) < 20
-                                          or not wanted <= status_names):
+                                          or not wanted <= set(statuses)):
             executor.spin_until_future_complete(never, timeout_sec=0.2)
         counts = {side: len(v) for side, v in estimates.items()}
         assert min(counts.values()) >= 20, counts
-        assert wanted <= status_names, sorted(status_names)
-        assert not any(n.startswith('wet_eha_thermal: ') for n in status_names), status_names
+        assert wanted <= set(statuses), sorted(statuses)
+        # every status of a side is named under its namespace and carries its own id,
+        # derived from the namespace alone (no hardware_id parameter given)
+        for name, hardware_id in statuses.items():
+            side = name.split('/')[0]
+            assert side in ('left', 'right'), name
+            assert hardware_id == f'wet-eha-rig/{side}', (name, hardware_id)
         for side in ('left', 'right'):
             est, rig = nodes[side, 'estimator'], nodes[side, 'rig']
             assert est.get_fully_qualified_name() == f'/{side}/eha_thermal_estimator'
@@ -99,3 +105,18 @@ def test_a_plain_node_keeps_eha_and_a_prefix_must_be_absolute(context):
             topics.resolve_prefix(node, 'left')
     finally:
         node.destroy_node()
+
+
+def test_hardware_id_follows_the_namespace_unless_given(context):
+    def declared(namespace, overrides=()):
+        node = rclpy.create_node('id_probe', namespace=namespace, context=context,
+                                 parameter_overrides=list(overrides))
+        try:
+            return declare_parameters(node, shared_parameters('hardware_id'))['hardware_id']
+        finally:
+            node.destroy_node()
+
+    assert declared('/left') == 'wet-eha-rig/left'
+    assert declared('/rig_b/right') == 'wet-eha-rig/rig_b/right'
+    assert declared('/') == 'wet-eha-rig'
+    assert declared('/left', [Parameter('hardware_id', value='eha-sn-0042')]) == 'eha-sn-0042'

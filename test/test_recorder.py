@@ -198,7 +198,7 @@ def test_records_every_field_qos_and_config(context, tmp_path):
         for topic, (kind, _, msgs) in sent.items():
             got = decoded_by_topic[topic]
             if topic == interface.DIAGNOSTICS_TOPIC:    # the recorder's own status is there too
-                assert any(d.status[0].name == 'wet_eha_thermal: recorder' for _, d in got)
+                assert any(d.status[0].name == 'eha_recorder: recorder' for _, d in got)
                 got = [(m, d) for m, d in got if d.status[0].name == 'probe: status']
             assert len(got) == N, (reader, topic)
             assert all(_equal(ros, decoded) for ros, (_, decoded) in zip(msgs, got)), (

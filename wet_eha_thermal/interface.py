@@ -129,25 +129,44 @@ DRIVE_LIMITS_TOPIC = f'{PREFIX}/drive/limits'
 WHATIF_REQUEST_TOPIC = f'{PREFIX}/whatif/request'
 WHATIF_RESPONSE_TOPIC = f'{PREFIX}/whatif/response'
 DIAGNOSTICS_TOPIC = '/diagnostics'
-#: The first word of the package's diagnostic status names (``wet_eha_thermal: estimate``).
-STATUS_PREFIX = 'wet_eha_thermal'
+#: A node's ``hardware_id`` at the root namespace; in a namespace the namespace follows it
+#: (:func:`hardware_id`)
+HARDWARE_ID = 'wet-eha-rig'
 
 
-def status_name(what: str, namespace: str = '/', node: str = STATUS_PREFIX) -> str:
+def hardware_id(namespace: str = '/') -> str:
     """
-    Return the diagnostic status name ``node: what``, the node's namespace after ``node``.
+    Return the default ``hardware_id`` of a node in ``namespace``: one per actuator.
 
-    Every node publishes on the one /diagnostics: two actuators' estimators
-    started in namespaces /left and /right report ``wet_eha_thermal/left:
-    estimate`` and ``wet_eha_thermal/right: estimate``, apart in an
-    aggregator; a node in the root namespace keeps ``wet_eha_thermal: estimate``.
+    Two actuators started as ``-r __ns:=/left`` and ``-r __ns:=/right`` report
+    ``wet-eha-rig/left`` and ``wet-eha-rig/right`` without a parameter; a node
+    at the root keeps ``wet-eha-rig``. An explicit ``hardware_id`` parameter wins.
 
-    >>> status_name('estimate', '/left')
-    'wet_eha_thermal/left: estimate'
-    >>> status_name('rig', '/', 'eha_sim_rig')
+    >>> hardware_id('/left')
+    'wet-eha-rig/left'
+    >>> hardware_id('/')
+    'wet-eha-rig'
+    """
+    return HARDWARE_ID + namespace.rstrip('/')
+
+
+def status_name(what: str, node: str, namespace: str = '/') -> str:
+    """
+    Return the diagnostic status name ``<namespace>/<node>: what``, without the leading /.
+
+    Every node publishes on the one /diagnostics, so a status names the node
+    that reports it by its full name (diagnostic_updater's ``node: task`` with
+    the namespace in front): two actuators' estimators started in namespaces
+    /left and /right report ``left/eha_thermal_estimator: estimate`` and
+    ``right/eha_thermal_estimator: estimate``, apart in an aggregator; at the
+    root it is ``eha_thermal_estimator: estimate``.
+
+    >>> status_name('estimate', 'eha_thermal_estimator', '/left')
+    'left/eha_thermal_estimator: estimate'
+    >>> status_name('rig', 'eha_sim_rig')
     'eha_sim_rig: rig'
     """
-    return f'{node}{namespace.rstrip("/")}: {what}'
+    return f'{namespace.strip("/")}/{node}: {what}'.lstrip('/')
 
 
 #: Splits of ``live``'s recording (``--max-bag-duration``, ``--max-bag-size``): a new file

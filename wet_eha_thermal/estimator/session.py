@@ -41,11 +41,9 @@ from .alerts import AlertEvent, AlertRule
 from .core import Estimate, Estimator
 from .limits import CurrentLimits
 from ..config import Config
+from ..interface import HARDWARE_ID
 from ..model.eha import EHAModel
 from ..units import C_TO_K
-
-#: the hardware_id in the alert summary unless the caller names another (the node's default)
-HARDWARE_ID = 'wet-eha-rig'
 
 
 @dataclass

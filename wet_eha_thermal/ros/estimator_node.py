@@ -103,9 +103,8 @@ PARAMETERS = {
         'wall time per publish tick given to the forecast and the margin', 0.0, 50.0,
         read_only=False)),
     'diagnostics_rate_Hz': (1.0, descriptor('rate of /diagnostics', 0.1, 10.0, read_only=False)),
-    'hardware_id': ('wet-eha-rig', descriptor('hardware_id of the diagnostic statuses')),
     'frame_id': ('eha', descriptor('frame_id of the published temperatures')),
-    **shared_parameters('qos', 'qos_depth', 'topic_prefix', 'executor'),
+    **shared_parameters('qos', 'qos_depth', 'topic_prefix', 'hardware_id', 'executor'),
     'foxglove_address': ('', descriptor(
         'Foxglove WebSocket server of the live view (wet_eha_thermal/live_view.py), HOST:PORT, '
         "e.g. 127.0.0.1:8765 (port 0: any free one); '' = no server")),
@@ -128,7 +127,7 @@ class EstimatorNode(Node):
         self.cfg = load_config(p['config_file'] or None)
         input_spec = inputs.load_inputs(p['inputs_file'])
         self.hardware_id = p['hardware_id']
-        self._status_name = functools.partial(interface.status_name,
+        self._status_name = functools.partial(interface.status_name, node=self.get_name(),
                                               namespace=self.get_namespace())
         self.session = EstimatorSession(self.cfg, outlook='background', publish=self._publish,
                                         budget_s=p['background_budget_ms'] * 1e-3,

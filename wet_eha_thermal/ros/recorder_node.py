@@ -59,11 +59,12 @@ resume_margin_bytes`` are free again. Its health (the JSON of
 ``interface.RECORDER_HEALTH_TOPIC``: state, messages written and dropped,
 bytes, write rate, free space and the time it leaves, errors, the file
 being written) goes out on that latched topic and as the /diagnostics status
-``wet_eha_thermal: recorder`` once a second, and at once (within
-``WATCH_PERIOD_S``) when the writer's state changes: ERROR while suspended,
-WARN when the free space holds less than ``free_space_warn_s`` of recording
-at the present rate or after a fault it recovered from. A run that lost
-messages to the disk ends with exit status 1.
+``eha_recorder: recorder`` (``left/eha_recorder: recorder`` under /left)
+once a second, and at once (within ``WATCH_PERIOD_S``) when the writer's
+state changes: ERROR while suspended, WARN when the free space holds less
+than ``free_space_warn_s`` of recording at the present rate or after a
+fault it recovered from. A run that lost messages to the disk ends with
+exit status 1.
 
 Run: ``wet-eha-thermal-record --ros-args -p output:=runs/test`` or
 ``python -m wet_eha_thermal.ros.recorder_node``.
@@ -137,7 +138,7 @@ PARAMETERS = {
         'after a full disk, writing resumes (in a new file) once this much more than the '
         'reserve is free again, bytes', 0, 2 ** 40)),
     'compression': ('zstd', descriptor('chunk compression: ' + ', '.join(COMPRESSIONS))),
-    **shared_parameters('qos', 'qos_depth', 'topic_prefix', 'executor'),
+    **shared_parameters('qos', 'qos_depth', 'topic_prefix', 'hardware_id', 'executor'),
     # declared by type: rclpy takes an empty list for a byte array; unset, it reads None
     'extra_topics': (Parameter.Type.STRING_ARRAY, descriptor(
         'further topics to record (names; type and QoS from their publishers)')),
@@ -146,7 +147,6 @@ PARAMETERS = {
         'config/reference_eha.yaml')),
     'params_file': ('', descriptor(
         "estimator parameters file stored in the bag ('' = none)")),
-    'hardware_id': ('wet-eha-rig', descriptor('hardware_id of the diagnostic status')),
 }
 
 
@@ -437,7 +437,7 @@ class RecorderNode(Node):
             arr.header.stamp = self.get_clock().now().to_msg()
             arr.status = [DiagnosticStatus(
                 level=bytes([health['level']]), message=health['message'],
-                name=interface.status_name('recorder', self.get_namespace()),
+                name=interface.status_name('recorder', self.get_name(), self.get_namespace()),
                 hardware_id=self.hardware_id,
                 values=[KeyValue(key=k, value=str(v)) for k, v in values])]
             self.diag_pub.publish(arr)
