@@ -134,6 +134,18 @@ DIAGNOSTICS_TOPIC = '/diagnostics'
 HARDWARE_ID = 'wet-eha-rig'
 
 
+def namespace_prefix(namespace: str = '/') -> str:
+    """
+    Return the topics' prefix of a node in ``namespace`` with ``topic_prefix`` '' (root: /eha).
+
+    >>> namespace_prefix('/left/')
+    '/left'
+    >>> namespace_prefix('/')
+    '/eha'
+    """
+    return PREFIX if namespace.strip('/') == '' else '/' + namespace.strip('/')
+
+
 def hardware_id(namespace: str = '/') -> str:
     """
     Return the default ``hardware_id`` of a node in ``namespace``: one per actuator.
