@@ -113,7 +113,7 @@ def test_an_actuators_file_gives_each_its_own_files(tmp_path):
     by_name = {(n.namespace, n.name): n for n in nodes}
     assert _own(by_name['/rig_pc/left', 'eha_sim_rig'])['stage'] == 2
     assert _own(by_name['/right', 'eha_sim_rig'])['stage'] == 5
-    for node in ('eha_thermal_estimator',):
+    for node in ('eha_thermal_estimator', 'eha_recorder'):
         assert _own(by_name['/rig_pc/left', node])['inputs_file'] == \
             'ros2_control_rig.inputs.yaml'
         assert 'inputs_file' not in _own(by_name['/right', node])

@@ -62,6 +62,8 @@ JOINT_STATE = 'sensor_msgs/msg/JointState'
 CONFIG_METADATA = 'wet_eha_thermal.config'
 CONFIG_METADATA_KEY = 'yaml'
 PARAMS_METADATA = 'wet_eha_thermal.params'
+#: ... and the estimator's inputs file (``inputs_file``), which a replay decodes by
+INPUTS_METADATA = 'wet_eha_thermal.inputs'
 RECORDER_METADATA = 'wet_eha_thermal.recorder'
 #: The nodes' names (one place: ``live`` and the rig's ``wait_for`` name them too)
 ESTIMATOR_NODE, RIG_NODE, RECORDER_NODE = 'eha_thermal_estimator', 'eha_sim_rig', 'eha_recorder'
@@ -129,6 +131,9 @@ DRIVE_LIMITS_TOPIC = f'{PREFIX}/drive/limits'
 WHATIF_REQUEST_TOPIC = f'{PREFIX}/whatif/request'
 WHATIF_RESPONSE_TOPIC = f'{PREFIX}/whatif/response'
 DIAGNOSTICS_TOPIC = '/diagnostics'
+#: ros2_control's joint_state_broadcaster publishes here (sensor_msgs/JointState): the
+#: recorder records it whatever the inputs file says
+JOINT_STATES_TOPIC = '/joint_states'
 #: A node's ``hardware_id`` at the root namespace; in a namespace the namespace follows it
 #: (:func:`hardware_id`)
 HARDWARE_ID = 'wet-eha-rig'
@@ -228,8 +233,13 @@ def topic_table(prefix: str = PREFIX) -> Dict[str, Tuple[str, str]]:
 
 
 def prefixed(topic: str, prefix: str) -> str:
-    """Return ``topic`` (one of this module's, under ``/eha``) moved under ``prefix``."""
-    if not topic.startswith(PREFIX):
+    """
+    Return ``topic`` moved under ``prefix`` when it is under ``/eha``; any other as it is.
+
+    >>> prefixed('/eha/current', '/left'), prefixed('/eha_rig/current', '/left')
+    ('/left/current', '/eha_rig/current')
+    """
+    if topic != PREFIX and not topic.startswith(PREFIX + '/'):
         return topic
     return prefix.rstrip('/') + topic[len(PREFIX):]
 

@@ -202,6 +202,8 @@ def plan(actuators: Sequence[Actuator], share_dir: str, *, sim_rigs: bool = True
             if record_output and len(actuators) > 1:
                 output = os.path.join(record_output, a.namespace.strip('/').replace('/', '_'))
             rec = {**common, 'params_file': params, 'output': output}
+            if a.inputs_file:       # its topics recorded, the file stored for replay
+                rec['inputs_file'] = a.inputs_file
             # the events executor always: the single-threaded one loses messages
             nodes.append(NodePlan(RECORDER_EXE, interface.RECORDER_NODE, a.namespace,
                                   [params, rec], ['--executor', 'events'], remaps))
