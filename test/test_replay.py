@@ -469,3 +469,23 @@ def test_without_its_inputs_file_a_ros2_control_bag_says_what_to_give(bag, tmp_p
     with pytest.raises(rp.ReplayError, match=r'topic /eha/measured/winding \(dp_Pa\) holds '
                        'sensor_msgs/msg/Temperature; expected sensor_msgs/msg/JointState'):
         rp.plan_replay(rig, inputs=wrong)
+
+
+def test_an_actuator_in_a_namespace_replays_under_its_recorded_prefix(bag, result, tmp_path):
+    """A recorder under /left stored its topic_prefix: the replay reads /left, no --map."""
+    left = tmp_path / 'left.mcap'
+    info = open_bag(bag)
+    metadata = {interface.CONFIG_METADATA: info.metadata[interface.CONFIG_METADATA],
+                interface.RECORDER_METADATA: {'parameters': 'topic_prefix: /left\n'}}
+    with BagWriter(left, metadata=metadata) as w:
+        for topic, t in info.topics.items():
+            w.add_topic(interface.prefixed(topic, '/left'), t.type_name, None)
+        for m in iter_raw(bag):
+            w.write(interface.prefixed(m.topic, '/left'), m.data, m.log_time_ns)
+    plan = rp.plan_replay(left)
+    assert plan.inputs['current_A'] == '/left/current'
+    assert plan.thermocouples['frame'] == '/left/measured/frame'
+    assert plan.ambient == '/left/ambient'
+    moved = rp.replay(plan, output_rate_Hz=50.0, outlook=False)
+    for name, values in result.temperatures_C.items():
+        assert np.array_equal(moved.temperatures_C[name], values), name

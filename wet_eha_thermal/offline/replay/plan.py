@@ -3,7 +3,8 @@ A replay's plan: which configuration, and which topic of the bag feeds which inp
 
 The topics that feed each input are those of the estimator's inputs file
 (:mod:`wet_eha_thermal.inputs`: topic, message type, joint and field, unit, scale,
-offset, sign), else the live defaults (:mod:`wet_eha_thermal.interface`); ``--map
+offset, sign), else the live defaults (:mod:`wet_eha_thermal.interface`), their /eha
+moved to the prefix the recorder recorded under (an actuator in a namespace); ``--map
 name=/topic`` puts a default-typed topic in place of either. The inputs file is, in
 this order, the one given (``--inputs``), the one the recorder stored in the bag, or
 none. A topic the inputs file declares otherwise than the default is decoded message
@@ -22,6 +23,7 @@ from pathlib import Path
 from typing import Dict, List, Mapping, Optional, Sequence
 
 import numpy as np
+import yaml
 
 from ... import inputs as inputs_file, interface
 from ...bag.reader import BagError, BagInfo, Columns, open_bag
@@ -166,6 +168,20 @@ def choose_inputs(info: BagInfo, spec: Optional[inputs_file.Inputs]) -> tuple:
     return inputs_file.Inputs(), 'none: the /eha topics'
 
 
+def recorded_prefix(info: BagInfo) -> str:
+    """
+    Return the topic prefix the recorder of ``info`` recorded under (its resolved parameter).
+
+    /eha for a bag without the recorder's record (another recorder's, a replay's).
+    """
+    stored = info.metadata.get(interface.RECORDER_METADATA, {}).get('parameters')
+    try:
+        prefix = yaml.safe_load(stored).get('topic_prefix') if stored else None
+    except (yaml.YAMLError, AttributeError):
+        prefix = None
+    return prefix if isinstance(prefix, str) and prefix.startswith('/') else interface.PREFIX
+
+
 def _match_pressure_inputs(cfg: Config, wanted, source: str, info: BagInfo, topic_of) -> tuple:
     """Switch between three pressures and one differential when the bag holds only the other."""
     def present(names):
@@ -201,6 +217,7 @@ def plan_replay(path: os.PathLike, config_path: Optional[os.PathLike] = None,
         raise ReplayError(str(exc)) from exc
     cfg, source, text = config if config is not None else choose_config(info, config_path)
     spec, inputs_source = choose_inputs(info, inputs)
+    prefix = recorded_prefix(info)
     default = inputs_file.Inputs()
     mapping = dict(mapping or {})
     known = set(INPUTS) | {'dp_Pa', 'ambient'} | {f'measured/{tc}' for tc in
@@ -219,7 +236,8 @@ def plan_replay(path: os.PathLike, config_path: Optional[os.PathLike] = None,
         sig = spec.signal(channel(name))
         if name in mapping:
             return dataclasses.replace(default.signal(channel(name)), topic=mapping[name])
-        return sig
+        # an actuator in a namespace: its /eha topics were recorded under its prefix
+        return dataclasses.replace(sig, topic=interface.prefixed(sig.topic, prefix))
 
     def found(name: str) -> Optional[str]:
         """Return the topic of ``name`` when the bag holds it, checked for its type."""
