@@ -164,4 +164,7 @@ def test_bad_launch_arguments_are_named(changes, message):
 def test_one_actuator_records_into_record_output_itself():
     nodes = plan([Actuator('/eha')], SHARE, record_output='runs/one.mcap')
     assert _own(nodes[-1])['output'] == 'runs/one.mcap'
+    nodes = plan([Actuator('/left'), Actuator('/rig/right')], SHARE, record_output='runs/x.mcap')
+    assert [_own(n)['output'] for n in nodes if n.name == 'eha_recorder'] == [
+        'runs/x_left.mcap', 'runs/x_rig_right.mcap']
     assert launch_plan.DEFAULT_NAMESPACE == 'eha'

@@ -161,7 +161,8 @@ def plan(actuators: Sequence[Actuator], share_dir: str, *, sim_rigs: bool = True
     ``sim_rigs``: start each actuator's simulated rig (off: a real rig
     publishes the inputs). ``record``: a recorder per actuator, into
     ``record_output`` for one actuator, ``record_output/<namespace>`` for
-    several ('' : each recorder's own ``runs/eha_<UTC time>``). ``view``:
+    several (``<stem>_<namespace>.mcap`` for a name ending .mcap; '': each
+    recorder's own ``runs/eha_<UTC time>``). ``view``:
     each estimator serves its Foxglove view, the first on ``foxglove_port``,
     the next on the next port. ValueError when two actuators share a
     namespace or a port would leave 1..65535.
@@ -200,7 +201,10 @@ def plan(actuators: Sequence[Actuator], share_dir: str, *, sim_rigs: bool = True
         if record:
             output = record_output
             if record_output and len(actuators) > 1:
-                output = os.path.join(record_output, a.namespace.strip('/').replace('/', '_'))
+                name = a.namespace.strip('/').replace('/', '_')
+                stem, ext = os.path.splitext(record_output)
+                output = f'{stem}_{name}.mcap' if ext == '.mcap' else \
+                    os.path.join(record_output, name)
             rec = {**common, 'params_file': params, 'output': output}
             if a.inputs_file:       # its topics recorded, the file stored for replay
                 rec['inputs_file'] = a.inputs_file
