@@ -99,8 +99,8 @@ ROOT = Path(__file__).resolve().parents[1]
 PARAMS_FILE = ROOT / 'config' / 'estimator.params.yaml'
 #: The batched run's topic: a DAQ's block of every input, one column each.
 BATCH_TOPIC = f'{interface.PREFIX}/daq'
-INPUT_STATUS = interface.status_name('input ')
-ESTIMATE_STATUS = interface.status_name('estimate')
+INPUT_STATUS = interface.status_name('input ', interface.ESTIMATOR_NODE)
+ESTIMATE_STATUS = interface.status_name('estimate', interface.ESTIMATOR_NODE)
 LATENCY_KEY = 'step latency p50/p99/max [ms]'
 VIEW_KEY = 'foxglove view'
 

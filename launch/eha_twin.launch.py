@@ -1,86 +1,61 @@
 """
-Launch the live digital twin on a ROS 2 install: the simulated rig, the estimator, the recorder.
+Launch the live digital twin on a ROS 2 install: one or more actuators, each in its namespace.
 
 Usage (after ``colcon build`` and sourcing the workspace)::
 
     ros2 launch wet_eha_thermal eha_twin.launch.py stage:=3
-    ros2 launch wet_eha_thermal eha_twin.launch.py use_sim_time:=true
-    ros2 launch wet_eha_thermal eha_twin.launch.py record_output:=runs/test
-    ros2 launch wet_eha_thermal eha_twin.launch.py stage:=1 honour_limit:=true
+    ros2 launch wet_eha_thermal eha_twin.launch.py actuators:=left,right view:=true
+    ros2 launch wet_eha_thermal eha_twin.launch.py actuators_file:=rigs.yaml sim_rigs:=false
+    ros2 launch wet_eha_thermal eha_twin.launch.py record_output:=runs/test honour_limit:=true
 
-Every node reads ``config/estimator.params.yaml`` from the package's share
-directory: its ``/**`` keys apply to every node, so the rig and the recorder
-take the same ``config_file``, ``qos`` and ``topic_prefix`` as the estimator
-and ignore the keys they do not declare; the recorder also stores that file
-in the recording (``params_file``). Launch arguments: ``stage`` (1-6, the
-rig's duty), ``duty_file`` (a duty CSV; empty: the stage), ``use_sim_time``
-(every node follows /clock), ``executor`` (events or single; the recorder
-always uses events), ``record`` (true: start the recorder) and
-``record_output`` (its bag directory, or one MCAP file for a name ending
-``.mcap``; empty: ``runs/eha_<UTC time>`` in the working folder) and
-``honour_limit`` (true: the rig's drive honours the estimator's current
-limit, as ``live --closed-loop``).
+Per actuator (a namespace: ``eha`` by default, whose topics are the twin's
+/eha ones) it starts the simulated rig (``sim_rigs``), the estimator and the
+recorder (``record``), all in that namespace; with ``view`` each estimator
+serves its Foxglove view, the first on ``foxglove_port``, the next actuator's
+on the next port. What starts, with which parameters, remappings and ports,
+is decided by :func:`wet_eha_thermal.launch_plan.plan_from_arguments` (tested
+there); the arguments and the actuators file are described in
+``docs/live.md`` ("Several actuators").
 
 ``launch`` and ``launch_ros`` are not on PyPI, so they are imported inside
 :func:`generate_launch_description` only: the file stays importable (and
 style-checked) where they are missing.
 """
 
-import os
+#: Launch argument -> (default, description)
+ARGUMENTS = {
+    'actuators': ('eha', 'namespaces of the actuators, comma separated (e.g. left,right)'),
+    'actuators_file': ('', 'YAML list of actuators with their own files (replaces actuators)'),
+    'sim_rigs': ('true', 'start a simulated rig per actuator (false: real rigs publish)'),
+    'record': ('true', 'start a recorder per actuator'),
+    'view': ('false', "serve each estimator's Foxglove view, one port per actuator"),
+    'foxglove_port': ('8765', "port of the first actuator's Foxglove view"),
+    'stage': ('6', 'reference stage of the simulated rigs (1-6)'),
+    'duty_file': ('', 'duty CSV for the simulated rigs (empty: use the stage)'),
+    'use_sim_time': ('false', 'follow /clock instead of the system clock'),
+    'executor': ('events', 'rclpy executor of rigs and estimators: events or single'),
+    'honour_limit': ('false', "the rigs' drives honour the estimators' current limits"),
+    'record_output': ('', 'bag directory (one per actuator below it when several; empty: '
+                          'runs/eha_<UTC time>)'),
+}
 
 
 def generate_launch_description():
-    """Return the launch description of the rig, the estimator and the recorder nodes."""
+    """Return the launch description: the arguments, then the planned nodes."""
     from ament_index_python.packages import get_package_share_directory
     from launch import LaunchDescription
-    from launch.actions import DeclareLaunchArgument
-    from launch.conditions import IfCondition
+    from launch.actions import DeclareLaunchArgument, OpaqueFunction
     from launch.substitutions import LaunchConfiguration
     from launch_ros.actions import Node
-    from launch_ros.parameter_descriptions import ParameterValue
+    from wet_eha_thermal.launch_plan import PACKAGE, plan_from_arguments
 
-    share = get_package_share_directory('wet_eha_thermal')
-    params_file = os.path.join(share, 'config', 'estimator.params.yaml')
-    stage = LaunchConfiguration('stage')
-    duty_file = LaunchConfiguration('duty_file')
-    use_sim_time = LaunchConfiguration('use_sim_time')
-    executor = LaunchConfiguration('executor')
-    sim_time = ParameterValue(use_sim_time, value_type=bool)
-    return LaunchDescription([
-        DeclareLaunchArgument('stage', default_value='6',
-                              description='reference stage of the simulated rig (1-6)'),
-        DeclareLaunchArgument('duty_file', default_value='',
-                              description='duty CSV for the rig (empty: use the stage)'),
-        DeclareLaunchArgument('use_sim_time', default_value='false',
-                              description='follow /clock instead of the system clock'),
-        DeclareLaunchArgument('executor', default_value='events',
-                              description='rclpy executor of rig and estimator: events or single'),
-        DeclareLaunchArgument('honour_limit', default_value='false',
-                              description="the rig's drive honours the estimator's current "
-                                          'limit (a closed loop)'),
-        DeclareLaunchArgument('record', default_value='true',
-                              description='record every topic of the twin to a rosbag2 bag'),
-        DeclareLaunchArgument('record_output', default_value='',
-                              description='bag directory of the recording, or one file for a '
-                                          'name ending .mcap (empty: runs/eha_<UTC time>)'),
-        Node(package='wet_eha_thermal', executable='wet-eha-thermal-rig', name='eha_sim_rig',
-             output='screen', arguments=['--executor', executor],
-             parameters=[params_file,
-                         {'stage': ParameterValue(stage, value_type=int),
-                          'duty_file': ParameterValue(duty_file, value_type=str),
-                          'honour_limit': ParameterValue(LaunchConfiguration('honour_limit'),
-                                                         value_type=bool),
-                          'use_sim_time': sim_time}]),
-        Node(package='wet_eha_thermal', executable='wet-eha-thermal-estimator',
-             name='eha_thermal_estimator', output='screen',
-             arguments=['--executor', executor],
-             parameters=[params_file, {'use_sim_time': sim_time}]),
-        Node(package='wet_eha_thermal', executable='wet-eha-thermal-record', name='eha_recorder',
-             output='screen', arguments=['--executor', 'events'],
-             condition=IfCondition(LaunchConfiguration('record')),
-             parameters=[params_file,
-                         {'params_file': params_file, 'qos_depth': 1000,
-                          'output': ParameterValue(LaunchConfiguration('record_output'),
-                                                   value_type=str),
-                          'use_sim_time': sim_time}]),
-    ])
+    def nodes(context):
+        args = {name: LaunchConfiguration(name).perform(context) for name in ARGUMENTS}
+        return [Node(package=PACKAGE, executable=n.executable, name=n.name,
+                     namespace=n.namespace, output='screen', arguments=n.arguments,
+                     parameters=n.parameters, remappings=n.remappings)
+                for n in plan_from_arguments(args, get_package_share_directory(PACKAGE))]
+
+    return LaunchDescription(
+        [DeclareLaunchArgument(name, default_value=default, description=text)
+         for name, (default, text) in ARGUMENTS.items()] + [OpaqueFunction(function=nodes)])

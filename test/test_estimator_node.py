@@ -123,7 +123,7 @@ class Rig(NodeAndProbe):
         if not self.diagnostics:
             return None
         for s in self.diagnostics[-1].status:
-            if s.name == f'wet_eha_thermal: {name}':
+            if s.name == f'eha_thermal_estimator: {name}':
                 return s
         raise KeyError(name)
 
@@ -315,8 +315,8 @@ def test_one_differential_pressure_topic(context, tmp_path):
         assert set(rig.pubs) == {'current_A', 'speed_rad_s', 'dp_Pa', 'position_m'}
         assert rig.feed(6.0, until=lambda: rig.all_ok() and len(rig.estimates['oil']) > 20)
         names = [s.name for s in rig.diagnostics[-1].status]
-        assert 'wet_eha_thermal: input dp_Pa' in names
-        assert 'wet_eha_thermal: input p_a_Pa' not in names
+        assert 'eha_thermal_estimator: input dp_Pa' in names
+        assert 'eha_thermal_estimator: input p_a_Pa' not in names
         assert rig.values('input dp_Pa')['topic'] == '/eha/pressure_diff'
         # the counters are the last diagnostics message's: on a busy machine the first ones
         # came before 200 samples had been taken
@@ -397,14 +397,14 @@ def test_a_ros2_control_rig_connects_with_a_parameters_file(context):
                 assert h.rejected == 0, name
         topics_of = {s.name: {kv.key: kv.value for kv in s.values}.get('topic')
                      for s in diagnostics[-1].status}
-        assert topics_of['wet_eha_thermal: input speed_rad_s'] == '/joint_states'
-        assert topics_of['wet_eha_thermal: input p_acc_Pa'] == \
+        assert topics_of['eha_thermal_estimator: input speed_rad_s'] == '/joint_states'
+        assert topics_of['eha_thermal_estimator: input p_acc_Pa'] == \
             '/pressure_state_broadcaster/joint_states'
         assert node.count_subscribers('/joint_states') == 1
         # the air and the thermocouple from their joints, in degC, at the message's stamp
         assert node.session.ambient_K == pytest.approx(23.5 + C_TO_K, rel=1e-12)
         assert node.session.measured_C['frame'][1] == pytest.approx(23.5, rel=1e-12)
-        assert topics_of['wet_eha_thermal: thermocouple frame'] == \
+        assert topics_of['eha_thermal_estimator: thermocouple frame'] == \
             '/temperature_state_broadcaster/joint_states'
         stamps = _stamps(estimates)
         assert all(b > a for a, b in zip(stamps, stamps[1:]))

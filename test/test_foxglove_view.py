@@ -20,8 +20,10 @@ import numpy as np
 import pytest
 from websockets.sync.client import connect
 from wet_eha_thermal import interface
+from wet_eha_thermal.cli import main as cli_main
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.estimator.session import EstimatorSession
+from wet_eha_thermal.layouts import layout_for, where_to_get
 from wet_eha_thermal.live_view import (address_text, app_url, BAND_SIGMAS, CHANNELS, LiveView,
                                        parse_address, PENDING_ESTIMATES, view_topics)
 from wet_eha_thermal.model.quantity_table import LIMITED
@@ -458,9 +460,18 @@ def _ros_fields_exist(type_name, fields, path):
         type_name = f'{pkg}/msg/{name}'
 
 
-def _layout(name):
-    """Return the layout file ``name``, checked: every panel placed is configured, and back."""
-    layout = json.loads((ROOT / 'layouts' / name).read_text())
+def _layout(name, namespace='/', tmp_path=None):
+    """
+    Return the layout file ``name``, checked: every panel placed is configured, and back.
+
+    In a namespace other than the root: as ``wet-eha-thermal layout`` writes it (in ``tmp_path``).
+    """
+    path = ROOT / 'layouts' / name
+    if namespace != '/':
+        path = tmp_path / name
+        assert cli_main(['layout', name.split('.')[0], '--namespace', namespace,
+                         '-o', str(path)]) == 0
+    layout = json.loads(path.read_text())
     assert set(layout) >= {'configById', 'layout', 'globalVariables', 'userNodes',
                            'playbackConfig'}
     config = layout['configById']
@@ -485,11 +496,20 @@ def _layout(name):
     return layout
 
 
-def test_live_layout_names_only_channels_of_the_view(view):
-    layout = _layout('live.json')
-    by_topic = {topic: view.schemas[name] for name, topic in view_topics().items()}
+#: the shipped layouts, and as written for an actuator in a namespace
+NAMESPACES = ('/', '/left', '/rig_pc/right')
+#: how many message paths each shipped layout names (each one is moved in a namespace)
+PATHS = {'live.json': 93, 'replay.json': 43}
+
+
+@pytest.mark.parametrize('namespace', NAMESPACES)
+def test_live_layout_names_only_channels_of_the_view(view, namespace, tmp_path):
+    layout = _layout('live.json', namespace, tmp_path)
+    prefix = interface.namespace_prefix(namespace)
+    by_topic = {topic: view.schemas[name] for name, topic in view_topics(prefix).items()}
     paths = list(message_paths(layout['configById']))
-    assert len(paths) > 20
+    assert len(paths) == PATHS['live.json']
+    assert '/eha/' not in json.dumps(layout) or prefix == '/eha'
     for path in paths:
         topic, fields = split_path(path)
         assert topic in by_topic, f'{path}: the view has no channel {topic}'
@@ -500,23 +520,63 @@ def test_live_layout_names_only_channels_of_the_view(view):
     assert {split_path(p)[0] for p in paths} == set(by_topic)
     # what-ifs are asked for where the estimator takes them, as a std_msgs/String of a request
     publish = layout['configById']['Publish!whatif']
-    assert publish['topicName'] == interface.WHATIF_REQUEST_TOPIC
+    assert publish['topicName'] == interface.prefixed(interface.WHATIF_REQUEST_TOPIC, prefix)
     assert publish['datatype'] == 'std_msgs/String'
     assert parse_request(json.loads(publish['value'])['data'], load_config(),
                          interface.ESTIMATES).stage == 6
 
 
-def test_replay_layout_names_only_recorded_topics():
-    layout = _layout('replay.json')
+@pytest.mark.parametrize('namespace', NAMESPACES)
+def test_replay_layout_names_only_recorded_topics(namespace, tmp_path):
+    layout = _layout('replay.json', namespace, tmp_path)
+    prefix = interface.namespace_prefix(namespace)
     cfg_inputs = EstimatorSession(load_config()).inputs
-    unused = {interface.INPUT_TOPICS[n] for n in interface.INPUT_TOPICS if n not in cfg_inputs}
-    recorded = {t: spec for t, spec in recorded_topics().items() if t not in unused}
+    unused = {interface.prefixed(interface.INPUT_TOPICS[n], prefix)
+              for n in interface.INPUT_TOPICS if n not in cfg_inputs}
+    recorded = {t: spec for t, spec in recorded_topics(prefix).items() if t not in unused}
     paths = list(message_paths(layout['configById']))
-    assert len(paths) > 15
+    assert len(paths) == PATHS['replay.json']
     for path in paths:
         topic, fields = split_path(path)
         assert topic in recorded, f'{path}: a live recording has no topic {topic}'
         _ros_fields_exist(recorded[topic][0], fields, path)
+    # the statuses it reads are those the estimator in that namespace publishes
+    names = {n for p in paths for n in re.findall(r'name=="([^"]*)"', p)}
+    names.add(layout['configById']['DiagnosticStatusPanel!detail']['selectedName'])
+    ours = interface.status_name('', interface.ESTIMATOR_NODE, namespace)
+    assert len(names) > 2 and all(n.startswith(ours) for n in names), names
+
+
+def test_a_layout_keeps_what_is_not_the_twins():
+    """Only /eha topics and the twin's status names move; the root gives the layout back."""
+    template = {'a': ['/eha/view/limits.oil', '/ehanot/x', '/diagnostics', 'eha: x',
+                      'text /eha/estimate', '/eha', 'eha_recorder: recorder'],
+                'b': {'topicName': '/eha/whatif/request', 'n': 3}}
+    assert layout_for(template, '/') == template
+    assert layout_for(template, '/eha') == {
+        'a': ['/eha/view/limits.oil', '/ehanot/x', '/diagnostics', 'eha: x',
+              'text /eha/estimate', '/eha', 'eha/eha_recorder: recorder'],
+        'b': {'topicName': '/eha/whatif/request', 'n': 3}}
+    assert layout_for(template, '/left') == {
+        'a': ['/left/view/limits.oil', '/ehanot/x', '/diagnostics', 'eha: x',
+              'text /eha/estimate', '/left', 'left/eha_recorder: recorder'],
+        'b': {'topicName': '/left/whatif/request', 'n': 3}}
+    assert layout_for(template, '/left', prefix='/rig_b')['b']['topicName'] == \
+        '/rig_b/whatif/request'
+
+
+def test_where_a_layout_comes_from():
+    assert where_to_get('live') == 'layouts/live.json'
+    assert where_to_get('live', '/left') == 'wet-eha-thermal layout live --namespace /left'
+    assert where_to_get('replay', '/', '/rig_b') == \
+        'wet-eha-thermal layout replay --namespace / --topic-prefix /rig_b'
+
+
+def test_the_layout_command_refuses_a_bad_namespace(tmp_path, capsys):
+    assert cli_main(['layout', 'live', '--namespace', '/2left', '-o',
+                     str(tmp_path / 'x.json')]) == 2
+    assert "--namespace = '/2left': a namespace is one or more names" in capsys.readouterr().err
+    assert not (tmp_path / 'x.json').exists()
 
 
 def test_the_recorder_health_is_shown_at_once_and_a_fault_is_an_event(view, run):

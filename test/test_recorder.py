@@ -22,6 +22,7 @@ from child_process import killed_at_exit
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
+import numpy as np
 import pytest
 import rclpy
 from rclpy.experimental import EventsExecutor
@@ -198,7 +199,7 @@ def test_records_every_field_qos_and_config(context, tmp_path):
         for topic, (kind, _, msgs) in sent.items():
             got = decoded_by_topic[topic]
             if topic == interface.DIAGNOSTICS_TOPIC:    # the recorder's own status is there too
-                assert any(d.status[0].name == 'wet_eha_thermal: recorder' for _, d in got)
+                assert any(d.status[0].name == 'eha_recorder: recorder' for _, d in got)
                 got = [(m, d) for m, d in got if d.status[0].name == 'probe: status']
             assert len(got) == N, (reader, topic)
             assert all(_equal(ros, decoded) for ros, (_, decoded) in zip(msgs, got)), (
@@ -239,6 +240,58 @@ def test_records_every_field_qos_and_config(context, tmp_path):
     assert parameters['output'] == str(output) and parameters['extra_topics'] == [EXTRA]
     bag = open_bag(output)
     assert not bag.truncated and 'rosbag2' in bag.metadata
+
+
+def test_a_ros2_control_rig_is_recorded_and_replays_by_its_inputs_file(context, tmp_path):
+    """The example rig's joint_state_broadcasters, recorded; the bag replays with no option."""
+    # the node test's player of the shipped example (config/ros2_control_rig.inputs.yaml)
+    from test_estimator_node import JointStateBroadcasters, VALUES
+    from wet_eha_thermal.offline import replay as rp
+
+    probe = rclpy.create_node('recorder_test_rig', context=context)
+    output = tmp_path / 'rig.mcap'
+    node = RecorderNode(context=context, parameter_overrides=[
+        Parameter('output', value=str(output)),
+        Parameter('inputs_file', value='ros2_control_rig.inputs.yaml')])
+    executor = EventsExecutor(context=context)
+    executor.add_node(node)
+    executor.add_node(probe)
+    rig = JointStateBroadcasters(probe)
+    topics_of_rig = {'/joint_states', '/pressure_state_broadcaster/joint_states',
+                     '/temperature_state_broadcaster/joint_states'}
+    try:
+        assert topics_of_rig <= set(node.types)
+        assert _spin(executor, 10.0, until=lambda: all(
+            probe.count_subscribers(t) > 0 for t in topics_of_rig))
+        for _ in range(150):        # 1.5 s at 100 Hz: the model steps at 50 Hz
+            rig.publish()
+            _spin(executor, 0.01)
+        assert _spin(executor, 10.0, until=lambda: all(
+            node.counts.get(t, 0) >= 150 for t in topics_of_rig))
+        node.close()
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        probe.destroy_node()
+    files = bag_files(output)
+    info = open_bag(files[0])
+    assert {t: info.topics[t].type_name for t in topics_of_rig} == dict.fromkeys(
+        topics_of_rig, interface.JOINT_STATE)
+    stored = info.metadata[interface.INPUTS_METADATA]
+    assert stored['yaml'] == (ROOT / 'config' / 'ros2_control_rig.inputs.yaml').read_text()
+    # the replay decodes them by the stored file: back to the SI values the rig was given
+    plan = rp.plan_replay(files[0])
+    assert plan.inputs_source.startswith('stored in ')
+    assert set(plan.inputs.values()) == topics_of_rig - {
+        '/temperature_state_broadcaster/joint_states'}
+    result = rp.replay(plan, outlook=False, prefetch=False)
+    assert result.steps > 40
+    for name, (t, values) in result.inputs.items():
+        assert t.size and np.allclose(values, VALUES[name], rtol=1e-12, atol=0.0), name
+    frame_t, frame_C = result.measured['frame']
+    assert frame_t.size and np.allclose(frame_C, 23.5, rtol=0.0, atol=1e-12)
+    assert all(h['accepted'] == h['received'] >= 150 for h in result.health.values()), \
+        result.health
 
 
 def test_sim_time_log_times_follow_clock(context, tmp_path):

@@ -14,7 +14,8 @@ from rosbags.rosbag2 import Reader
 from rosbags.typesys import get_typestore, Stores
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64
-from wet_eha_thermal import interface
+from wet_eha_thermal import inputs, interface
+from wet_eha_thermal.bag import cdr
 from wet_eha_thermal.bag.reader import iter_raw, open_bag
 from wet_eha_thermal.bag.writer import BagWriter
 from wet_eha_thermal.cli import main
@@ -354,3 +355,137 @@ def test_a_stored_configuration_of_an_older_model_says_to_give_one(tmp_path):
         rp.choose_config(info, None)
     cfg, source, _ = rp.choose_config(info, default_config_path())
     assert source == str(default_config_path()) and cfg.motor.end_spaces.htc_multiplier == 1.0
+
+
+#: The bag's inputs as a ros2_control rig publishes them: joint_state_broadcasters, each in
+#: its rig's units (A amplitude, r/min, mm the other way round, bar, degF for the air)
+JOINT_INPUTS = """
+inputs:
+  current_A: {topic: /joint_states, message_type: sensor_msgs/msg/JointState,
+              joint: eha_motor, field: effort, unit: A_peak}
+  speed_rad_s: {topic: /joint_states, message_type: sensor_msgs/msg/JointState,
+                joint: eha_motor, field: velocity, unit: r/min}
+  position_m: {topic: /joint_states, message_type: sensor_msgs/msg/JointState,
+               joint: eha_rod, field: position, unit: mm, sign: -1}
+  dp_Pa: {topic: /pressure_state_broadcaster/joint_states,
+          message_type: sensor_msgs/msg/JointState, joint: pressure_diff, field: effort,
+          unit: bar}
+  ambient: {topic: /air_state_broadcaster/joint_states, message_type: sensor_msgs/msg/JointState,
+            joint: air, field: effort, unit: degF}
+  thermocouples:
+    frame: {topic: /temperature_state_broadcaster/joint_states,
+            message_type: sensor_msgs/msg/JointState, joint: tc_frame, field: effort,
+            unit: degC}
+"""
+#: default topic -> (joint_states topic, joint, its field, the rig's raw value of the SI one)
+AS_JOINTS = {
+    '/eha/current': ('/joint_states', 'eha_motor', 'effort', lambda v: v * math.sqrt(2.0)),
+    '/eha/speed': ('/joint_states', 'eha_motor', 'velocity', lambda v: v * 30.0 / math.pi),
+    '/eha/position': ('/joint_states', 'eha_rod', 'position', lambda v: -v * 1e3),
+    '/eha/pressure_diff': ('/pressure_state_broadcaster/joint_states', 'pressure_diff',
+                           'effort', lambda v: v / 1e5),
+    '/eha/ambient': ('/air_state_broadcaster/joint_states', 'air', 'effort',
+                     lambda v: v * 1.8 + 32.0),
+    '/eha/measured/frame': ('/temperature_state_broadcaster/joint_states', 'tc_frame', 'effort',
+                            lambda v: v),
+}
+
+
+def _as_joint_states(bag, path):
+    """Write ``bag`` again as a ros2_control rig would publish it, its inputs file stored."""
+    info = open_bag(bag)
+    joints = {}                        # (topic, log time, stamp) -> {joint: {field: value}}
+    others = []
+    for m in iter_raw(bag):
+        if m.topic not in AS_JOINTS:
+            others.append((m.log_time_ns, m.topic, m.data))
+            continue
+        topic, joint, field, raw = AS_JOINTS[m.topic]
+        if m.type_name == interface.FLOAT64:     # stamped on arrival: the log time
+            stamp, value = m.log_time_ns, cdr.float64_data(m.data)
+        else:
+            stamp, value = cdr.header_stamp_and_value(m.data)
+            stamp = stamp or m.log_time_ns
+        joints.setdefault((topic, m.log_time_ns, stamp), {}).setdefault(joint, {})[field] = \
+            raw(value)
+    for (topic, log_ns, stamp), by_joint in joints.items():
+        names = sorted(by_joint)
+        per_field = [[by_joint[j].get(f, 0.0) for j in names]
+                     for f in ('position', 'velocity', 'effort')]
+        others.append((log_ns, topic, cdr.encode_joint_state(stamp, 'rig', names, *per_field)))
+    metadata = {interface.CONFIG_METADATA: info.metadata[interface.CONFIG_METADATA]}
+    metadata[interface.INPUTS_METADATA] = {'path': 'rig.inputs.yaml',
+                                           interface.CONFIG_METADATA_KEY: JOINT_INPUTS}
+    with BagWriter(path, metadata=metadata) as w:
+        for topic, t in info.topics.items():
+            if topic not in AS_JOINTS:
+                w.add_topic(topic, t.type_name, None)
+        for topic in {t for t, *_ in AS_JOINTS.values()}:
+            w.add_topic(topic, interface.JOINT_STATE, None)
+        for log_ns, topic, data in sorted(others, key=lambda x: x[0]):
+            w.write(topic, data, log_ns)
+    return path
+
+
+def test_a_ros2_control_bag_replays_by_its_stored_inputs_file(bag, result, tmp_path):
+    """The same samples as JointStates in the rig's units give the same estimates."""
+    rig = _as_joint_states(bag, tmp_path / 'joint_states.mcap')
+    plan = rp.plan_replay(rig)
+    assert plan.inputs_source == 'stored in joint_states.mcap (rig.inputs.yaml)'
+    assert plan.inputs == {'current_A': '/joint_states', 'speed_rad_s': '/joint_states',
+                           'dp_Pa': '/pressure_state_broadcaster/joint_states',
+                           'position_m': '/joint_states'}
+    assert plan.ambient == '/air_state_broadcaster/joint_states'
+    assert plan.thermocouples['frame'] == '/temperature_state_broadcaster/joint_states'
+    # the other thermocouples stay on their default topics
+    assert plan.thermocouples['winding'] == '/eha/measured/winding'
+    assert set(plan.decoded) == {'/joint_states', '/pressure_state_broadcaster/joint_states',
+                                 '/air_state_broadcaster/joint_states',
+                                 '/temperature_state_broadcaster/joint_states'}
+    assert not any(t.startswith('/eha/') and t != '/eha/measured/winding'
+                   and '/measured/' not in t for t in plan.specs)
+    joint = rp.replay(plan, output_rate_Hz=50.0, outlook=False)
+    assert np.array_equal(joint.stamp_s, result.stamp_s)
+    # the units' round trips (A peak, r/min, mm, bar, degF) cost a few ulps of each sample:
+    # the estimates agree far below what any figure of the twin shows (1 nK)
+    for name, values in result.temperatures_C.items():
+        np.testing.assert_allclose(joint.temperatures_C[name], values, rtol=0.0, atol=1e-9,
+                                   err_msg=name)
+    for tc, (t, v) in result.measured.items():
+        np.testing.assert_allclose(joint.measured[tc][1], v, rtol=0.0, atol=1e-12, err_msg=tc)
+        assert np.array_equal(joint.measured[tc][0], t), tc
+    assert {n: h['received'] for n, h in joint.health.items()} == \
+        {n: h['received'] for n, h in result.health.items()}
+
+
+def test_without_its_inputs_file_a_ros2_control_bag_says_what_to_give(bag, tmp_path):
+    rig = _as_joint_states(bag, tmp_path / 'joint_states.mcap')
+    with pytest.raises(rp.ReplayError, match='no topic of the mapping is in the bag .* inputs '
+                       'file: given.*give the inputs file with --inputs'):
+        rp.plan_replay(rig, inputs=inputs.Inputs())
+    # a given inputs file wins over the stored one; its type must be the bag's
+    wrong = inputs.inputs_from_yaml(JOINT_INPUTS.replace(
+        '/pressure_state_broadcaster/joint_states', '/eha/measured/winding'))
+    with pytest.raises(rp.ReplayError, match=r'topic /eha/measured/winding \(dp_Pa\) holds '
+                       'sensor_msgs/msg/Temperature; expected sensor_msgs/msg/JointState'):
+        rp.plan_replay(rig, inputs=wrong)
+
+
+def test_an_actuator_in_a_namespace_replays_under_its_recorded_prefix(bag, result, tmp_path):
+    """A recorder under /left stored its topic_prefix: the replay reads /left, no --map."""
+    left = tmp_path / 'left.mcap'
+    info = open_bag(bag)
+    metadata = {interface.CONFIG_METADATA: info.metadata[interface.CONFIG_METADATA],
+                interface.RECORDER_METADATA: {'parameters': 'topic_prefix: /left\n'}}
+    with BagWriter(left, metadata=metadata) as w:
+        for topic, t in info.topics.items():
+            w.add_topic(interface.prefixed(topic, '/left'), t.type_name, None)
+        for m in iter_raw(bag):
+            w.write(interface.prefixed(m.topic, '/left'), m.data, m.log_time_ns)
+    plan = rp.plan_replay(left)
+    assert plan.inputs['current_A'] == '/left/current'
+    assert plan.thermocouples['frame'] == '/left/measured/frame'
+    assert plan.ambient == '/left/ambient'
+    moved = rp.replay(plan, output_rate_Hz=50.0, outlook=False)
+    for name, values in result.temperatures_C.items():
+        assert np.array_equal(moved.temperatures_C[name], values), name

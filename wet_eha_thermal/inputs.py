@@ -403,6 +403,17 @@ class TopicDecoder:
         return stamps, block * self.gain + self.bias
 
 
+def all_channels() -> List[str]:
+    """Return every channel an inputs file declares: the inputs, the ambient, each thermocouple."""
+    return [*interface.INPUT_TOPICS, AMBIENT,
+            *(thermocouple_channel(tc) for tc in interface.THERMOCOUPLES)]
+
+
+def topic_types(spec: Inputs) -> Dict[str, str]:
+    """Return topic -> message type of every topic ``spec`` reads (what a recorder records)."""
+    return {spec.signal(c).topic: spec.signal(c).message_type for c in all_channels()}
+
+
 def decoders(spec: Inputs, channels: Sequence[str]) -> List[TopicDecoder]:
     """Return one decoder per topic carrying any of ``channels``, in the order first named."""
     by_topic: Dict[str, list] = {}

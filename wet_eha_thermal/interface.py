@@ -62,6 +62,8 @@ JOINT_STATE = 'sensor_msgs/msg/JointState'
 CONFIG_METADATA = 'wet_eha_thermal.config'
 CONFIG_METADATA_KEY = 'yaml'
 PARAMS_METADATA = 'wet_eha_thermal.params'
+#: ... and the estimator's inputs file (``inputs_file``), which a replay decodes by
+INPUTS_METADATA = 'wet_eha_thermal.inputs'
 RECORDER_METADATA = 'wet_eha_thermal.recorder'
 #: The nodes' names (one place: ``live`` and the rig's ``wait_for`` name them too)
 ESTIMATOR_NODE, RIG_NODE, RECORDER_NODE = 'eha_thermal_estimator', 'eha_sim_rig', 'eha_recorder'
@@ -129,25 +131,59 @@ DRIVE_LIMITS_TOPIC = f'{PREFIX}/drive/limits'
 WHATIF_REQUEST_TOPIC = f'{PREFIX}/whatif/request'
 WHATIF_RESPONSE_TOPIC = f'{PREFIX}/whatif/response'
 DIAGNOSTICS_TOPIC = '/diagnostics'
-#: The first word of the package's diagnostic status names (``wet_eha_thermal: estimate``).
-STATUS_PREFIX = 'wet_eha_thermal'
+#: ros2_control's joint_state_broadcaster publishes here (sensor_msgs/JointState): the
+#: recorder records it whatever the inputs file says
+JOINT_STATES_TOPIC = '/joint_states'
+#: A node's ``hardware_id`` at the root namespace; in a namespace the namespace follows it
+#: (:func:`hardware_id`)
+HARDWARE_ID = 'wet-eha-rig'
 
 
-def status_name(what: str, namespace: str = '/', node: str = STATUS_PREFIX) -> str:
+def namespace_prefix(namespace: str = '/') -> str:
     """
-    Return the diagnostic status name ``node: what``, the node's namespace after ``node``.
+    Return the topics' prefix of a node in ``namespace`` with ``topic_prefix`` '' (root: /eha).
 
-    Every node publishes on the one /diagnostics: two actuators' estimators
-    started in namespaces /left and /right report ``wet_eha_thermal/left:
-    estimate`` and ``wet_eha_thermal/right: estimate``, apart in an
-    aggregator; a node in the root namespace keeps ``wet_eha_thermal: estimate``.
+    >>> namespace_prefix('/left/')
+    '/left'
+    >>> namespace_prefix('/')
+    '/eha'
+    """
+    return PREFIX if namespace.strip('/') == '' else '/' + namespace.strip('/')
 
-    >>> status_name('estimate', '/left')
-    'wet_eha_thermal/left: estimate'
-    >>> status_name('rig', '/', 'eha_sim_rig')
+
+def hardware_id(namespace: str = '/') -> str:
+    """
+    Return the default ``hardware_id`` of a node in ``namespace``: one per actuator.
+
+    Two actuators started as ``-r __ns:=/left`` and ``-r __ns:=/right`` report
+    ``wet-eha-rig/left`` and ``wet-eha-rig/right`` without a parameter; a node
+    at the root keeps ``wet-eha-rig``. An explicit ``hardware_id`` parameter wins.
+
+    >>> hardware_id('/left')
+    'wet-eha-rig/left'
+    >>> hardware_id('/')
+    'wet-eha-rig'
+    """
+    return HARDWARE_ID + namespace.rstrip('/')
+
+
+def status_name(what: str, node: str, namespace: str = '/') -> str:
+    """
+    Return the diagnostic status name ``<namespace>/<node>: what``, without the leading /.
+
+    Every node publishes on the one /diagnostics, so a status names the node
+    that reports it by its full name (diagnostic_updater's ``node: task`` with
+    the namespace in front): two actuators' estimators started in namespaces
+    /left and /right report ``left/eha_thermal_estimator: estimate`` and
+    ``right/eha_thermal_estimator: estimate``, apart in an aggregator; at the
+    root it is ``eha_thermal_estimator: estimate``.
+
+    >>> status_name('estimate', 'eha_thermal_estimator', '/left')
+    'left/eha_thermal_estimator: estimate'
+    >>> status_name('rig', 'eha_sim_rig')
     'eha_sim_rig: rig'
     """
-    return f'{node}{namespace.rstrip("/")}: {what}'
+    return f'{namespace.strip("/")}/{node}: {what}'.lstrip('/')
 
 
 #: Splits of ``live``'s recording (``--max-bag-duration``, ``--max-bag-size``): a new file
@@ -197,8 +233,13 @@ def topic_table(prefix: str = PREFIX) -> Dict[str, Tuple[str, str]]:
 
 
 def prefixed(topic: str, prefix: str) -> str:
-    """Return ``topic`` (one of this module's, under ``/eha``) moved under ``prefix``."""
-    if not topic.startswith(PREFIX):
+    """
+    Return ``topic`` moved under ``prefix`` when it is under ``/eha``; any other as it is.
+
+    >>> prefixed('/eha/current', '/left'), prefixed('/eha_rig/current', '/left')
+    ('/left/current', '/eha_rig/current')
+    """
+    if topic != PREFIX and not topic.startswith(PREFIX + '/'):
         return topic
     return prefix.rstrip('/') + topic[len(PREFIX):]
 

@@ -15,7 +15,8 @@ import multiprocessing
 import os
 from pathlib import Path
 import pickle
-from typing import Callable, Dict, Iterator, List, Mapping, Optional, Tuple
+import struct
+from typing import Callable, Dict, Iterator, List, Mapping, Optional, Protocol, Tuple, Union
 
 import numpy as np
 
@@ -97,18 +98,61 @@ def _decode(buf: np.ndarray, pos: np.ndarray, type_name: str, where: str) -> Col
                    {a: take(buf, body + first, '<f8'), b: take(buf, body + first + 8, '<f8')})
 
 
-def _check_specs(specs: Mapping[str, str]) -> Dict[str, str]:
-    for topic, type_name in specs.items():
-        if type_name not in COLUMN_FIELDS:
-            raise BagError(f'topic {topic}: type {type_name} is not one read as columns '
+class MessageDecoder(Protocol):
+    """
+    Decodes a topic message by message, for a type the columns do not read (a JointState, ...).
+
+    ``type_name`` is the type the bag must hold; ``fields`` the names of the
+    values; ``decode`` takes the log times (ns) and the CDR bytes of a run of
+    messages and returns the samples' times (ns) and each field's values:
+    as many samples as messages, or more (a batched block).
+    """
+
+    type_name: str
+    fields: Tuple[str, ...]
+
+    def decode(self, log_time_ns: np.ndarray, messages: List[bytes]
+               ) -> Tuple[np.ndarray, Dict[str, np.ndarray]]:
+        """Return the samples' times (ns) and values of ``messages``."""
+
+
+Spec = Union[str, MessageDecoder]
+
+
+def _type_name(spec: Spec) -> str:
+    return spec if isinstance(spec, str) else spec.type_name
+
+
+def _fields(spec: Spec) -> Tuple[str, ...]:
+    return COLUMN_FIELDS[spec] if isinstance(spec, str) else tuple(spec.fields)
+
+
+def _check_specs(specs: Mapping[str, Spec]) -> Dict[str, Spec]:
+    for topic, spec in specs.items():
+        if isinstance(spec, str) and spec not in COLUMN_FIELDS:
+            raise BagError(f'topic {topic}: type {spec} is not one read as columns '
                            f'({", ".join(COLUMN_FIELDS)})')
     return dict(specs)
+
+
+def _decode_each(buf: np.ndarray, pos: np.ndarray, decoder: MessageDecoder,
+                 where: str) -> Columns:
+    """Decode the messages whose records start at ``pos`` one by one with ``decoder``."""
+    size = take(buf, pos + LENGTH_AT, '<u8').astype(np.int64) - MESSAGE_HEADER_BYTES
+    log_time_ns = take(buf, pos + LOG_TIME_AT, '<i8')
+    starts = (pos + DATA_AT).tolist()
+    messages = [buf[at:at + n].tobytes() for at, n in zip(starts, size.tolist())]
+    try:
+        time_ns, values = decoder.decode(log_time_ns, messages)
+    except (ValueError, struct.error) as exc:
+        raise BagError(f'{where}: {exc}') from exc
+    return Columns(decoder.type_name, log_time_ns, time_ns, values)
 
 
 class _Selection:
     """The channels carrying the requested topics, checked against the requested types."""
 
-    def __init__(self, scan: Scanner, specs: Dict[str, str]):
+    def __init__(self, scan: Scanner, specs: Dict[str, Spec]):
         self._scan = scan
         self._specs = specs
         self._known = 0
@@ -121,9 +165,10 @@ class _Selection:
         self._known = len(channels)
         self.ids = {topic: [] for topic in self._specs}
         for channel in channels.values():
-            expected = self._specs.get(channel.topic)
-            if expected is None:
+            spec = self._specs.get(channel.topic)
+            if spec is None:
                 continue
+            expected = _type_name(spec)
             found = self._scan.type_name(channel)
             if found != expected or channel.message_encoding != 'cdr':
                 raise BagError(f'{self._scan.path}: topic {channel.topic} is {found} '
@@ -131,7 +176,7 @@ class _Selection:
             self.ids[channel.topic].append(channel.id)
 
 
-def _decoded_units(scan: Scanner, specs: Dict[str, str]) -> Iterator[Tuple[Unit, dict]]:
+def _decoded_units(scan: Scanner, specs: Dict[str, Spec]) -> Iterator[Tuple[Unit, dict]]:
     """Yield each unit with the columns of the requested topics found in it."""
     selection = _Selection(scan, specs)
     for unit, buf, pos, channel_ids in scan.located():
@@ -142,26 +187,28 @@ def _decoded_units(scan: Scanner, specs: Dict[str, str]) -> Iterator[Tuple[Unit,
                 continue
             mine = channel_ids == ids[0] if len(ids) == 1 else np.isin(channel_ids, ids)
             if mine.any():
-                decoded[topic] = _decode(buf, pos[mine], specs[topic], f'{scan.path}: {topic}')
+                spec, where = specs[topic], f'{scan.path}: {topic}'
+                decoded[topic] = _decode(buf, pos[mine], spec, where) if isinstance(spec, str) \
+                    else _decode_each(buf, pos[mine], spec, where)
         yield unit, decoded
 
 
-def _empty(type_name: str) -> Columns:
+def _empty(spec: Spec) -> Columns:
     log_time_ns = np.empty(0, np.int64)
-    return Columns(type_name, log_time_ns,
-                   log_time_ns if type_name == FLOAT64 else np.empty(0, np.int64),
-                   {name: np.empty(0) for name in COLUMN_FIELDS[type_name]})
+    return Columns(_type_name(spec), log_time_ns,
+                   log_time_ns if spec == FLOAT64 else np.empty(0, np.int64),
+                   {name: np.empty(0) for name in _fields(spec)})
 
 
-def _concatenate(type_name: str, parts: List[Columns]) -> Columns:
+def _concatenate(spec: Spec, parts: List[Columns]) -> Columns:
     if not parts:
-        return _empty(type_name)
+        return _empty(spec)
     log_time_ns = np.concatenate([p.log_time_ns for p in parts])
-    return Columns(type_name, log_time_ns,
-                   log_time_ns if type_name == FLOAT64
+    return Columns(_type_name(spec), log_time_ns,
+                   log_time_ns if spec == FLOAT64
                    else np.concatenate([p.time_ns for p in parts]),
                    {name: np.concatenate([p.values[name] for p in parts])
-                    for name in COLUMN_FIELDS[type_name]})
+                    for name in _fields(spec)})
 
 
 class ColumnBlocks:
@@ -185,7 +232,7 @@ class ColumnBlocks:
     called once per block.
     """
 
-    def __init__(self, path: os.PathLike, specs: Mapping[str, str], *,
+    def __init__(self, path: os.PathLike, specs: Mapping[str, Spec], *,
                  max_block_s: float = 10.0,
                  on_progress: Optional[Callable[[int, int], None]] = None,
                  prefetch: bool = False):
@@ -289,12 +336,15 @@ class ColumnBlocks:
         return {topic: _concatenate(self.specs[topic], p) for topic, p in parts.items()}
 
 
-def iter_column_blocks(path: os.PathLike, specs: Mapping[str, str], *,
+def iter_column_blocks(path: os.PathLike, specs: Mapping[str, Spec], *,
                        max_block_s: float = 10.0,
                        on_progress: Optional[Callable[[int, int], None]] = None,
                        prefetch: bool = False) -> ColumnBlocks:
     """
-    Return the blocks of columns of the topics ``specs`` (topic -> type name) of a bag.
+    Return the blocks of columns of the topics ``specs`` of a bag.
+
+    ``specs`` maps topic -> type name (of :data:`COLUMN_FIELDS`, decoded a
+    chunk at once) or a :class:`MessageDecoder` (message by message).
 
     See :class:`ColumnBlocks`; ``on_progress(bytes_read, bag_bytes)`` is
     called after each chunk (after each block with ``prefetch``).
@@ -356,6 +406,8 @@ def read_columns(path: os.PathLike, specs: Mapping[str, str],
     may be a bag directory (:func:`~.files.bag_files`).
     """
     specs = _check_specs(specs)
+    if not all(isinstance(spec, str) for spec in specs.values()):
+        raise BagError('read_columns takes type names only (iter_column_blocks takes decoders)')
     problems: List[str] = []
     total, done = total_bytes(path), 0
     builders = {topic: _ColumnBuilder(type_name, 0) for topic, type_name in specs.items()}

@@ -22,7 +22,8 @@ from ..config import ConfigError
 from ..model.kinetics import DutyError
 
 #: The commands, in the order ``--help`` lists them: each is the module ``cli/<name>.py``.
-COMMANDS = ('maps', 'sensitivity', 'simulate', 'live', 'replay', 'calibrate', 'whatif', 'play')
+COMMANDS = ('maps', 'sensitivity', 'simulate', 'live', 'layout', 'replay', 'calibrate', 'whatif',
+            'play')
 
 
 def command(name: str):

@@ -32,6 +32,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         'folder of them')
     add_out(p, 'replay')
     add_config(p, 'stored in the bag, else the reference rig')
+    p.add_argument('--inputs', type=Path, default=None, metavar='INPUTS_FILE',
+                   help="the estimator's inputs file (topics, types, joints, units: "
+                        'wet_eha_thermal/inputs.py), as the node took it (default: the one the '
+                        'recorder stored in the bag, else the /eha topics)')
     p.add_argument('--map', action='append', default=[], metavar='NAME=/TOPIC',
                    help='topic of an input (current_A, speed_rad_s, p_a_Pa, p_b_Pa, p_acc_Pa, '
                         'dp_Pa, position_m), a thermocouple (measured/frame, ...) or ambient; '
@@ -57,6 +61,7 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         options = rp.ReplayOptions(config_path=args.config, mapping=rp.parse_mapping(args.map),
+                                   inputs_path=args.inputs,
                                    output_rate_Hz=args.output_rate_Hz, report=not args.no_report,
                                    open_loop=args.open_loop, outlook=not args.no_outlook)
     except rp.ReplayError as exc:
@@ -72,7 +77,7 @@ def _plan_text(plan) -> str:
     info = plan.info
     return (f'{info.path}: {info.message_count} messages, '
             f'{(info.end_time_ns - info.start_time_ns) * 1e-9:.1f} s; configuration: '
-            f'{plan.config_source}\n'
+            f'{plan.config_source}; inputs file: {plan.inputs_source}\n'
             'inputs: ' + ', '.join(f'{n} <- {t}' for n, t in plan.inputs.items())
             + (f'; no topic, on fallback: {", ".join(plan.missing)}' if plan.missing else '')
             + f'; thermocouples: {", ".join(plan.thermocouples) or "none"}')

@@ -46,12 +46,9 @@ from .core import Estimate, Estimator
 from .intake import DataGaps
 from .limits import CurrentLimits, fallback_limits
 from ..config import Config
-from ..interface import InputCounts, LimitStatus
+from ..interface import HARDWARE_ID, InputCounts, LimitStatus
 from ..model.eha import EHAModel
 from ..units import C_TO_K
-
-#: the hardware_id in the alert summary unless the caller names another (the node's default)
-HARDWARE_ID = 'wet-eha-rig'
 
 
 @dataclass

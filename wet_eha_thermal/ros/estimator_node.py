@@ -71,9 +71,8 @@ PARAMETERS = {
         'wall time per publish tick given to the forecast and the margin', 0.0, 50.0,
         read_only=False)),
     'diagnostics_rate_Hz': (1.0, descriptor('rate of /diagnostics', 0.1, 10.0, read_only=False)),
-    'hardware_id': ('wet-eha-rig', descriptor('hardware_id of the diagnostic statuses')),
     'frame_id': ('eha', descriptor('frame_id of the published temperatures')),
-    **shared_parameters('qos', 'qos_depth', 'topic_prefix', 'executor'),
+    **shared_parameters('qos', 'qos_depth', 'topic_prefix', 'hardware_id', 'executor'),
     'foxglove_address': ('', descriptor(
         'Foxglove WebSocket server of the live view (wet_eha_thermal/live_view.py), HOST:PORT, '
         "e.g. 127.0.0.1:8765 (port 0: any free one); '' = no server")),

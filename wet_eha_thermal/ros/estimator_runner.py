@@ -372,10 +372,10 @@ class EstimatorRunner:
                 view=self.view.text())
             arr = DiagnosticArray()
             arr.header.stamp = _stamp_msg(now_ns)
-            namespace = self.node.get_namespace()
+            node, namespace = self.node.get_name(), self.node.get_namespace()
             arr.status = [
                 DiagnosticStatus(level=bytes([d.level]),
-                                 name=interface.status_name(d.name, namespace),
+                                 name=interface.status_name(d.name, node, namespace),
                                  message=d.message, hardware_id=self.hardware_id,
                                  values=[KeyValue(key=k, value=str(v)) for k, v in d.values])
                 for d in diagnostics.statuses(s, counters, now_ns * 1e-9, self.topic_names,

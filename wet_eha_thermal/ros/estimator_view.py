@@ -20,6 +20,7 @@ from rclpy.parameter import Parameter
 from std_msgs.msg import String
 from wet_eha_thermal import interface
 from wet_eha_thermal.estimator.session import EstimatorSession, Output
+from wet_eha_thermal.layouts import where_to_get
 from wet_eha_thermal.live_view import app_url, LiveView
 from wet_eha_thermal.model.quantity_table import LIMITED
 from wet_eha_thermal.ros import topics
@@ -65,8 +66,11 @@ class EstimatorView:
             self.node.get_logger().error(f'Foxglove view not started on {self.error}; '
                                          'estimating without it')
             return
+        namespace = self.node.get_namespace()
+        layout = where_to_get('live', namespace,
+                              None if prefix == interface.namespace_prefix(namespace) else prefix)
         self.node.get_logger().info(f'Foxglove view on {self.view.url}: open '
-                                    f'{app_url(host, self.view.port)}')
+                                    f'{app_url(host, self.view.port)}; layout: {layout}')
         self.node.create_subscription(String, self._topic(interface.RECORDER_HEALTH_TOPIC),
                                       self._on_recorder_health, topics.latched_qos())
 

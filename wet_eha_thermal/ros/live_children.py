@@ -67,6 +67,7 @@ def child_commands(opts: LiveOptions, hardware_id: str,
     rig = [py, '-m', 'wet_eha_thermal.ros.sim_rig_node', '--executor', opts.executor,
            '--ros-args', '-p', f'rate_Hz:={float(opts.rate_Hz)!r}',
            '-p', f'noise:={"true" if opts.noise else "false"}', '-p', 'qos:=reliable',
+           '-p', f'hardware_id:={hardware_id}',
            # the duty starts once the estimator and the recorder are warm and hear every
            # input: before that, samples would be lost or wait behind a start-up
            '-p', f'wait_for:=[{", ".join(waits)}]',

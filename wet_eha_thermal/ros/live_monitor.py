@@ -33,10 +33,10 @@ DOMAIN_FIRST, DOMAIN_LAST = 100, 232
 DOMAIN_TRIES, DOMAIN_PROBE_S = 8, 0.5
 #: Estimates followed by the status line and the peaks.
 WATCHED = ('winding_hotspot', 'winding_mean', 'magnet', 'oil')
-ESTIMATE_STATUS = interface.status_name('estimate')
-RECORDER_STATUS = interface.status_name('recorder')
-INPUT_STATUS = interface.status_name('input ')
-RIG_STATUS = interface.status_name('rig', node=RIG_NODE)
+ESTIMATE_STATUS = interface.status_name('estimate', interface.ESTIMATOR_NODE)
+RECORDER_STATUS = interface.status_name('recorder', interface.RECORDER_NODE)
+INPUT_STATUS = interface.status_name('input ', interface.ESTIMATOR_NODE)
+RIG_STATUS = interface.status_name('rig', RIG_NODE)
 #: the band the truth is checked against: the one the drive's limits hold (k sigma)
 TRUTH_BAND_SIGMA = 2.0
 
@@ -164,8 +164,7 @@ class TwinState:
         """Take one DiagnosticArray's statuses (estimator and rig)."""
         for st in statuses:
             kv = {v.key: v.value for v in st.values}
-            ours = st.name.startswith(f'{interface.STATUS_PREFIX}: ')
-            if ours and st.hardware_id != self.hardware_id:
+            if st.hardware_id != self.hardware_id:
                 continue                      # another estimator on this domain: not ours
             if st.name == ESTIMATE_STATUS:
                 self.margin = kv.get('margin_current [A RMS]', self.margin)

@@ -8,7 +8,10 @@ the differential one), the ambient temperature, the thermocouples, the
 estimates, the state, the state's names and the alerts (both transient
 local, so what was published before the recorder started is recorded too),
 the acknowledgements, the drive's current limits and /diagnostics (its own
-status included). ``extra_topics``
+status included); also ros2_control's ``/joint_states`` and every topic the
+estimator's inputs file ``inputs_file`` names (:mod:`wet_eha_thermal.inputs`:
+a rig's JointStates, batched blocks, ...), with that file stored in the bag
+so that a replay decodes them as the estimator did. ``extra_topics``
 names further topics, subscribed once they appear in the ROS graph, with
 their type and a QoS adapted to their publishers as rosbag2 does (reliable
 and transient local only when every publisher is).
@@ -59,11 +62,12 @@ resume_margin_bytes`` are free again. Its health (the JSON of
 ``interface.RECORDER_HEALTH_TOPIC``: state, messages written and dropped,
 bytes, write rate, free space and the time it leaves, errors, the file
 being written) goes out on that latched topic and as the /diagnostics status
-``wet_eha_thermal: recorder`` once a second, and at once (within
-``WATCH_PERIOD_S``) when the writer's state changes: ERROR while suspended,
-WARN when the free space holds less than ``free_space_warn_s`` of recording
-at the present rate or after a fault it recovered from. A run that lost
-messages to the disk ends with exit status 1.
+``eha_recorder: recorder`` (``left/eha_recorder: recorder`` under /left)
+once a second, and at once (within ``WATCH_PERIOD_S``) when the writer's
+state changes: ERROR while suspended, WARN when the free space holds less
+than ``free_space_warn_s`` of recording at the present rate or after a
+fault it recovered from. A run that lost messages to the disk ends with
+exit status 1.
 
 Run: ``wet-eha-thermal-record --ros-args -p output:=runs/test`` or
 ``python -m wet_eha_thermal.ros.recorder_node``.
@@ -86,7 +90,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
-from wet_eha_thermal import interface
+from wet_eha_thermal import inputs, interface
 from wet_eha_thermal.bag.writer import (BagHealth, BagWriter, COMPRESSIONS,
                                         DEFAULT_RESERVE_BYTES, DEFAULT_RESUME_MARGIN_BYTES,
                                         qos_profiles, RECORDING, SUSPENDED)
@@ -137,7 +141,7 @@ PARAMETERS = {
         'after a full disk, writing resumes (in a new file) once this much more than the '
         'reserve is free again, bytes', 0, 2 ** 40)),
     'compression': ('zstd', descriptor('chunk compression: ' + ', '.join(COMPRESSIONS))),
-    **shared_parameters('qos', 'qos_depth', 'topic_prefix', 'executor'),
+    **shared_parameters('qos', 'qos_depth', 'topic_prefix', 'hardware_id', 'executor'),
     # declared by type: rclpy takes an empty list for a byte array; unset, it reads None
     'extra_topics': (Parameter.Type.STRING_ARRAY, descriptor(
         'further topics to record (names; type and QoS from their publishers)')),
@@ -146,7 +150,9 @@ PARAMETERS = {
         'config/reference_eha.yaml')),
     'params_file': ('', descriptor(
         "estimator parameters file stored in the bag ('' = none)")),
-    'hardware_id': ('wet-eha-rig', descriptor('hardware_id of the diagnostic status')),
+    'inputs_file': ('', descriptor(
+        "the estimator's inputs file (wet_eha_thermal/inputs.py): its topics are recorded "
+        "and the file stored in the bag, for replay; '' = the /eha topics")),
 }
 
 
@@ -186,7 +192,8 @@ class RecorderNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__(NODE_NAME, **kwargs)
         p = self._read_parameters()
-        # before the bag is made: a bad qos leaves no empty recording behind
+        # before the bag is made: a bad qos or inputs file leaves no empty recording behind
+        input_spec = inputs.load_inputs(p['inputs_file'])
         qos_of = {kind: topics.qos_profile(kind, p['qos'], p['qos_depth'])
                   for kind in (interface.SENSOR, interface.OUTPUT, interface.LATCHED)}
         self.hardware_id = p['hardware_id']
@@ -209,6 +216,8 @@ class RecorderNode(Node):
         self.started_s = time.monotonic()
         self.clock = FastClock(self)
         input_subs = self._subscribe_fixed(p['topic_prefix'], qos_of)
+        input_subs += self._subscribe_inputs(p['topic_prefix'], input_spec,
+                                             qos_of[interface.SENSOR])
         extra = ['/' + t.lstrip('/') for t in p['extra_topics']]    # as rosbag2 names them
         self.extra_wanted = [t for t in extra if t not in self.types]
         self._start_reporting(p['topic_prefix'], input_subs)
@@ -232,6 +241,9 @@ class RecorderNode(Node):
         metadata = {interface.CONFIG_METADATA: _text_record(config_path)}
         if p['params_file']:
             metadata[interface.PARAMS_METADATA] = _text_record(Path(p['params_file']))
+        if p['inputs_file']:
+            metadata[interface.INPUTS_METADATA] = _text_record(inputs.inputs_path(
+                p['inputs_file']))
         metadata[interface.RECORDER_METADATA] = {
             'version': version('wet_eha_thermal'), 'node': self.get_fully_qualified_name(),
             'started_utc': self.started_utc,
@@ -281,6 +293,14 @@ class RecorderNode(Node):
             if topic in inputs:
                 input_subs.append(sub)
         return input_subs
+
+    def _subscribe_inputs(self, prefix: str, spec: inputs.Inputs, qos: QoSProfile) -> list:
+        """Subscribe to /joint_states and each topic of the inputs file not subscribed yet."""
+        wanted = {interface.JOINT_STATES_TOPIC: interface.JOINT_STATE}
+        wanted.update({interface.prefixed(topic, prefix): type_name
+                       for topic, type_name in inputs.topic_types(spec).items()})
+        return [self._subscribe(topic, type_name, qos) for topic, type_name in wanted.items()
+                if topic not in self.types]
 
     def _subscribe(self, topic: str, type_name: str, qos: QoSProfile):
         sub = self.create_subscription(topics.message_class(type_name), topic,
@@ -437,7 +457,7 @@ class RecorderNode(Node):
             arr.header.stamp = self.get_clock().now().to_msg()
             arr.status = [DiagnosticStatus(
                 level=bytes([health['level']]), message=health['message'],
-                name=interface.status_name('recorder', self.get_namespace()),
+                name=interface.status_name('recorder', self.get_name(), self.get_namespace()),
                 hardware_id=self.hardware_id,
                 values=[KeyValue(key=k, value=str(v)) for k, v in values])]
             self.diag_pub.publish(arr)

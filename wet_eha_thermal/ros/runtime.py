@@ -28,6 +28,7 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 from rclpy.utilities import remove_ros_args
 from std_msgs.msg import String
+from wet_eha_thermal import interface
 from wet_eha_thermal.config import Config
 from wet_eha_thermal.ros.topics import FROM_NAMESPACE, latched_qos, PREFIX_DOC, resolve_prefix
 
@@ -193,14 +194,19 @@ def shared_parameters(*names: str) -> Dict[str, Tuple[object, ParameterDescripto
     Return the declarations (name -> (default, descriptor)) of the parameters the nodes share.
 
     One declaration, one range and one check (:func:`declare_parameters`)
-    for ``qos``, ``qos_depth``, ``topic_prefix`` and ``executor``, whichever
-    node declares them; ``names`` picks those a node has.
+    for ``qos``, ``qos_depth``, ``topic_prefix``, ``hardware_id`` and
+    ``executor``, whichever node declares them; ``names`` picks those a node has.
     """
     shared = {
         'qos': ('sensor_data', descriptor(
             "QoS of the sensor topics: 'sensor_data' (best effort) or 'reliable'")),
         'qos_depth': (1000, descriptor('history depth of the sensor subscriptions', 1, 100000)),
         'topic_prefix': (FROM_NAMESPACE, descriptor(PREFIX_DOC)),
+        'hardware_id': (FROM_NAMESPACE, descriptor(
+            "hardware_id of the diagnostic statuses and the ready messages; '' = "
+            f"{interface.HARDWARE_ID} followed by the node's namespace "
+            f"({interface.hardware_id('/left')} under /left, {interface.HARDWARE_ID} at the "
+            'root)')),
         'executor': ('events', descriptor(
             "executor used by main(): 'events' (rclpy.experimental.EventsExecutor) or 'single' "
             '(SingleThreadedExecutor); the --executor option overrides it')),
@@ -215,7 +221,9 @@ def declare_parameters(node: Node, parameters: Mapping[str, Tuple[object, Parame
 
     The shared ones (:func:`shared_parameters`) are checked here: ValueError
     names the parameter, its value and what is allowed; ``topic_prefix``
-    comes back resolved (:func:`~wet_eha_thermal.ros.topics.resolve_prefix`).
+    comes back resolved (:func:`~wet_eha_thermal.ros.topics.resolve_prefix`),
+    and an empty ``hardware_id`` as the namespace's
+    (:func:`~wet_eha_thermal.interface.hardware_id`).
     """
     accept_whole_numbers(node, {name: default for name, (default, _) in parameters.items()})
     values = {name: node.declare_parameter(name, default, desc).value
@@ -227,6 +235,8 @@ def declare_parameters(node: Node, parameters: Mapping[str, Tuple[object, Parame
                              f'{", ".join(kinds)}')
     if 'topic_prefix' in values:       # the prefix itself: '' is the node's namespace
         values['topic_prefix'] = resolve_prefix(node, values['topic_prefix'])
+    if values.get('hardware_id') == FROM_NAMESPACE:
+        values['hardware_id'] = interface.hardware_id(node.get_namespace())
     return values
 
 

@@ -218,6 +218,7 @@ class SimRigNode(Node):
         self.period_s = self.rig.period_s
         self.period_ns = int(round(self.period_s * 1e9))
         self.noise = p['noise']
+        self.hardware_id = p['hardware_id']
         self.wait_for_subscribers = p['wait_for_subscribers']
         self.wait_for = set(p['wait_for'])
         self.start_timeout_s = p['start_timeout_s']
@@ -330,7 +331,8 @@ class SimRigNode(Node):
                 "old, the estimator's fallback), A RMS; 0: the configuration's "
                 'estimator.limits.fallback_current_A', 0.0, 1000.0)),
         }
-        values = declare_parameters(self, {**specs, **shared_parameters('qos', 'topic_prefix')})
+        values = declare_parameters(
+            self, {**specs, **shared_parameters('qos', 'topic_prefix', 'hardware_id')})
         values['wait_for'] = list(values['wait_for'] or [])
         return values
 
@@ -437,7 +439,8 @@ class SimRigNode(Node):
         self.started_after_s = waited
         self.ready_pub.publish(String(data=json.dumps({
             'node': self.get_name(), 'ready': True, 'running': True,
-            'waited_s': round(waited, 3), 'ready_nodes': sorted(self.ready_nodes)})))
+            'hardware_id': self.hardware_id, 'waited_s': round(waited, 3),
+            'ready_nodes': sorted(self.ready_nodes)})))
         self.get_logger().info(f'duty started after {waited:.1f} s of start-up'
                                + (f' ({", ".join(sorted(self.wait_for))} ready)'
                                   if self.wait_for and not waiting else ''))
@@ -530,8 +533,8 @@ class SimRigNode(Node):
             s['truth_oil_C'] = out['oil'] - C_TO_K
         if self.drive is not None:
             s['limit_source'] = self.limit_source
-        st = DiagnosticStatus(name=status_name('rig', self.get_namespace(), NODE_NAME),
-                              hardware_id=NODE_NAME)
+        st = DiagnosticStatus(name=status_name('rig', self.get_name(), self.get_namespace()),
+                              hardware_id=self.hardware_id)
         late = s['publish_lag_p99_ms'] > 10.0 or self.skipped > 0
         st.level = DiagnosticStatus.WARN if late else DiagnosticStatus.OK
         st.message = 'falling behind the schedule' if late else 'running'

@@ -38,8 +38,7 @@ def resolve_prefix(node, prefix: str) -> str:
     prefix that is not absolute.
     """
     if prefix == FROM_NAMESPACE:
-        namespace = node.get_namespace()
-        return interface.PREFIX if namespace == '/' else namespace.rstrip('/')
+        return interface.namespace_prefix(node.get_namespace())
     if not prefix.startswith('/'):
         raise ValueError(f'parameter topic_prefix = {prefix!r}: must start with /, or be empty '
                          "(the node's namespace)")

@@ -1,12 +1,19 @@
 """
 A replay's plan: which configuration, and which topic of the bag feeds which input.
 
-The topics that feed each input are the live defaults (:mod:`wet_eha_thermal.interface`)
-unless mapped otherwise (``--map name=/topic``); thermocouples
-(``/eha/measured/<name>``) are compared with the estimate each one measures. The
-configuration is, in this order, the one given, the one the recorder stored in
-the bag, or the shipped reference rig. A plan routes each decoded block of the
-bag to what it feeds (:meth:`ReplayPlan.route`).
+The topics that feed each input are those of the estimator's inputs file
+(:mod:`wet_eha_thermal.inputs`: topic, message type, joint and field, unit, scale,
+offset, sign), else the live defaults (:mod:`wet_eha_thermal.interface`), their /eha
+moved to the prefix the recorder recorded under (an actuator in a namespace); ``--map
+name=/topic`` puts a default-typed topic in place of either. The inputs file is, in
+this order, the one given (``--inputs``), the one the recorder stored in the bag, or
+none. A topic the inputs file declares otherwise than the default is decoded message
+by message as the node decodes it (a ros2_control rig's JointStates, a batched
+block, a sensor in bar), so such a rig's bag replays with no code. Thermocouples
+(``/eha/measured/<name>`` by default) are compared with the estimate each one
+measures. The configuration is, in this order, the one given, the one the recorder
+stored in the bag, or the shipped reference rig. A plan routes each decoded block of
+the bag to what it feeds (:meth:`ReplayPlan.route`).
 """
 
 import dataclasses
@@ -16,17 +23,49 @@ from pathlib import Path
 from typing import Dict, List, Mapping, Optional, Sequence
 
 import numpy as np
+import yaml
 
-from ... import interface
+from ... import inputs as inputs_file, interface
 from ...bag.reader import BagError, BagInfo, Columns, open_bag
 from ...config import (Config, config_from_yaml, ConfigError, default_config_path, load_config,
                        with_values)
 from ...estimator.intake import INPUTS, sensor_inputs
 from ...estimator.session import Samples
+from ...units import C_TO_K
 
 
 class ReplayError(ValueError):
     """A bag or a topic mapping that cannot be replayed; the message says why."""
+
+
+class InputsDecoder:
+    """
+    A topic of the inputs file, decoded message by message as the estimator node does.
+
+    A :class:`~wet_eha_thermal.bag.columns.MessageDecoder`: its fields are the
+    channels the topic carries (inputs in SI, the ambient and thermocouples in
+    K). A message without a stamp (a Float64, or a zero header stamp) takes
+    its log time, as the node takes its receive time.
+    """
+
+    def __init__(self, decoder: inputs_file.TopicDecoder) -> None:
+        self.decoder = decoder
+        self.type_name = decoder.message_type
+        self.fields = decoder.channels
+
+    def decode(self, log_time_ns: np.ndarray, messages: List[bytes]) -> tuple:
+        """Return the samples' times (ns) and each channel's values."""
+        dec = self.decoder
+        if dec.batched:
+            blocks = [dec.decode_batch(m) for m in messages]
+            time_ns = np.concatenate([np.round(t * 1e9).astype(np.int64) for t, _ in blocks])
+            values = np.vstack([v for _, v in blocks])
+        else:
+            rows = [dec.decode(m) for m in messages]
+            time_ns = np.array([stamp or log for (stamp, _), log in
+                                zip(rows, log_time_ns.tolist())], dtype=np.int64)
+            values = np.array([v for _, v in rows], dtype=np.float64).reshape(-1, len(self.fields))
+        return time_ns, {c: np.ascontiguousarray(values[:, k]) for k, c in enumerate(self.fields)}
 
 
 @dataclass
@@ -41,14 +80,18 @@ class ReplayPlan:
     thermocouples: Dict[str, str]          # thermocouple name -> topic
     ambient: Optional[str]
     info: BagInfo
+    #: topics the inputs file declares otherwise than the defaults, with their decoders
+    decoded: Dict[str, InputsDecoder] = field(default_factory=dict)
+    inputs_source: str = 'none: the /eha topics'
 
     @property
-    def specs(self) -> Dict[str, str]:
-        """Return topic -> message type of every topic to decode."""
+    def specs(self) -> Dict[str, object]:
+        """Return topic -> message type (or decoder) of every topic to decode."""
         specs = {topic: interface.INPUT_TYPES[name] for name, topic in self.inputs.items()}
         specs.update({topic: interface.TEMPERATURE for topic in self.thermocouples.values()})
         if self.ambient is not None:
             specs[self.ambient] = interface.TEMPERATURE
+        specs.update(self.decoded)
         return specs
 
     def route(self, block: Dict[str, Columns], origin_ns: int = 0) -> Samples:
@@ -60,11 +103,14 @@ class ReplayPlan:
         """
         samples = Samples()
         for topic, columns in block.items():
-            if not len(columns):
+            if not len(columns) or not len(columns.time_ns):
                 continue
             t = (columns.time_ns - origin_ns).astype(np.float64) * 1e-9
-            samples.first_s = float(t[0]) if samples.first_s is None \
-                else min(samples.first_s, float(t[0]))
+            samples.first_s = float(t.min()) if samples.first_s is None \
+                else min(samples.first_s, float(t.min()))
+            if topic in self.decoded:
+                self._route_decoded(samples, t, columns.values)
+                continue
             for name, input_topic in self.inputs.items():
                 if input_topic == topic:
                     samples.inputs[name] = (t, next(iter(columns.values.values())))
@@ -75,6 +121,19 @@ class ReplayPlan:
                     samples.thermocouples[tc] = (t, columns.values['temperature'],
                                                  columns.values['variance'])
         return samples
+
+    def _route_decoded(self, samples: Samples, t: np.ndarray,
+                       values: Dict[str, np.ndarray]) -> None:
+        """Route the channels of a topic of the inputs file: temperatures in degC."""
+        for channel, v in values.items():
+            if channel == inputs_file.AMBIENT:
+                samples.ambient = (t, v - C_TO_K)
+            elif channel in self.inputs:
+                samples.inputs[channel] = (t, v)
+            else:
+                tc = next(tc for tc in self.thermocouples
+                          if inputs_file.thermocouple_channel(tc) == channel)
+                samples.thermocouples[tc] = (t, v - C_TO_K, np.full(len(t), np.nan))
 
 
 def choose_config(info: BagInfo, config_path: Optional[os.PathLike]) -> tuple:
@@ -97,11 +156,36 @@ def choose_config(info: BagInfo, config_path: Optional[os.PathLike]) -> tuple:
         default_config_path().read_text()
 
 
-def _match_pressure_inputs(cfg: Config, wanted, source: str, info: BagInfo,
-                           mapping: Mapping[str, str]) -> tuple:
+def choose_inputs(info: BagInfo, spec: Optional[inputs_file.Inputs]) -> tuple:
+    """Return (inputs, where they came from): given, stored in the bag, or the defaults."""
+    if spec is not None:
+        return spec, 'given'
+    stored = info.metadata.get(interface.INPUTS_METADATA, {})
+    text = stored.get(interface.CONFIG_METADATA_KEY)
+    if text:
+        return inputs_file.inputs_from_yaml(text, f'{info.path} (stored inputs file)'), \
+            f"stored in {info.path.name} ({Path(stored.get('path', 'inputs')).name})"
+    return inputs_file.Inputs(), 'none: the /eha topics'
+
+
+def recorded_prefix(info: BagInfo) -> str:
+    """
+    Return the topic prefix the recorder of ``info`` recorded under (its resolved parameter).
+
+    /eha for a bag without the recorder's record (another recorder's, a replay's).
+    """
+    stored = info.metadata.get(interface.RECORDER_METADATA, {}).get('parameters')
+    try:
+        prefix = yaml.safe_load(stored).get('topic_prefix') if stored else None
+    except (yaml.YAMLError, AttributeError):
+        prefix = None
+    return prefix if isinstance(prefix, str) and prefix.startswith('/') else interface.PREFIX
+
+
+def _match_pressure_inputs(cfg: Config, wanted, source: str, info: BagInfo, topic_of) -> tuple:
     """Switch between three pressures and one differential when the bag holds only the other."""
     def present(names):
-        return any(mapping.get(n, interface.INPUT_TOPICS[n]) in info.topics for n in names)
+        return any(topic_of(n) in info.topics for n in names)
 
     ports, differential = ('p_a_Pa', 'p_b_Pa', 'p_acc_Pa'), ('dp_Pa',)
     mine, other, mode = (ports, differential, 'differential') if 'p_a_Pa' in wanted else \
@@ -115,20 +199,26 @@ def _match_pressure_inputs(cfg: Config, wanted, source: str, info: BagInfo,
 
 def plan_replay(path: os.PathLike, config_path: Optional[os.PathLike] = None,
                 mapping: Optional[Mapping[str, str]] = None,
-                config: Optional[tuple] = None) -> ReplayPlan:
+                config: Optional[tuple] = None,
+                inputs: Optional[inputs_file.Inputs] = None) -> ReplayPlan:
     """
     Open a bag and decide which topics feed the estimator; raise ReplayError when none does.
 
     ``mapping`` maps input or thermocouple names (``current_A``, ...,
-    ``measured/frame``, ``ambient``) to topics, replacing the defaults.
-    ``config`` (a :func:`choose_config` tuple) is used instead of choosing one
-    for this bag, e.g. one configuration for several bags.
+    ``measured/frame``, ``ambient``) to topics of the default types, replacing
+    the inputs file's and the defaults. ``config`` (a :func:`choose_config`
+    tuple) is used instead of choosing one for this bag, e.g. one
+    configuration for several bags. ``inputs``: the estimator's inputs
+    (:func:`choose_inputs`: default, the file stored in the bag).
     """
     try:
         info = open_bag(path)
     except BagError as exc:
         raise ReplayError(str(exc)) from exc
     cfg, source, text = config if config is not None else choose_config(info, config_path)
+    spec, inputs_source = choose_inputs(info, inputs)
+    prefix = recorded_prefix(info)
+    default = inputs_file.Inputs()
     mapping = dict(mapping or {})
     known = set(INPUTS) | {'dp_Pa', 'ambient'} | {f'measured/{tc}' for tc in
                                                   interface.THERMOCOUPLES}
@@ -136,36 +226,76 @@ def plan_replay(path: os.PathLike, config_path: Optional[os.PathLike] = None,
     if unknown:
         raise ReplayError(f'cannot map {unknown[0]!r}: the names are '
                           f'{", ".join(sorted(known))}')
+
+    def channel(name: str) -> str:         # a mapping's name -> the inputs file's channel
+        return inputs_file.thermocouple_channel(name[len('measured/'):]) \
+            if name.startswith('measured/') else name
+
+    def signal(name: str) -> inputs_file.InputSignal:
+        """Return where ``name`` is read: mapped (default type), or as the inputs say."""
+        sig = spec.signal(channel(name))
+        if name in mapping:
+            return dataclasses.replace(default.signal(channel(name)), topic=mapping[name])
+        # an actuator in a namespace: its /eha topics were recorded under its prefix
+        return dataclasses.replace(sig, topic=interface.prefixed(sig.topic, prefix))
+
+    def found(name: str) -> Optional[str]:
+        """Return the topic of ``name`` when the bag holds it, checked for its type."""
+        sig = signal(name)
+        held = info.topics.get(sig.topic)
+        if held is None:
+            return None
+        if held.type_name != sig.message_type:
+            raise ReplayError(f'{info.path}: topic {sig.topic} ({name}) holds {held.type_name}; '
+                              f'expected {sig.message_type} ({inputs_source})')
+        return sig.topic
+
     wanted = sensor_inputs(cfg)
-    cfg, wanted, source = _match_pressure_inputs(cfg, wanted, source, info, mapping)
-    inputs, missing = {}, []
+    cfg, wanted, source = _match_pressure_inputs(cfg, wanted, source, info,
+                                                 lambda n: signal(n).topic)
+    inputs_found, missing = {}, []
     for name in wanted:
-        topic = mapping.get(name, interface.INPUT_TOPICS[name])
-        found = info.topics.get(topic)
-        if found is None:
+        topic = found(name)
+        if topic is None:
             missing.append(name)
-            continue
-        if found.type_name != interface.INPUT_TYPES[name]:
-            raise ReplayError(f'{info.path}: topic {topic} (input {name}) holds '
-                              f'{found.type_name}; expected {interface.INPUT_TYPES[name]}')
-        inputs[name] = topic
-    if not inputs:
+        else:
+            inputs_found[name] = topic
+    if not inputs_found:
         listing = ', '.join(f'{t} ({i.type_name})' for t, i in sorted(info.topics.items()))
         raise ReplayError(
             f'{info.path}: no topic of the mapping is in the bag (looked for '
-            f'{", ".join(mapping.get(n, interface.INPUT_TOPICS[n]) for n in wanted)}); the bag '
-            f'has: {listing or "no topics"}. Map them with --map name=/topic.')
+            f'{", ".join(signal(n).topic for n in wanted)}; inputs file: {inputs_source}); '
+            f'the bag has: {listing or "no topics"}. Map them with --map name=/topic, or give '
+            'the inputs file with --inputs.')
     thermocouples = {}
     for tc in interface.THERMOCOUPLES:
-        topic = mapping.get(f'measured/{tc}', f'{interface.MEASURED_PREFIX}/{tc}')
-        found = info.topics.get(topic)
-        if found is not None and found.type_name == interface.TEMPERATURE:
+        try:
+            topic = found(f'measured/{tc}')
+        except ReplayError:
+            topic = None                    # not a temperature: compared with nothing
+        if topic is not None:
             thermocouples[tc] = topic
-    amb = mapping.get('ambient', interface.AMBIENT_TOPIC)
-    ambient = amb if (amb in info.topics
-                      and info.topics[amb].type_name == interface.TEMPERATURE) else None
-    return ReplayPlan(cfg=cfg, config_source=source, config_yaml=text, inputs=inputs,
-                      missing=missing, thermocouples=thermocouples, ambient=ambient, info=info)
+    try:
+        ambient = found('ambient')
+    except ReplayError:
+        ambient = None
+    # what the inputs file declares otherwise than the defaults: decoded as the node does
+    used = [*inputs_found, *(['ambient'] if ambient else []),
+            *(f'measured/{tc}' for tc in thermocouples)]
+    configured = [channel(n) for n in used if n not in mapping
+                  and spec.signal(channel(n)) != default.signal(channel(n))]
+    try:
+        decoded = {dec.topic: InputsDecoder(dec)
+                   for dec in inputs_file.decoders(spec, configured)}
+    except ConfigError as exc:
+        raise ReplayError(str(exc)) from exc
+    both = sorted(set(decoded) & {signal(n).topic for n in used if channel(n) not in configured})
+    if both:
+        raise ReplayError(f'{info.path}: topic {both[0]} is declared both as the inputs file '
+                          'says and with the default type: map one of them elsewhere')
+    return ReplayPlan(cfg=cfg, config_source=source, config_yaml=text, inputs=inputs_found,
+                      missing=missing, thermocouples=thermocouples, ambient=ambient, info=info,
+                      decoded=decoded, inputs_source=inputs_source)
 
 
 @dataclass
@@ -174,6 +304,7 @@ class ReplayOptions:
 
     config_path: Optional[Path] = None
     mapping: Dict[str, str] = field(default_factory=dict)
+    inputs_path: Optional[Path] = None     # the estimator's inputs file (None: the bag's)
     output_rate_Hz: float = 10.0
     report: bool = True
     open_loop: bool = False       # estimator.correction off: the thermocouples only compared
@@ -181,7 +312,9 @@ class ReplayOptions:
 
     def plan(self, path: os.PathLike) -> ReplayPlan:
         """Return the :func:`plan_replay` of the bag ``path`` under these options."""
-        plan = plan_replay(path, self.config_path, self.mapping)
+        spec = None if self.inputs_path is None else inputs_file.load_inputs(
+            str(self.inputs_path))
+        plan = plan_replay(path, self.config_path, self.mapping, inputs=spec)
         if self.open_loop:
             plan.cfg = with_values(plan.cfg, {'estimator.correction.enabled': False})
         return plan
