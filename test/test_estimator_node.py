@@ -62,7 +62,6 @@ class Rig(NodeAndProbe):
             Parameter('diagnostics_rate_Hz', value=5.0), Parameter('qos', value=qos),
             *overrides]), rclpy.create_node('estimator_test_probe', context=context))
         self.clock_ns = 1000 * 10**9 if sim_time else None
-        self.rounds = 0         # publish_samples calls
         self.in_qos = in_qos = topics.input_qos(qos, 100)
         self.pubs = {name: self.probe.create_publisher(
             FluidPressure if name in interface.PRESSURE_INPUTS else Float64,
@@ -86,7 +85,6 @@ class Rig(NodeAndProbe):
             stamp = _time(self.clock_ns)
         else:
             stamp = self.probe.get_clock().now().to_msg()
-        self.rounds += 1
         for name, pub in self.pubs.items():
             if name in skip:
                 continue
@@ -632,33 +630,33 @@ def test_foxglove_view_shows_the_published_estimates(context):
 
 
 def test_whatif_is_answered_while_the_estimates_go_on(rig):
-    """A what-if of ten minutes runs beside the estimator: its estimates keep their pace."""
+    """A ten-minute what-if runs beside the estimator, whose estimates keep up with the samples."""
     answers, arrivals = [], []
     rig.probe.create_subscription(String, interface.WHATIF_RESPONSE_TOPIC,
                                   lambda m: answers.append(json.loads(m.data)),
                                   QoSProfile(depth=10))
-    rig.probe.create_subscription(Temperature, f'{interface.ESTIMATE_PREFIX}/frame',
-                                  lambda m: arrivals.append(time.monotonic()), 100)
+
+    def arrived(m):     # when, and how far the estimate trails the clock its samples carry
+        now = rig.probe.get_clock().now().nanoseconds * 1e-9
+        arrivals.append((time.monotonic(), now - _stamps([m])[0]))
+
+    rig.probe.create_subscription(Temperature, f'{interface.ESTIMATE_PREFIX}/frame', arrived, 100)
     pub = rig.probe.create_publisher(String, interface.WHATIF_REQUEST_TOPIC,
                                      QoSProfile(depth=10))
-    end = time.monotonic() + 10.0
+    end = time.monotonic() + 10.0 * PATIENCE
     while pub.get_subscription_count() == 0 and time.monotonic() < end:
         rig.spin(0.01)
     # no sample yet: nothing to start from, said at once
     pub.publish(String(data='{"id": "early", "stage": 6, "duration_s": 60}'))
-    end = time.monotonic() + 10.0
+    end = time.monotonic() + 10.0 * PATIENCE
     while not answers and time.monotonic() < end:
         rig.spin(0.01)
     assert answers and answers[0]['id'] == 'early' and 'no state yet' in answers[0]['error']
     assert rig.feed(10.0, until=lambda: len(arrivals) > 100)
-    # the pace: estimates per round of samples the probe published. The node and the probe
-    # share one executor, so a busy machine slows both alike; a what-if that took the
-    # executor's time or the estimator's would lower it
-    before, rounds = len(arrivals), rig.rounds
+    before = len(arrivals)
     rig.feed(2.0)
     t0 = time.monotonic()
-    pace_before = (len(arrivals) - before) / (rig.rounds - rounds)
-    rounds = rig.rounds
+    lag_before = max(lag for _, lag in arrivals[before:])
     pub.publish(String(data='{"id": "hour", "stage": 6, "duration_s": 600}'))
     pub.publish(String(data='{"id": "second", "stage": 6, "duration_s": 60}'))
     assert rig.feed(120.0, until=lambda: any(a['id'] == 'hour' for a in answers))
@@ -669,14 +667,18 @@ def test_whatif_is_answered_while_the_estimates_go_on(rig):
     assert hour['ok'] and hour['time_s'][-1] == 600.0 and hour['source'] == 'live estimator'
     assert hour['start_stamp_s'] is not None and set(hour['temperatures_C']) == set(
         interface.ESTIMATES)
-    during = [t for t in arrivals if t0 <= t <= t1]
-    pace_during = len(during) / (rig.rounds - rounds)
-    gaps = np.diff(during)
+    during = [(t, lag) for t, lag in arrivals if t0 <= t <= t1]
+    gaps = np.diff([t for t, _ in during])
+    lag_during = max(lag for _, lag in during)
     print(f'what-if of 10 min of stage 6: {t1 - t0:.1f} s wall ({hour["wall_s"]:.1f} s in the '
-          f'worker); estimates per 1000 sample rounds {1e3 * pace_before:.1f} before, '
-          f'{1e3 * pace_during:.1f} during, longest gap {gaps.max() * 1e3:.0f} ms')
-    # and no stall: a what-if worked in the node would hold the estimates for its own time
-    assert pace_during > 0.8 * pace_before and gaps.max() < max(0.5, 0.25 * hour['wall_s'])
+          f'worker); {len(during)} estimates, each behind its newest sample by at most '
+          f'{lag_before * 1e3:.0f} ms before and {lag_during * 1e3:.0f} ms during; longest gap '
+          f'{gaps.max() * 1e3:.0f} ms')
+    # no stall (a what-if worked in the node would hold the estimates for its own time), and
+    # the estimates kept up with the samples: on a busy machine the node and this probe, one
+    # executor, slow alike, so a rate in wall time would measure the machine, not the node
+    assert len(during) > 10 and gaps.max() < max(0.5, 0.25 * hour['wall_s'])
+    assert lag_during < 1.0
 
 
 def test_whatif_command_asks_the_running_estimator(rig, tmp_path, capsys):

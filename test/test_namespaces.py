@@ -117,7 +117,8 @@ def test_two_actuators_by_namespace_share_no_topic_status_id_or_port(context):
             assert side in ('left', 'right'), name
             assert hardware_id == f'wet-eha-rig/{side}', (name, hardware_id)
         # each view serves on the port the plan gave its actuator, and only there
-        ports = {side: nodes[side, 'estimator'].view.view.port for side in ('left', 'right')}
+        ports = {side: nodes[side, 'estimator'].runner.view.view.port
+                 for side in ('left', 'right')}
         assert ports == {'left': base, 'right': base + 1}, ports
         for side in ('left', 'right'):
             est, rig = nodes[side, 'estimator'], nodes[side, 'rig']

@@ -377,7 +377,14 @@ def test_sigkill_loses_at_most_about_one_flush_interval(context, tmp_path):
         'rosbag2_bagfile_information']
     names = [f'killed_{k}.mcap' for k in range(len(listed['files']))]
     assert listed['relative_file_paths'] == names and len(names) >= 2
-    assert sorted(p.name for p in output.glob('*.mcap')) == sorted(names)
+    on_disk = sorted(p.name for p in output.glob('*.mcap'))
+    # killed inside a split, after the next file was begun and before metadata.yaml listed
+    # it (seen once on a machine at load 9): it holds no message, so nothing is lost with it
+    split_cut = on_disk == sorted(names + [f'killed_{len(names)}.mcap'])
+    if split_cut:
+        assert open_bag(output / on_disk[-1]).message_count == 0
+    else:
+        assert on_disk == sorted(names)
     for entry in listed['files'][:-1]:
         info = open_bag(output / entry['path'])
         assert not info.truncated and info.message_count == entry['message_count']
@@ -385,7 +392,7 @@ def test_sigkill_loses_at_most_about_one_flush_interval(context, tmp_path):
             assert sum(1 for _ in make_reader(f).iter_messages()) == entry['message_count']
     data = read_columns(output, {topic: FLOAT64})
     values = data.topics[topic].values['data']
-    assert data.truncated and names[-1] in data.problem
+    assert split_cut or (data.truncated and names[-1] in data.problem)
     assert values.tolist() == list(range(len(values)))   # what was kept is the start, in order
     lost = sent - len(values)
     print(f'SIGKILL after {sent} messages at 1 kHz: {len(values)} kept, {lost} lost '
