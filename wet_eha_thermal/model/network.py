@@ -396,7 +396,8 @@ class ThermalNetwork:
             band[places] = K[entries]
             lu, piv, info = dgbtrf(band, half, half)
             pivots = lu[2 * half]                    # U's diagonal
-            if info != 0 or np.any(np.abs(pivots) < 1e-14 * np.abs(K[m:, m:]).max()):
+            # the band holds every entry of K's algebraic block: its largest is the block's
+            if info != 0 or np.any(np.abs(pivots) < 1e-14 * np.abs(band).max()):
                 raise NetworkError('algebraic nodes form a group with no path to a capacity '
                                    'or a boundary: their temperature is undefined')
             rhs = np.hstack([K[m:, :m], W[m:]])[order]
