@@ -40,12 +40,13 @@ from scipy.spatial import ConvexHull
 from .mellor import mellor_resistances
 
 
-#: finite-volume cells of the slot section: radial, across the slot (an odd count puts a
-#: column on the centre line; the peak is sampled at the cell centres: within 0.4 K of
-#: the FE's peak at 45 A, test_fem_check; 24 x 11 moves it by 0.05 K)
+#: finite-volume cells of the slot section: radial (rounded up to a multiple of the
+#: layers), across the slot (an odd count puts a column on the centre line; the peak is
+#: sampled at the cell centres: within 0.2 K of the FE's peak at 45 A with 4 layers,
+#: test_fem_check)
 SLOT_CELLS = (32, 15)
 #: the most dimensions :func:`hull_rows` takes a hull in: qhull's cost and its round-off
-#: grow steeply with them (a layered slot's 13 fail), and above it every row is kept
+#: grow steeply with them (a six-layer slot's 13 fail), and above it every row is kept
 HULL_MAX_DIMS = 6
 #: points of each end-winding direction at which its profile is sampled
 END_POINTS = 33
@@ -167,8 +168,8 @@ def slot_peak_forms(motor) -> List[PeakForms]:
     Over the slice's layer means and radial junctions, the teeth slice's mean
     and the yoke's and teeth's surfaces (the slot bottom and top walls); each
     layer is a band of the section with its own generation and flank
-    temperature (within 0.4 K of the 2-D FE's peak, never above it, at 10 000 r/min
-    and 45 A: test_fem_check). The state that stands for the peak is the middle layer.
+    temperature (within 0.2 K of the 2-D FE's peak at 10 000 r/min and 45 A with 4
+    layers: test_fem_check). The state that stands for the peak is the middle layer.
     """
     c = motor.cfg
     st, wd = c.stator, c.winding
