@@ -61,7 +61,7 @@ def hotspot_table(cfg, oil) -> list:
         motor = WetMotor(cfg.motor, oil)
         u = fem.map_inputs(cfg.maps, rpm, amps)
         motor.steady_state(u)
-        means = [motor.temperature(m) for m in motor.parts['winding'].mean]
+        means = motor.winding_slices_K()
         i = int(np.argmax(means)) + 1
         _, fe = fem.slot_pitch(cfg.motor, fem.slice_problem(motor, u, i), H_SLOT_M)
         out = motor.outputs()

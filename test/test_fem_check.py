@@ -99,7 +99,7 @@ def test_published_hot_spot_is_the_fe_peak_of_the_hottest_slice(point):
     motor = WetMotor(cfg.motor, oil)
     u = fem.map_inputs(cfg.maps, *point)
     motor.steady_state(u)
-    means = [motor.temperature(m) for m in motor.parts['winding'].mean]
+    means = motor.winding_slices_K()
     i = int(np.argmax(means)) + 1
     _, fe = fem.slot_pitch(cfg.motor, fem.slice_problem(motor, u, i), H_PEAK_M)
     hot = motor.outputs()['winding_hotspot']
@@ -117,20 +117,7 @@ def _rz_targets(pc):
             'magnet': abs(fe['magnet'] - net['magnet']) <= 3.0}
 
 
-#: A known failure, kept in plain sight (strict: it must fail until mended): at 30 A the
-#: network's winding mean is 1.00 K above this test's r-z field, past the 1 K of physics.md
-#: 6.8 (0.95 K against the benchmark's finer meshes: no margin either way), since the end
-#: spaces' torque balance cooled the end windings and the winding description raised their
-#: loss. The cause, measured: one Mellor block per slot slice and end winding sends the heat
-#: that runs along the wire through its mean node; six radial layers through slot and end
-#: winding bring the three points to +0.02, +0.06 and +0.16 K (docs/model.md, Verification).
-#: Not built yet.
-RZ_POINTS = [pytest.param(p, marks=pytest.mark.xfail(
-    strict=True, reason='one block per end winding: 1.00 K at 30 A (docs/model.md)'))
-    if p == (10000, 30.0) else p for p in POINTS]
-
-
-@pytest.mark.parametrize('point', RZ_POINTS)
+@pytest.mark.parametrize('point', POINTS)
 def test_rz_motor_against_network(checks, point):
     """Winding mean within 1 K, hottest block within 2 K, magnet within 3 K; energy closes."""
     pc = checks[point]

@@ -31,14 +31,15 @@ def maps(cfg):
 def test_default_network_size_and_names(cfg):
     m = make_motor(cfg)
     assert m.cfg.slices == 5
-    # 8 stack parts x 5 slices, 6 end parts (the cap's hub and the bearing with them) x 2
-    # sides, 5 + 2 oil volumes
-    assert m.state_count == 8 * 5 + 6 * 2 + 7
+    layers = m.cfg.winding_layers
+    # 7 stack parts and the winding's layers x 5 slices, 5 end parts (the cap's hub and the
+    # bearing with them) and the end winding's layers x 2 sides, 5 + 2 oil volumes
+    assert m.state_count == (7 + layers) * 5 + (5 + layers) * 2 + 7
     m.steady_state(inputs())
-    assert m.temperature('winding.s3') > m.temperature('gap_oil.s3')
+    assert m.temperature('winding.l3.s3') > m.temperature('gap_oil.s3')
     assert m.temperature('gap_oil.s5') == m.outputs()['airgap_oil_outlet']
     with pytest.raises(KeyError, match='winding'):
-        m.temperature('winding.s9')
+        m.temperature('winding.l1.s9')
 
 
 def test_speed_sweep_rises_monotonically(maps):

@@ -41,12 +41,17 @@ def test_winding_mean_weights_are_the_copper_length_shares(cfg, model):
     w = q.weights('winding_mean')
     assert w.sum() == pytest.approx(1.0, abs=1e-12)
     # each slot slice carries its length of the stack, each end winding half the end turn,
-    # of the conductor length of half a turn
+    # of the conductor length of half a turn; each radial layer (equal depths, slot bottom
+    # first) its share of the section's area
     mo = cfg.motor
     turn = mo.stack_length_m + mo.winding.end_turn_length_m
-    expected = [mo.stack_length_m / mo.slices / turn] * mo.slices \
+    lengths = [mo.stack_length_m / mo.slices / turn] * mo.slices \
         + [mo.winding.end_turn_length_m / 2.0 / turn] * 2
-    np.testing.assert_allclose(w, expected, rtol=1e-12)
+    r_out, r_in = mo.stator.yoke_inner_radius_m, mo.stator.bore_radius_m \
+        + mo.stator.tooth_tip_depth_m
+    r = r_out - (r_out - r_in) * np.arange(mo.winding_layers + 1) / mo.winding_layers
+    areas = (r[:-1] ** 2 - r[1:] ** 2) / (r_out ** 2 - r_in ** 2)
+    np.testing.assert_allclose(w, np.kron(lengths, areas), rtol=1e-12)
 
 
 def test_every_estimate_and_thermocouple_resolves(model):

@@ -20,7 +20,7 @@ def test_thermocouples_read_the_mean_or_the_mid_stack_point(points):
         rig.next_block()
     tc = {k: v + C_TO_K for k, v in rig.thermocouples_C().items()}
     motor, out = rig.truth.motor, rig.truth.outputs()
-    slot = motor.T[motor.idx_copper[:2]]
+    slot = motor.winding_slices_K()
     frame = motor.T[motor.idx_frame]
     # the two readings can tell mean from point: they differ by a million times the 1e-9 K
     # the comparisons below allow (about 5 mK; the oil warms along the stack)

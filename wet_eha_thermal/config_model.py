@@ -254,6 +254,9 @@ class Motor:
     """The wet motor: geometry, materials, contacts and discretisation."""
 
     slices: int = spec(1, 50, doc='axial Mellor slices of the stack')
+    winding_layers: int = spec(1, 20, doc=(
+        'radial Mellor layers of the slot winding and the end windings, of equal depth: the '
+        'heat that runs along the wire at each depth (docs/model.md, Winding layers)'))
     pole_pairs: int = spec(1, 50, doc=(
         'rotor pole pairs: the iron loss frequency is pole_pairs x speed / (2 pi)'))
     slots: int = spec(3, 200, doc=(

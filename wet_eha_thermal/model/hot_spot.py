@@ -10,15 +10,17 @@ a few node temperatures (:class:`PeakForms`):
 
 - slot slice: the steady 2-D conduction field of the configured slot section
   (an annular sector between the teeth, conductivity k_radial, the slot liner
-  as a contact h on its four sides), solved once at configuration load by
-  finite volumes for unit generation and for each wall at unit temperature
+  as a contact h on its four sides), in radial bands that are the network's
+  winding layers, solved once at configuration load by finite volumes for
+  unit generation in each band and for each wall at unit temperature
   (:func:`slot_section_field`). At run time the walls are the network's iron
-  surfaces (yoke at the slot bottom, teeth at the tips and, from the lateral
-  link's heat flow, at the tooth flanks) and the generation is the heat the
-  slice sends out through those walls (its loss less what it stores and what
-  it passes along the stack); the field is anchored at the network's slice
-  mean. Exact for this section when each wall is isothermal.
-- end winding: the block's radial profile (a hollow cylinder with uniform
+  (yoke at the slot bottom, teeth at the tips and, along the flanks, the
+  tooth's radial profile plus the drop its lateral heat makes) and each
+  band's generation is the heat its layer sends out within the section (its
+  loss less what it stores and what it passes along the stack); the field is
+  anchored at the network's slice mean (its layers' volume mean). Exact for
+  this section when each wall is isothermal over each band.
+- end winding: each layer's radial profile (a hollow cylinder with uniform
   generation, exact through its two surface temperatures and its mean) plus
   its axial one (a slab: a parabola through the two faces and the mean),
   superposed as in the cuboidal element with internal generation of Wrobel
@@ -37,10 +39,15 @@ from scipy.spatial import ConvexHull
 
 from .mellor import mellor_resistances
 
-#: finite-volume cells of the slot section: radial, across the slot (an odd count puts a
-#: column on the centre line; the peak is sampled at the cell centres: within 0.4 K of
-#: the FE's peak at 45 A, test_fem_check; 24 x 11 moves it by 0.05 K)
+
+#: finite-volume cells of the slot section: radial (rounded up to a multiple of the
+#: layers), across the slot (an odd count puts a column on the centre line; the peak is
+#: sampled at the cell centres: within 0.2 K of the FE's peak at 45 A with 4 layers,
+#: test_fem_check)
 SLOT_CELLS = (32, 15)
+#: the most dimensions :func:`hull_rows` takes a hull in: qhull's cost and its round-off
+#: grow steeply with them (a six-layer slot's 13 fail), and above it every row is kept
+HULL_MAX_DIMS = 6
 #: points of each end-winding direction at which its profile is sampled
 END_POINTS = 33
 
@@ -67,7 +74,8 @@ def hull_rows(forms: np.ndarray) -> np.ndarray:
 
     The largest of linear forms of any values is at a vertex of the convex hull
     of the forms (taken as points, in the affine space they span): the other
-    rows never win and are dropped (exactly), so that the peak costs less.
+    rows never win and are dropped (exactly), so that the peak costs less; in
+    more than :data:`HULL_MAX_DIMS` dimensions every row is kept.
 
     >>> x = np.linspace(0.0, 1.0, 11)
     >>> hull_rows(np.stack([x, x * x], axis=1)).shape    # a convex curve: every point
@@ -80,6 +88,8 @@ def hull_rows(forms: np.ndarray) -> np.ndarray:
     dims = int(np.sum(sv > 1e-9 * sv[0]))
     if dims == 0:
         return forms[:1]
+    if dims > HULL_MAX_DIMS:
+        return forms
     coords = centred @ vt[:dims].T
     if dims == 1:
         keep = [int(np.argmin(coords[:, 0])), int(np.argmax(coords[:, 0]))]
@@ -89,31 +99,36 @@ def hull_rows(forms: np.ndarray) -> np.ndarray:
 
 
 def slot_section_field(r_inner_m: float, r_outer_m: float, angle_rad: float, k_W_mK: float,
-                       h_wall_W_m2K: float, cells: Tuple[int, int] = SLOT_CELLS
+                       h_wall_W_m2K: float, bands: int = 1, cells: Tuple[int, int] = SLOT_CELLS
                        ) -> Tuple[np.ndarray, np.ndarray]:
     """
     Return the slot section's temperature at its cell centres, and its mean, per input.
 
     The section: r_inner < r < r_outer, 0 < theta < angle, conductivity k, each
-    side joined to its wall by h. Columns (inputs): generation (per W/m^3),
-    then the bottom wall (r_outer), the top wall (r_inner) and both flanks at
-    unit temperature (K per K). Finite volumes, second order; the rows of the
-    walls' columns sum to 1. Returns (cells x 4, 4): field and area-weighted mean.
+    side joined to its wall by h, in ``bands`` radial bands of equal depth (the
+    network's layers; band 1 at r_outer, the slot bottom). Columns (inputs):
+    each band's generation (per W/m^3), then the bottom wall (r_outer) and the
+    top wall (r_inner) at unit temperature, then each band's stretch of both
+    flanks at unit temperature (K per K). Finite volumes, second order, radial
+    cells a multiple of the bands; the rows of the walls' columns sum to 1.
+    Returns (cells x (2 bands + 2), 2 bands + 2): field and area-weighted mean.
 
-    >>> field, mean = slot_section_field(0.02, 0.038, 0.3, 0.9, 1e9)
-    >>> bool(np.allclose(field[:, 1:].sum(axis=1), 1.0)), round(float(mean[1:].sum()), 12)
+    >>> field, mean = slot_section_field(0.02, 0.038, 0.3, 0.9, 1e9, bands=2)
+    >>> bool(np.allclose(field[:, 2:].sum(axis=1), 1.0)), round(float(mean[2:].sum()), 12)
     (True, 1.0)
     """
-    nr, nt = cells
+    nt = cells[1]
+    nr = bands * -(-cells[0] // bands)
     dr = (r_outer_m - r_inner_m) / nr
     dt = angle_rad / nt
     r = r_inner_m + (np.arange(nr) + 0.5) * dr
-    area = np.repeat(r * dr * dt, nt)               # cell areas, radial index major
+    band = bands - 1 - np.arange(nr) // (nr // bands)     # each radial row's band
+    area = np.repeat(r * dr * dt, nt)               # cells' areas, radial index major
     idx = np.arange(nr * nt).reshape(nr, nt)
     rows, cols, vals = [], [], []
     diag = np.zeros(nr * nt)
-    rhs = np.zeros((nr * nt, 4))
-    rhs[:, 0] = area
+    rhs = np.zeros((nr * nt, 2 * bands + 2))
+    rhs[np.arange(nr * nt), np.repeat(band, nt)] = area
 
     def link(a, b, g):
         rows.extend([a, b])
@@ -132,12 +147,12 @@ def slot_section_field(r_inner_m: float, r_outer_m: float, angle_rad: float, k_W
             link(idx[i, j], idx[i, j + 1], g_t)
         # the flanks: half a cell of copper in series with the liner
         g_flank = 1.0 / (r[i] * dt / 2.0 / (k_W_mK * dr) + 1.0 / (h_wall_W_m2K * dr))
-        wall(idx[i, [0, nt - 1]], g_flank, 3)
+        wall(idx[i, [0, nt - 1]], g_flank, bands + 2 + band[i])
     for i in range(nr - 1):
         r_face = r_inner_m + (i + 1) * dr
         for j in range(nt):
             link(idx[i, j], idx[i + 1, j], k_W_mK * r_face * dt / dr)
-    for i, r_wall, column in ((nr - 1, r_outer_m, 1), (0, r_inner_m, 2)):
+    for i, r_wall, column in ((nr - 1, r_outer_m, bands), (0, r_inner_m, bands + 1)):
         g_wall = 1.0 / (dr / 2.0 / (k_W_mK * r_wall * dt) + 1.0 / (h_wall_W_m2K * r_wall * dt))
         wall(idx[i], g_wall, column)
     K = scipy.sparse.coo_matrix((vals, (rows, cols)), shape=(nr * nt,) * 2).tocsc()
@@ -150,37 +165,56 @@ def slot_peak_forms(motor) -> List[PeakForms]:
     """
     Return the peak forms of each slot slice of a built :class:`~.motor.WetMotor`.
 
-    Over the slice's mean, its radial junction ``jr``, the teeth slice's mean
-    and the yoke's and teeth's surfaces (the slot bottom and top walls).
+    Over the slice's layer means and radial junctions, the teeth slice's mean
+    and the yoke's and teeth's surfaces (the slot bottom and top walls); each
+    layer is a band of the section with its own generation and flank
+    temperature (within 0.2 K of the 2-D FE's peak at 10 000 r/min and 45 A with 4
+    layers: test_fem_check). The state that stands for the peak is the middle layer.
     """
     c = motor.cfg
     st, wd = c.stator, c.winding
     r_tip, r_yoke = motor.slot_radii_m
     slot_frac = 1.0 - st.tooth_fraction
+    L = len(motor.winding_layers)
     field, mean = slot_section_field(r_tip, r_yoke, slot_frac * 2.0 * np.pi / c.slots,
                                      wd.k_radial_W_mK,
-                                     wd.liner_conductivity_W_mK / wd.liner_thickness_m)
+                                     wd.liner_conductivity_W_mK / wd.liner_thickness_m, L)
     # the section is symmetric about the slot's centre line and so are its inputs: the
     # peak is in one half
-    nr, nt = SLOT_CELLS
-    half = np.arange(nr * nt).reshape(nr, nt)[:, :(nt + 1) // 2].ravel()
+    nt = SLOT_CELLS[1]
+    half = np.arange(field.shape[0]).reshape(-1, nt)[:, :(nt + 1) // 2].ravel()
     rel = field[half] - mean                # each point less the mean, per input
-    R6 = mellor_resistances(r_yoke, r_tip, motor.dz, wd.k_radial_W_mK, wd.k_axial_W_mK,
-                            slot_frac).R6
-    r_lat, r_tooth = motor.slot_lateral_R
-    volume = slot_frac * np.pi * (r_yoke ** 2 - r_tip ** 2) * motor.dz
-    # the inputs as forms over (mean, jr, teeth mean, yoke inner, teeth inner):
-    # generation: what leaves the slice's section, radially (mean -> jr) and to the teeth
-    q = np.array([1.0 / R6 + 1.0 / r_lat, -1.0 / R6, -1.0 / r_lat, 0.0, 0.0]) / volume
-    flank = np.array([r_tooth / r_lat, 0.0, 1.0 - r_tooth / r_lat, 0.0, 0.0])
-    inputs = np.stack([q, np.eye(5)[3], np.eye(5)[4], flank])       # 4 x 5
-    forms = hull_rows(rel @ inputs)
-    forms[:, 0] += 1.0                      # anchored at the network's mean
+    r_lat, r_tooth = motor.slot_lateral_R   # each layer's
+    radii = motor.layer_radii_m
+    volume = slot_frac * np.pi * (radii[:-1] ** 2 - radii[1:] ** 2) * motor.dz
+    R6 = np.array([mellor_resistances(r_out, r_in, motor.dz, wd.k_radial_W_mK,
+                                      wd.k_axial_W_mK, slot_frac).R6
+                   for r_out, r_in in zip(radii[:-1], radii[1:])])
+    # the inputs as forms over (layer means, their radial junctions jr, teeth mean, yoke
+    # inner, teeth inner). A layer's generation: what leaves it within the section,
+    # radially (mean -> jr) and to the teeth (its loss less what it stores and what it
+    # passes along the stack). Its flank: the tooth's surface at the layer's radius,
+    # the teeth block's own radial profile there (exact for a hollow cylinder with
+    # uniform generation, through its mean and surfaces; the tooth is cooler at the tip
+    # than its mean) plus the drop across the tooth's half width that the layer's
+    # lateral heat makes
+    eye = np.eye(L)
+    gen = np.hstack([eye * (1.0 / R6 + 1.0 / r_lat), -eye / R6,
+                     np.full((L, 1), -1.0 / r_lat), np.zeros((L, 2))]) / volume[:, None]
+    walls = np.hstack([np.zeros((2, 2 * L + 1)), np.eye(2)])
+    r_mid = 0.5 * (radii[:-1] + radii[1:])
+    prof = cylinder_profile(r_yoke, st.bore_radius_m, r_mid)   # over (outer - m, inner - m)
+    ratio = r_tooth / r_lat
+    flank = np.hstack([eye * ratio, np.zeros((L, L)), (1.0 - prof.sum(axis=1) - ratio)[:, None],
+                       prof])
+    forms = hull_rows(rel @ np.vstack([gen, walls, flank]))
+    forms[:, :L] += motor.layer_share       # anchored at the network's slice mean
     out = []
     for i in range(c.slices):
-        s = f'winding.s{i + 1}'
-        out.append(PeakForms((s, f'{s}.jr', f'teeth.s{i + 1}', f'yoke.s{i + 1}.inner',
-                              f'teeth.s{i + 1}.inner'), (forms,), s))
+        layers = tuple(w.mean[i] for w in motor.winding_layers)
+        out.append(PeakForms(layers + tuple(f'{m}.jr' for m in layers)
+                             + (f'teeth.s{i + 1}', f'yoke.s{i + 1}.inner',
+                                f'teeth.s{i + 1}.inner'), (forms,), layers[L // 2]))
     return out
 
 
@@ -218,22 +252,26 @@ def slab_profile(x: np.ndarray) -> np.ndarray:
     return np.stack([1.0 - 4.0 * x + 3.0 * x ** 2, -2.0 * x + 3.0 * x ** 2], axis=-1)
 
 
-def end_winding_peak_forms(motor, side: str) -> PeakForms:
+def end_winding_peak_forms(motor, side: str) -> List[PeakForms]:
     """
-    Return the peak forms of one end winding: its radial and axial profiles superposed.
+    Return the peak forms of one end winding's layers: their radial and axial profiles superposed.
 
-    Over the block's mean, its outer and inner surfaces and its two faces.
+    Each over the layer's mean, its outer and inner surfaces and its two faces.
     """
-    r_tip, r_yoke = motor.slot_radii_m
-    ew = motor.end_winding[side]
-    radial = cylinder_profile(r_yoke, r_tip, np.linspace(r_tip, r_yoke, END_POINTS))
+    radii = motor.layer_radii_m
     axial = slab_profile(np.linspace(0.0, 1.0, END_POINTS))
     # T_m + g_r + g_z: the radial part carries the mean, the axial one sums to zero
-    forms_r = np.zeros((END_POINTS, 5))
-    forms_r[:, 1:3] = radial
-    forms_r[:, 0] = 1.0 - radial.sum(axis=1)
     forms_z = np.zeros((END_POINTS, 5))
     forms_z[:, 3:5] = axial
     forms_z[:, 0] = -axial.sum(axis=1)
-    return PeakForms((ew.mean[0], ew.outer[0], ew.inner[0], ew.faces[0], ew.faces[1]),
-                     (hull_rows(forms_r), hull_rows(forms_z)), ew.mean[0])
+    forms_z = hull_rows(forms_z)
+    out = []
+    for j, ew in enumerate(motor.end_winding[side]):
+        r_out, r_in = radii[j], radii[j + 1]
+        radial = cylinder_profile(r_out, r_in, np.linspace(r_in, r_out, END_POINTS))
+        forms_r = np.zeros((END_POINTS, 5))
+        forms_r[:, 1:3] = radial
+        forms_r[:, 0] = 1.0 - radial.sum(axis=1)
+        out.append(PeakForms((ew.mean[0], ew.outer[0], ew.inner[0], ew.faces[0], ew.faces[1]),
+                             (hull_rows(forms_r), forms_z), ew.mean[0]))
+    return out

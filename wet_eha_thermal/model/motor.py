@@ -4,11 +4,13 @@ Thermal network of the wet PMSM: Mellor blocks, advected airgap oil, losses.
 Layout (front = oil-inlet side, rear = outlet side; stack slices 1..n):
 
 - stack parts, one Mellor slice per axial section: ``frame``, ``yoke``,
-  ``teeth`` (iron share of the tooth annulus), ``winding`` (slot share),
-  ``sleeve``, ``magnet``, ``rotor_core``, ``shaft``; airgap oil ``gap_oil.s1..``;
+  ``teeth`` (iron share of the tooth annulus), the slot share in radial layers
+  ``winding.l1..`` (slot bottom to tip), ``sleeve``, ``magnet``, ``rotor_core``,
+  ``shaft``; airgap oil ``gap_oil.s1..``;
 - each end: ``frame_end_<side>``, ``end_cap_<side>`` and its hub
-  ``end_cap_hub_<side>``, ``end_winding_<side>``, ``shaft_end_<side>``, the
-  bearing ``bearing_<side>`` and the end-space oil ``end_oil_<side>``;
+  ``end_cap_hub_<side>``, the end winding's layers ``end_winding_<side>.l1..``
+  (continuing the slot's), ``shaft_end_<side>``, the bearing ``bearing_<side>``
+  and the end-space oil ``end_oil_<side>``;
 - boundaries ``ambient`` and ``oil_inlet``.
 
 Oil path: oil_inlet -> end_oil_front -> gap_oil.s1 .. s<n> -> end_oil_rear
@@ -444,7 +446,8 @@ class WetMotor(MotorNetworkBuilder):
         """Loss split (W) of the last step or steady state: :data:`LOSS_NAMES`."""
         P, src = self.power_W, self.sources
         copper = P[src['copper']]
-        out = {'copper_slot': float(copper[:-2].sum()), 'copper_end': float(copper[-2:].sum())}
+        k = self.n_slot_copper
+        out = {'copper_slot': float(copper[:k].sum()), 'copper_end': float(copper[k:].sum())}
         out.update({g: float(P[src[g]].sum()) for g in LOSS_GROUPS[1:]})
         return out
 
@@ -570,9 +573,15 @@ class WetMotor(MotorNetworkBuilder):
 
     # --------------------------------------------------------------- outputs
     def temperature(self, name: str, T: Optional[np.ndarray] = None) -> float:
-        """Return one node's temperature in K by name, e.g. winding slice 3 is 'winding.s3'."""
+        """Return one node's temperature in K by name, e.g. magnet slice 3 is 'magnet.s3'."""
         T = self.T if T is None else T
         return float(T[self.net.index(name)])
+
+    def winding_slices_K(self, T: Optional[np.ndarray] = None) -> np.ndarray:
+        """Return each stack slice's slot winding mean (K), its layers' volume mean, at ``T``."""
+        T = self.T if T is None else T
+        slot = T[self.idx_copper[:self.n_slot_copper]].reshape(self.cfg.slices, -1)
+        return slot @ self.layer_share
 
     def outputs(self, T: Optional[np.ndarray] = None) -> Dict[str, float]:
         """Return the outputs of :func:`~.quantities.motor_outputs` at ``T``, in K."""

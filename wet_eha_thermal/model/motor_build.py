@@ -7,11 +7,11 @@ once, in a fixed order (it sets the node indices), and indexes the nodes the
 steps use.
 """
 
-from typing import Dict, NamedTuple
+from typing import Dict, List, NamedTuple
 
 import numpy as np
 
-from .mellor import add_cylinder
+from .mellor import add_cylinder, Cylinder
 from .motor_kernels import END_CAP, END_ROTOR_FACE, END_SHAFT, END_STATOR, EndSurfaces
 from .winding import winding_layout
 from ..units import C_TO_K
@@ -97,15 +97,33 @@ class MotorNetworkBuilder:
         fill = self.winding_layout.copper_fill
         rc_wind = (fill * wd.copper_density_kg_m3 * wd.copper_specific_heat_J_kgK
                    + (1 - fill) * wd.insulation_density_kg_m3 * wd.insulation_specific_heat_J_kgK)
-        winding = add_cylinder(self.net, 'winding', st.yoke_inner_radius_m, g.tip, stack,
-                               wd.k_radial_W_mK, wd.k_axial_W_mK, rc_wind,
-                               1.0 - st.tooth_fraction)
+        # radial layers of equal depth, slot bottom (layer 1) to tip: a Mellor block joins
+        # its axial and radial paths only at its mean, so one block per slice would send
+        # the heat that runs along the wire (k_axial >> k_radial) through the middle of
+        # the slot; layers let it run along the wire at its own depth, as the layered
+        # winding of Motor-CAD does (docs/model.md, Winding layers)
+        layers = c.winding_layers
+        #: the layers' radii (m), slot bottom to tip (layers + 1 values)
+        self.layer_radii_m = np.linspace(st.yoke_inner_radius_m, g.tip, layers + 1)
+        area = self.layer_radii_m[:-1] ** 2 - self.layer_radii_m[1:] ** 2
+        #: each layer's share of the winding's volume (and of its copper and loss)
+        self.layer_share = area / area.sum()
+        winding, above = [], None
+        for j in range(layers):
+            above = add_cylinder(self.net, f'winding.l{j + 1}', self.layer_radii_m[j],
+                                 self.layer_radii_m[j + 1], stack, wd.k_radial_W_mK,
+                                 wd.k_axial_W_mK, rc_wind, 1.0 - st.tooth_fraction,
+                                 outer=above.inner if above else None)
+            winding.append(above)
+        #: the slot winding's layers (:class:`~.mellor.Cylinder` each), slot bottom first
+        self.winding_layers: List[Cylinder] = winding
         sleeve = cyl('sleeve', ro.outer_radius_m, g.magnet_outer, stack, ro.sleeve)
         magnet = cyl('magnet', g.magnet_outer, g.magnet_inner, stack, ro.magnet)
         core = cyl('rotor_core', g.magnet_inner, g.shaft, stack, ro.core)
         shaft = cyl('shaft', g.shaft, 0.0, stack, ro.shaft)
-        self.parts = {'frame': frame, 'yoke': yoke, 'teeth': teeth, 'winding': winding,
-                      'sleeve': sleeve, 'magnet': magnet, 'rotor_core': core, 'shaft': shaft}
+        self.parts = {'frame': frame, 'yoke': yoke, 'teeth': teeth,
+                      **{w.name: w for w in winding}, 'sleeve': sleeve, 'magnet': magnet,
+                      'rotor_core': core, 'shaft': shaft}
 
     def _build_airgap_oil(self) -> None:
         """Add the oil path: front end space, n mixed airgap sections, rear end space."""
@@ -125,9 +143,10 @@ class MotorNetworkBuilder:
         """Link each slice radially: frame to ambient and yoke, slot liners, airgap, rotor."""
         c, net, dz = self.cfg, self.net, self.dz
         fr, st, wd, ro = c.frame, c.stator, c.winding, c.rotor
-        frame, yoke, teeth, winding, sleeve, magnet, core, shaft = (
-            self.parts[k] for k in ('frame', 'yoke', 'teeth', 'winding', 'sleeve', 'magnet',
-                                    'rotor_core', 'shaft'))
+        frame, yoke, teeth, sleeve, magnet, core, shaft = (
+            self.parts[k] for k in ('frame', 'yoke', 'teeth', 'sleeve', 'magnet', 'rotor_core',
+                                    'shaft'))
+        bottom, top = self.winding_layers[0], self.winding_layers[-1]
         ring = 2 * np.pi * dz  # lateral area per unit radius of one slice
         slot_frac = 1.0 - st.tooth_fraction
         liner_h = wd.liner_conductivity_W_mK / wd.liner_thickness_m
@@ -140,19 +159,23 @@ class MotorNetworkBuilder:
         r_tooth = st.tooth_fraction * tooth_pitch / (6 * st.material.k_radial_W_mK * walls)
         r_lat = (1 / (liner_h * walls) + slot_frac * tooth_pitch / (6 * wd.k_radial_W_mK * walls)
                  + r_tooth)
-        #: the slot's radii (m), tip and bottom, and its lateral link (K/W): whole and
-        #: the tooth's part of it (the hot spot reads the flanks' temperature from them)
+        layers = len(self.winding_layers)
+        #: the slot's radii (m), tip and bottom, and each layer's lateral link (K/W): whole
+        #: and the tooth's part of it (the hot spot reads the flanks' temperature from
+        #: them); a layer has its share of the walls, the slot depth over the layers
         self.slot_radii_m = (g.tip, st.yoke_inner_radius_m)
-        self.slot_lateral_R = (r_lat, r_tooth)
+        self.slot_lateral_R = (r_lat * layers, r_tooth * layers)
+        #: the liner's conductances (W/K) at the slot bottom and at its top (one slice)
+        self.slot_liner_G = (liner_h * slot_frac * st.yoke_inner_radius_m * ring,
+                             liner_h * slot_frac * g.tip * ring)
         for i in range(c.slices):
             self._to_ambient(frame.outer[i], fr.outer_radius_m * ring)
             net.add_conductance(frame.inner[i], yoke.outer[i],
                                 gap_h * fr.inner_radius_m * ring)
-            net.add_conductance(winding.outer[i], yoke.inner[i],
-                                liner_h * slot_frac * st.yoke_inner_radius_m * ring)
-            net.add_conductance(winding.inner[i], teeth.inner[i],
-                                liner_h * slot_frac * g.tip * ring)
-            net.add_resistance(winding.mean[i], teeth.mean[i], r_lat)
+            net.add_conductance(bottom.outer[i], yoke.inner[i], self.slot_liner_G[0])
+            net.add_conductance(top.inner[i], teeth.inner[i], self.slot_liner_G[1])
+            for layer in self.winding_layers:
+                net.add_resistance(layer.mean[i], teeth.mean[i], self.slot_lateral_R[0])
             self.gap_links_stator.append(net.add_conductance(teeth.inner[i], self.gap[i]))
             self.gap_links_rotor.append(net.add_conductance(sleeve.outer[i], self.gap[i]))
             net.add_conductance(sleeve.inner[i], magnet.outer[i],
@@ -175,12 +198,12 @@ class MotorNetworkBuilder:
         stack_face = 0 if side == 'front' else n
         outward = 0 if side == 'front' else 1   # index of the face away from the stack
 
-        def joined(part: str) -> dict:
+        def joined(part: Cylinder) -> dict:
             """Join an end block to the stack face of ``part``."""
-            return ({'rear_face': p[part].faces[0]} if side == 'front'
-                    else {'front_face': p[part].faces[n]})
+            return ({'rear_face': part.faces[0]} if side == 'front'
+                    else {'front_face': part.faces[n]})
 
-        ew = self._build_end_winding(side, g, joined('winding'), outward)
+        ew = self._build_end_winding(side, g, joined, outward)
         # stack faces open to the end space
         end = self._to_end_oil
         r_ew = 0.5 * (st.yoke_inner_radius_m + g.tip)
@@ -198,11 +221,17 @@ class MotorNetworkBuilder:
             end(p[part].faces[stack_face], side, np.pi * (r1 ** 2 - r2 ** 2), END_ROTOR_FACE,
                 0.5 * (r1 + r2), r1 - r2)
         fe, cap, se = self._build_end_housing(side, g, joined, outward)
-        p.update({f'end_winding_{side}': ew, f'frame_end_{side}': fe,
-                  f'end_cap_{side}': cap, f'shaft_end_{side}': se})
+        p.update({w.name: w for w in ew})
+        p.update({f'frame_end_{side}': fe, f'end_cap_{side}': cap, f'shaft_end_{side}': se})
 
-    def _build_end_winding(self, side: str, g: 'Radii', joined: dict, outward: int):
-        """Add one end winding (the end turns' copper and insulation) and its oil links."""
+    def _build_end_winding(self, side: str, g: 'Radii', joined, outward: int) -> List[Cylinder]:
+        """
+        Add one end winding (the end turns' copper and insulation) and its oil links.
+
+        Its layers continue the slot's (each joined to its slot layer's face);
+        the outer layer's outer surface, the inner's inner and each layer's end
+        face meet the oil.
+        """
         c, st, wd = self.cfg, self.cfg.stator, self.cfg.winding
         slot_frac = 1.0 - st.tooth_fraction
         # end windings: the slot conductors continue out of the stack; per side the
@@ -215,20 +244,27 @@ class MotorNetworkBuilder:
         rc_end = (v_cu * wd.copper_density_kg_m3 * wd.copper_specific_heat_J_kgK
                   + (v_block - v_cu) * wd.insulation_density_kg_m3
                   * wd.insulation_specific_heat_J_kgK) / v_block
-        ew = add_cylinder(self.net, f'end_winding_{side}', st.yoke_inner_radius_m, g.tip,
-                          [wd.end_overhang_m], wd.k_radial_W_mK, wd.k_axial_W_mK, rc_end,
-                          slot_frac, **joined)
+        radii, ew, above = self.layer_radii_m, [], None
+        for j, slot_layer in enumerate(self.winding_layers):
+            above = add_cylinder(self.net, f'end_winding_{side}.l{j + 1}', radii[j],
+                                 radii[j + 1], [wd.end_overhang_m], wd.k_radial_W_mK,
+                                 wd.k_axial_W_mK, rc_end, slot_frac,
+                                 outer=above.inner if above else None, **joined(slot_layer))
+            ew.append(above)
         self.end_winding[side] = ew
         # the end turns are one coil per tooth: the oil's swirl meets each as a plate of
         # one coil pitch; the smooth stack faces, frame and cap as one turn of the swirl
         r_ew = 0.5 * (st.yoke_inner_radius_m + g.tip)
         coil = 2 * np.pi * r_ew / c.slots
         end = self._to_end_oil
-        end(ew.faces[outward], side, a_slots, END_STATOR, r_ew, coil)
-        end(ew.outer[0], side, 2 * np.pi * st.yoke_inner_radius_m * slot_frac * wd.end_overhang_m,
+        for j, layer in enumerate(ew):
+            end(layer.faces[outward], side, a_slots * self.layer_share[j], END_STATOR,
+                0.5 * (radii[j] + radii[j + 1]), coil)
+        end(ew[0].outer[0], side,
+            2 * np.pi * st.yoke_inner_radius_m * slot_frac * wd.end_overhang_m,
             END_STATOR, st.yoke_inner_radius_m, coil)
-        end(ew.inner[0], side, 2 * np.pi * g.tip * slot_frac * wd.end_overhang_m, END_STATOR,
-            g.tip, coil)
+        end(ew[-1].inner[0], side, 2 * np.pi * g.tip * slot_frac * wd.end_overhang_m,
+            END_STATOR, g.tip, coil)
         return ew
 
     def _build_end_housing(self, side: str, g: 'Radii', joined, outward: int) -> tuple:
@@ -247,7 +283,7 @@ class MotorNetworkBuilder:
         L_send = 0.5 * (ro.shaft_length_m - c.stack_length_m)
         end = self._to_end_oil
         fe = cyl(f'frame_end_{side}', fr.outer_radius_m, fr.inner_radius_m, [L_fend],
-                 fr.material, **joined('frame'))
+                 fr.material, **joined(self.parts['frame']))
         self._to_ambient(fe.outer[0], 2 * np.pi * fr.outer_radius_m * L_fend)
         end(fe.inner[0], side, 2 * np.pi * fr.inner_radius_m * L_fend, END_STATOR,
             fr.inner_radius_m, 2 * np.pi * fr.inner_radius_m)
@@ -273,7 +309,8 @@ class MotorNetworkBuilder:
         r_cap = 0.5 * (fr.inner_radius_m + a)
         end(cap.faces[1 - outward], side, np.pi * (fr.inner_radius_m ** 2 - a ** 2),
             END_STATOR, r_cap, 2 * np.pi * r_cap)
-        se = cyl(f'shaft_end_{side}', g.shaft, 0.0, [L_send], ro.shaft, **joined('shaft'))
+        se = cyl(f'shaft_end_{side}', g.shaft, 0.0, [L_send], ro.shaft,
+                 **joined(self.parts['shaft']))
         end(se.outer[0], side, 2 * np.pi * g.shaft * min(L_send, L_fend), END_SHAFT, g.shaft,
             2 * np.pi * g.shaft)
         # the bearing between shaft end and cap: its rings and balls, heated by its friction
@@ -294,11 +331,18 @@ class MotorNetworkBuilder:
         """
         c, net, p = self.cfg, self.net, self.parts
         wd, n = c.winding, c.slices
-        ends = [self.end_winding['front'].mean[0], self.end_winding['rear'].mean[0]]
-        self.copper_nodes = p['winding'].mean + ends
+        # the copper nodes slice by slice, slot bottom to tip, then the end windings' layers
+        slot = [w.mean[i] for i in range(n) for w in self.winding_layers]
+        ends = [w.mean[0] for s in ('front', 'rear') for w in self.end_winding[s]]
+        self.copper_nodes = slot + ends
+        #: how many of the copper nodes are in the slots (the end windings' follow)
+        self.n_slot_copper = len(slot)
         turn = c.stack_length_m + wd.end_turn_length_m   # half a turn's conductor length
-        self.copper_share = np.array([self.dz / turn] * n
-                                     + [wd.end_turn_length_m / (2 * turn)] * 2)
+        # each node's share of a turn's conductor: its length's share times its layer's
+        layers = np.tile(self.layer_share, n + 2)
+        self.copper_share = layers * np.array([self.dz / turn] * self.n_slot_copper
+                                              + [wd.end_turn_length_m / (2 * turn)]
+                                              * len(ends))
         nodes = {'copper': self.copper_nodes, 'core_yoke': p['yoke'].mean,
                  'core_teeth': p['teeth'].mean, 'gap_friction': self.gap,
                  'magnet': p['magnet'].mean, 'sleeve': p['sleeve'].mean,
@@ -343,7 +387,7 @@ class MotorNetworkBuilder:
         # oil and the end windings, the hottest surface there); end-space oil capacity
         # and natural convection move < 0.2 %/K. Copper R(T) and friction viscosity are
         # evaluated every step.
-        ends = [net.index(self.end_winding[s].mean[0]) for s in ('front', 'rear')]
+        ends = [net.index(w.mean[0]) for s in ('front', 'rear') for w in self.end_winding[s]]
         self.idx_watch = np.concatenate([self.idx_gap, self.idx_end_oil, ends,
                                          self.idx_frame_outer, self.idx_cap_outer])
         self.watch_scale = np.concatenate([np.ones(self.idx_gap.size),

@@ -396,11 +396,16 @@ class ThermalNetwork:
             band[places] = K[entries]
             lu, piv, info = dgbtrf(band, half, half)
             pivots = lu[2 * half]                    # U's diagonal
-            if info != 0 or np.any(np.abs(pivots) < 1e-14 * np.abs(K[m:, m:]).max()):
+            # the band holds every entry of K's algebraic block: its largest is the block's
+            if info != 0 or np.any(np.abs(pivots) < 1e-14 * np.abs(band).max()):
                 raise NetworkError('algebraic nodes form a group with no path to a capacity '
                                    'or a boundary: their temperature is undefined')
             rhs = np.hstack([K[m:, :m], W[m:]])[order]
-            sol_band, info = dgbtrs(lu, half, half, rhs, piv)
+            # the solve costs per column, and most of them are zero (sources heat states,
+            # a state touches a few algebraic nodes): those solve to zero
+            cols = np.flatnonzero(rhs.any(axis=0))
+            sol_band = np.zeros_like(rhs)
+            sol_band[:, cols], info = dgbtrs(lu, half, half, rhs[:, cols], piv)
             if info != 0:
                 raise NetworkError(f'algebraic nodes cannot be eliminated (gbtrs info {info})')
             sol = np.empty_like(sol_band)

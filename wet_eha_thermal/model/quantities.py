@@ -73,7 +73,7 @@ def motor_outputs(motor) -> Dict[str, Quantity]:
     copper = tuple(motor.copper_nodes)
     frame, magnet = motor.parts['frame'], motor.parts['magnet']
     slots = tuple(slot_peak_forms(motor))
-    ends = tuple(end_winding_peak_forms(motor, side) for side in ('front', 'rear'))
+    ends = tuple(p for side in ('front', 'rear') for p in end_winding_peak_forms(motor, side))
     return {
         'winding_mean': Quantity(MEAN, copper, motor.copper_share),
         'winding_hotspot': Quantity(PEAK, tuple(p.state for p in slots), peaks=slots),

@@ -138,9 +138,8 @@ class SimulatedRig:
         motor = self.truth.motor
         n = self.cfg.motor.slices
         centres = (np.arange(n) + 0.5) / n          # slice centres, stack fractions
-        # the first n copper nodes are the slot slices (the end windings follow)
         return {'winding': float(np.interp(POINT_THERMOCOUPLE_Z, centres,
-                                           motor.T[motor.idx_copper[:n]])),
+                                           motor.winding_slices_K())),
                 'frame': float(np.interp(POINT_THERMOCOUPLE_Z, centres,
                                          motor.T[motor.idx_frame]))}
 

@@ -11,6 +11,7 @@ mesh against an exact solution.
 
 from dataclasses import dataclass, field
 import math
+import re
 from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
@@ -135,8 +136,13 @@ class GridFE:
         return self._basis[k]
 
     def blocks_of(self, part: str, slice_: Optional[int] = None) -> List[int]:
-        """Return the indices of the blocks of ``part`` (in slice ``slice_``, if given)."""
-        return [k for k, blk in enumerate(self.blocks) if blk.part == part
+        """
+        Return the indices of the blocks of ``part`` (in slice ``slice_``, if given).
+
+        A part's radial layers (``winding.l1``, ``winding.l2``, ...) are its blocks too.
+        """
+        return [k for k, blk in enumerate(self.blocks)
+                if (blk.part == part or re.fullmatch(rf'{re.escape(part)}\.l\d+', blk.part))
                 and (slice_ is None or blk.slice_no == slice_)]
 
     def face(self, blocks: Sequence[int], side: str,

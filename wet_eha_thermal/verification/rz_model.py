@@ -77,12 +77,15 @@ def rz_blocks(motor: WetMotor) -> List[Block]:
     def ks(mat, f=1.0):
         return (f * mat.k_radial_W_mK, f * mat.k_axial_W_mK)
     k_wind = (sf * wd.k_radial_W_mK, sf * wd.k_axial_W_mK)
+    # the winding's radial layers as the network's (one continuum: blocks of one group)
+    radii = motor.layer_radii_m
+    layers = list(zip(motor.winding_layers, radii[:-1], radii[1:]))
     stack = [('frame', 'frame', (fr.inner_radius_m, fr.outer_radius_m), ks(fr.material), 1.0),
              ('yoke', 'stator', (st.yoke_inner_radius_m, st.outer_radius_m), ks(st.material),
               1.0),
              ('teeth', 'tip', (st.bore_radius_m, r_tip), ks(st.material), 1.0),
              ('teeth', 'stator', (r_tip, st.yoke_inner_radius_m), ks(st.material, tf), tf),
-             ('winding', 'winding', (r_tip, st.yoke_inner_radius_m), k_wind, sf),
+             *((w.name, 'winding', (r_in, r_out), k_wind, sf) for w, r_out, r_in in layers),
              ('sleeve', 'sleeve', (r_mo, ro.outer_radius_m), ks(ro.sleeve), 1.0),
              ('magnet', 'magnet', (r_mi, r_mo), ks(ro.magnet), 1.0),
              ('rotor_core', 'core', (r_sh, r_mi), ks(ro.core), 1.0),
@@ -102,8 +105,8 @@ def rz_blocks(motor: WetMotor) -> List[Block]:
                   span(l_fe, l_fe + t_cap), ks(es.cap_material)),
             Block(f'end_cap_hub_{side}', f'cap_{side}', (r_b, ro.outer_radius_m),
                   span(s_cap, l_fe), ks(es.cap_material)),
-            Block(f'end_winding_{side}', 'winding', (r_tip, st.yoke_inner_radius_m),
-                  span(0.0, oh), k_wind, sf),
+            *(Block(f'end_winding_{side}.{w.name.split(".")[-1]}', 'winding', (r_in, r_out),
+                    span(0.0, oh), k_wind, sf) for w, r_out, r_in in layers),
             Block(f'shaft_end_{side}', 'shaft', (0.0, r_sh), span(0.0, l_se), ks(ro.shaft)),
             Block(f'bearing_{side}', 'shaft', (r_sh, r_b), span(l_fe, l_fe + t_cap),
                   (k_b, k_b))]
@@ -136,22 +139,24 @@ def motor_rz(motor: WetMotor, u: MotorInputs, coupling: Tuple[float, float],
     its part's slice (or oil node) as in the network.
     """
     fe = GridFE(rz_blocks(motor), h_m, axisymmetric=True)
-    _add_contacts(fe, motor.cfg, coupling)
+    _add_contacts(fe, motor, coupling)
     _add_network_links(fe, motor, u)
     _add_sources(fe, motor)
     fe.solve()
     return fe
 
 
-def _add_contacts(fe: GridFE, c, coupling: Tuple[float, float]) -> None:
+def _add_contacts(fe: GridFE, motor: WetMotor, coupling: Tuple[float, float]) -> None:
     """Join the groups of the r-z model: the configuration's contacts and the fitted coupling."""
+    c = motor.cfg
     st, wd, ro = c.stator, c.winding, c.rotor
     liner = wd.liner_conductivity_W_mK / wd.liner_thickness_m * (1 - st.tooth_fraction)
     every = fe.blocks_of
     contacts = [('frame fit', every('frame'), 'inner', 'stator',
                  st.contact_gap_conductivity_W_mK / st.frame_contact_gap_m, None),
-                ('slot bottom', every('winding'), 'outer', 'stator', liner, None),
-                ('slot top', every('winding'), 'inner', 'tip', liner, None),
+                ('slot bottom', every(motor.winding_layers[0].name), 'outer', 'stator', liner,
+                 None),
+                ('slot top', every(motor.winding_layers[-1].name), 'inner', 'tip', liner, None),
                 ('tooth root of the tip', [k for k in every('teeth') if fe.blocks[k].frac < 1.0],
                  'inner', 'tip', coupling[1], None),
                 ('sleeve-magnet', every('sleeve'), 'inner', 'magnet',

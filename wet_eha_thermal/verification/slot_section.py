@@ -5,9 +5,9 @@ Frame, contact gap, yoke, tooth with its tip, slot liner and winding,
 axially adiabatic, per metre of stack (:func:`slot_pitch`); the same problem
 built by the production builder (:func:`slice_motor`, :func:`slot_network`);
 the problem of one slice of the full network, its axial heat flows as
-sources (:func:`slice_problem`: the FE peak the published hot spot is
-checked against); and the winding-to-teeth coupling the r-z model takes
-from it (:func:`slot_coupling`).
+sources, each winding layer's in its own radial band (:func:`slice_problem`:
+the FE peak the published hot spot is checked against); and the
+winding-to-teeth coupling the r-z model takes from it (:func:`slot_coupling`).
 """
 
 from dataclasses import dataclass, replace
@@ -40,6 +40,9 @@ class SlotProblem:
     ambient_K: float
     oil_K: float
     frame_W_m: float = 0.0
+    #: the copper's heat in radial bands of equal depth, slot bottom first (W/m, summing
+    #: to ``copper_W_m``): a slice's layers, each with its own axial gain; () uniform
+    copper_bands_W_m: Tuple[float, ...] = ()
 
 
 def slot_problem(motor: WetMotor, u: MotorInputs) -> SlotProblem:
@@ -77,13 +80,15 @@ def slice_problem(motor: WetMotor, u: MotorInputs, i: int) -> SlotProblem:
     """
     net, T = motor.net, motor.T
     names = net.node_names + net.boundary_names
-    own = re.compile(rf'({"|".join(PITCH_PARTS)})\.s{i}(\.(outer|inner|ja|jr))?')
+    # a part's nodes in the slice, its radial layers' (``winding.l2.s3``) included
+    own = re.compile(rf'({"|".join(PITCH_PARTS)})(\.l\d+)?\.s{i}(\.(outer|inner|ja|jr))?')
 
     def part(name):
         m = own.fullmatch(name)
-        return m.group(1) if m else None
+        return (m.group(1) + (m.group(2) or '')) if m else None
 
-    heat = dict.fromkeys(PITCH_PARTS, 0.0)
+    layers = [w.name for w in motor.winding_layers]
+    heat = dict.fromkeys(PITCH_PARTS[:-1] + tuple(layers), 0.0)
     for name, w in zip(source_names(motor), motor.power_W):
         if part(name):
             heat[part(name)] += float(w)
@@ -95,15 +100,16 @@ def slice_problem(motor: WetMotor, u: MotorInputs, i: int) -> SlotProblem:
             heat[pa] -= float(flows[k])
         elif pb and not pa and names[a] not in cut:
             heat[pb] += float(flows[k])
+    bands = tuple(heat[w] / motor.dz for w in layers)
     c, dz = motor.cfg, motor.dz
     G = net.coefficients_in_use()[0]
     frame = [k for k, (a, _) in zip(motor.ambient_links, net.link_ends(motor.ambient_links))
              if names[a] == f'frame.s{i}.outer']
     h_amb = G[frame].sum() / (2 * np.pi * c.frame.outer_radius_m * dz)
     h_bore = G[motor.gap_links_stator[i - 1]] / (2 * np.pi * c.stator.bore_radius_m * dz)
-    return SlotProblem(heat['winding'] / dz, heat['yoke'] / dz, heat['teeth'] / dz,
+    return SlotProblem(sum(bands), heat['yoke'] / dz, heat['teeth'] / dz,
                        float(h_amb), float(h_bore), u.ambient_K,
-                       float(T[net.index(f'gap_oil.s{i}')]), heat['frame'] / dz)
+                       float(T[net.index(f'gap_oil.s{i}')]), heat['frame'] / dz, bands)
 
 
 def slot_pitch(c, prob: SlotProblem, h_m: float) -> Tuple[GridFE, Dict[str, float]]:
@@ -114,7 +120,8 @@ def slot_pitch(c, prob: SlotProblem, h_m: float) -> Tuple[GridFE, Dict[str, floa
     annulus share), centred on the pitch's sides; the tooth tips close the slot
     over the whole pitch from the bore to ``tooth_tip_depth_m`` (the network
     joins the slot's inner liner to the bore); the liner a thin layer on the
-    slot's four sides; the frame fit a thin layer. Results: winding mean and
+    slot's four sides; the frame fit a thin layer; the copper's heat uniform
+    over each of the problem's radial bands. Results: winding mean and
     peak, teeth (tips included), yoke and frame means (K); the heat (W/m, whole
     machine) through the bore, the frame barrel and the slot sides.
     """
@@ -123,6 +130,8 @@ def slot_pitch(c, prob: SlotProblem, h_m: float) -> Tuple[GridFE, Dict[str, floa
     half = 0.5 * st.tooth_fraction * pitch
     r_tip = st.bore_radius_m + st.tooth_tip_depth_m
     k_fe, k_w = st.material.k_radial_W_mK, wd.k_radial_W_mK
+    bands = prob.copper_bands_W_m or (prob.copper_W_m,)
+    radii = np.linspace(st.yoke_inner_radius_m, r_tip, len(bands) + 1)
     blocks = [Block('frame', 'frame', (fr.inner_radius_m, fr.outer_radius_m), (0, pitch),
                     (fr.material.k_radial_W_mK,) * 2),
               Block('yoke', 'stator', (st.yoke_inner_radius_m, st.outer_radius_m), (0, pitch),
@@ -130,17 +139,21 @@ def slot_pitch(c, prob: SlotProblem, h_m: float) -> Tuple[GridFE, Dict[str, floa
               Block('teeth', 'stator', (st.bore_radius_m, r_tip), (0, pitch), (k_fe, k_fe)),
               Block('teeth', 'stator', (r_tip, st.yoke_inner_radius_m), (0, half), (k_fe, k_fe)),
               Block('teeth', 'stator', (r_tip, st.yoke_inner_radius_m), (pitch - half, pitch),
-                    (k_fe, k_fe)),
-              Block('winding', 'winding', (r_tip, st.yoke_inner_radius_m), (half, pitch - half),
-                    (k_w, k_w))]
+                    (k_fe, k_fe))]
+    # the winding in bands of the given heats, slot bottom first (one block when uniform)
+    blocks += [Block('winding', 'winding', (r_in, r_out), (half, pitch - half), (k_w, k_w))
+               for r_out, r_in in zip(radii[:-1], radii[1:])]
+    wind = list(range(5, len(blocks)))
     fe = GridFE(blocks, h_m, axisymmetric=False)
     liner = wd.liner_conductivity_W_mK / wd.liner_thickness_m
     fe.add_contact('frame fit', fe.face([0], 'inner'), 'stator',
                    st.contact_gap_conductivity_W_mK / st.frame_contact_gap_m)
-    fe.add_contact('slot bottom', fe.face([5], 'outer'), 'stator', liner)
-    fe.add_contact('slot top', fe.face([5], 'inner'), 'stator', liner)
-    fe.add_contact('slot sides', fe.face([5], 'front') + fe.face([5], 'rear'), 'stator', liner)
-    fe.add_source([5], prob.copper_W_m / c.slots)
+    fe.add_contact('slot bottom', fe.face(wind[:1], 'outer'), 'stator', liner)
+    fe.add_contact('slot top', fe.face(wind[-1:], 'inner'), 'stator', liner)
+    fe.add_contact('slot sides', fe.face(wind, 'front') + fe.face(wind, 'rear'), 'stator',
+                   liner)
+    for k, heat in zip(wind, bands):
+        fe.add_source([k], heat / c.slots)
     fe.add_source([1], prob.yoke_W_m / c.slots)
     fe.add_source([2, 3, 4], prob.teeth_W_m / c.slots)
     if prob.frame_W_m:
@@ -149,7 +162,7 @@ def slot_pitch(c, prob: SlotProblem, h_m: float) -> Tuple[GridFE, Dict[str, floa
     fe.add_link('frame', outer, prob.h_ambient_W_m2K * fe.area(outer), prob.ambient_K)
     fe.add_link('bore', bore, prob.h_bore_W_m2K * fe.area(bore), prob.oil_K)
     T = fe.solve()
-    return fe, {'winding_mean': fe.mean([5], T), 'winding_peak': fe.peak([5], T),
+    return fe, {'winding_mean': fe.mean(wind, T), 'winding_peak': fe.peak(wind, T),
                 'teeth': fe.mean([2, 3, 4], T), 'yoke': fe.mean([1], T),
                 'frame': fe.mean([0], T),
                 'bore_W_m': c.slots * fe.link_flow(fe.links[1], T),
@@ -184,9 +197,11 @@ def slice_motor(c, oil, prob: SlotProblem) -> Tuple[WetMotor, MotorInputs]:
                          * c.stator.bore_radius_m * L)
     net.set_advection_rates(m.adv, 1e9)
     P = np.zeros(net.ns)
+    per_m = {w.mean[0]: prob.copper_W_m * share for w, share in zip(m.winding_layers,
+                                                                    m.layer_share)}
+    per_m.update({'yoke.s1': prob.yoke_W_m, 'teeth.s1': prob.teeth_W_m})
     for k, nm in enumerate(source_names(m)):
-        P[k] = {'winding.s1': prob.copper_W_m, 'yoke.s1': prob.yoke_W_m,
-                'teeth.s1': prob.teeth_W_m}.get(nm, 0.0) * L
+        P[k] = per_m.get(nm, 0.0) * L
     m.power_W = P
     m.T = net.steady_state(m.boundaries(u), P)
     return m, u
@@ -199,10 +214,10 @@ def slot_network(c, oil, prob: SlotProblem) -> Dict[str, float]:
     flows = net.link_heat_flows(T, m.boundaries(u))
     frame_links = [k for k, (a, _) in zip(m.ambient_links, net.link_ends(m.ambient_links))
                    if a < net.n and net.node_names[a].startswith('frame.')]
-    t = {p: float(T[net.index(p + '.s1')]) for p in ('winding', 'teeth', 'yoke', 'frame')}
-    t.update({'bore_W_m': float(flows[m.gap_links_stator].sum()) / L,
+    t = {p: float(T[net.index(p + '.s1')]) for p in ('teeth', 'yoke', 'frame')}
+    t.update({'winding_mean': float(m.winding_slices_K(T)[0]),
+              'bore_W_m': float(flows[m.gap_links_stator].sum()) / L,
               'frame_W_m': float(flows[frame_links].sum()) / L})
-    t['winding_mean'] = t.pop('winding')
     return t
 
 
@@ -218,9 +233,9 @@ def slot_coupling(fe: GridFE, c) -> float:
     T = fe.T
     q = fe.contact_flow('slot sides', T)
     integral = 0.0
-    for i in np.unique(fe.row[np.isin(fe.owner, [3, 4, 5])]):
+    for i in np.unique(fe.row[np.isin(fe.owner, [3, 4] + fe.blocks_of('winding'))]):
         means, area = [], 0.0
-        for blocks in ([5], [3, 4]):
+        for blocks in (fe.blocks_of('winding'), [3, 4]):
             els = np.flatnonzero(np.isin(fe.owner, blocks) & (fe.row == i))
             wts = asm(LinearForm(lambda v, w: v), Basis(fe.mesh, fe.elem, elements=els))
             means.append(float(wts @ T[:fe.n]) / wts.sum())
