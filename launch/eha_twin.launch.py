@@ -7,6 +7,7 @@ Usage (after ``colcon build`` and sourcing the workspace)::
     ros2 launch wet_eha_thermal eha_twin.launch.py actuators:=left,right view:=true
     ros2 launch wet_eha_thermal eha_twin.launch.py actuators_file:=rigs.yaml sim_rigs:=false
     ros2 launch wet_eha_thermal eha_twin.launch.py record_output:=runs/test honour_limit:=true
+    ros2 launch wet_eha_thermal eha_twin.launch.py sim_rigs:=false managed:=true
 
 Per actuator (a namespace: ``eha`` by default, whose topics are the twin's
 /eha ones) it starts the simulated rig (``sim_rigs``), the estimator and the
@@ -37,6 +38,8 @@ ARGUMENTS = {
     'honour_limit': ('false', "the rigs' drives honour the estimators' current limits"),
     'record_output': ('', 'bag directory (one per actuator below it when several; empty: '
                           'runs/eha_<UTC time>)'),
+    'managed': ('false', 'estimators as lifecycle nodes, unconfigured until configured and '
+                         'activated (ros2 lifecycle set, or a lifecycle manager)'),
 }
 
 

@@ -82,6 +82,15 @@ def test_no_rigs_no_recorder():
         ('eha_thermal_estimator', '/left'), ('eha_thermal_estimator', '/right')]
 
 
+def test_managed_estimators_start_as_lifecycle_nodes():
+    nodes = plan_from_arguments(_defaults(actuators='left,right', managed='true'), SHARE)
+    est = [n for n in nodes if n.name == 'eha_thermal_estimator']
+    assert len(est) == 2 and all('--managed' in n.arguments for n in est)
+    assert all('--managed' not in n.arguments for n in nodes if n not in est)
+    plain = plan_from_arguments(_defaults(actuators='left,right'), SHARE)
+    assert all('--managed' not in n.arguments for n in plain)
+
+
 ACTUATORS = """
 actuators:
   - namespace: /rig_pc/left
@@ -151,6 +160,7 @@ def test_a_bad_actuators_file_names_the_key(text, message):
     ({'actuators': ' , '}, 'actuators = .*: name at least one namespace'),
     ({'actuators': 'left,left'}, 'share the namespace /left'),
     ({'view': 'yes'}, "view = 'yes': expected true or false"),
+    ({'managed': '1'}, "managed = '1': expected true or false"),
     ({'stage': '0'}, 'stage = 0: expected a reference stage'),
     ({'foxglove_port': 'x'}, "foxglove_port = 'x': expected a whole number"),
     ({'foxglove_port': '65535', 'view': 'true', 'actuators': 'a,b'},

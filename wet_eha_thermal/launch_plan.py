@@ -153,7 +153,8 @@ def load_actuators(names: str, path: str = '') -> List[Actuator]:
 def plan(actuators: Sequence[Actuator], share_dir: str, *, sim_rigs: bool = True,
          record: bool = True, view: bool = False, stage: int = 6, duty_file: str = '',
          use_sim_time: bool = False, executor: str = 'events', honour_limit: bool = False,
-         record_output: str = '', foxglove_port: int = FOXGLOVE_PORT) -> List[NodePlan]:
+         record_output: str = '', foxglove_port: int = FOXGLOVE_PORT,
+         managed: bool = False) -> List[NodePlan]:
     """
     Return every node to start for ``actuators``, in order: per actuator rig, estimator, recorder.
 
@@ -164,8 +165,10 @@ def plan(actuators: Sequence[Actuator], share_dir: str, *, sim_rigs: bool = True
     several (``<stem>_<namespace>.mcap`` for a name ending .mcap; '': each
     recorder's own ``runs/eha_<UTC time>``). ``view``:
     each estimator serves its Foxglove view, the first on ``foxglove_port``,
-    the next on the next port. ValueError when two actuators share a
-    namespace or a port would leave 1..65535.
+    the next on the next port. ``managed``: the estimators start as
+    lifecycle nodes (``--managed``), unconfigured until an operator or a
+    lifecycle manager configures and activates them. ValueError when two
+    actuators share a namespace or a port would leave 1..65535.
     """
     seen: Dict[str, int] = {}
     for i, a in enumerate(actuators):
@@ -197,7 +200,8 @@ def plan(actuators: Sequence[Actuator], share_dir: str, *, sim_rigs: bool = True
         if port is not None:
             est['foxglove_address'] = f'{FOXGLOVE_HOST}:{port}'
         nodes.append(NodePlan(ESTIMATOR_EXE, interface.ESTIMATOR_NODE, a.namespace,
-                              [params, est], ['--executor', executor], remaps, port))
+                              [params, est], ['--executor', executor] + ['--managed'] * managed,
+                              remaps, port))
         if record:
             output = record_output
             if record_output and len(actuators) > 1:
@@ -228,8 +232,8 @@ def plan_from_arguments(args: Mapping[str, str], share_dir: str) -> List[NodePla
 
     The names are those of the launch file: ``actuators``, ``actuators_file``,
     ``sim_rigs``, ``record``, ``view``, ``foxglove_port``, ``stage``,
-    ``duty_file``, ``use_sim_time``, ``executor``, ``honour_limit`` and
-    ``record_output``.
+    ``duty_file``, ``use_sim_time``, ``executor``, ``honour_limit``,
+    ``record_output`` and ``managed``.
     """
     def integer(name: str) -> int:
         try:
@@ -247,4 +251,5 @@ def plan_from_arguments(args: Mapping[str, str], share_dir: str) -> List[NodePla
                 use_sim_time=as_bool(args['use_sim_time'], 'use_sim_time'),
                 executor=args['executor'],
                 honour_limit=as_bool(args['honour_limit'], 'honour_limit'),
-                record_output=args['record_output'], foxglove_port=integer('foxglove_port'))
+                record_output=args['record_output'], foxglove_port=integer('foxglove_port'),
+                managed=as_bool(args['managed'], 'managed'))

@@ -47,10 +47,12 @@ estimator's parameters file ``params_file``, when given) and
 ``started_utc`` and the recorder's ``parameters`` as YAML).
 
 The writer closes a chunk every ``flush_interval_s``, so a SIGKILL loses
-about that much; metadata.yaml is rewritten at each split, so it lists every
-file begun. SIGINT or SIGTERM stop it cleanly: the messages already
-received are written, the bag is closed (summary, rosbag2 metadata,
-metadata.yaml) and a one-line summary goes to stderr. An existing file or
+about that much; metadata.yaml is rewritten at each split, before the new
+file takes its first message, so it lists every file that holds one (a kill
+inside a split can leave the next file begun, unlisted and empty). SIGINT or
+SIGTERM stop it cleanly: the messages already received are written, the bag
+is closed (summary, rosbag2 metadata, metadata.yaml) and a one-line summary
+goes to stderr. An existing file or
 directory, even an empty one (as ``ros2 bag record`` refuses it), is never
 overwritten (exit status 2).
 
