@@ -18,7 +18,7 @@ import threading
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
-from node_probe import NodeAndProbe
+from node_probe import NodeAndProbe, PATIENCE
 import numpy as np
 import pytest
 import rclpy
@@ -47,9 +47,6 @@ os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 
 ROOT = Path(__file__).resolve().parents[1]
 OK, WARN, ERROR, STALE = 0, 1, 2, 3
-#: a busy machine slows the node and this probe alike: a condition's deadline is this many
-#: times the seconds it takes on a quiet one (a deadline, never a rate)
-PATIENCE = 5.0
 VALUES = {'current_A': 20.0, 'speed_rad_s': 800.0, 'p_a_Pa': 1.0e6, 'p_b_Pa': 1.0e6,
           'p_acc_Pa': 1.0e6, 'dp_Pa': 0.0, 'position_m': 0.002}
 
@@ -98,23 +95,8 @@ class Rig(NodeAndProbe):
             pub.publish(msg)
 
     def feed(self, seconds, until=None, skip=()):
-        """
-        Publish at 1 kHz for ``seconds``, or until ``until()``; return whether it held.
-
-        With ``until``, ``seconds`` is what a quiet machine needs and the
-        deadline ``PATIENCE`` times that.
-        """
-        end = time.monotonic() + seconds * (1.0 if until is None else PATIENCE)
-        next_t = time.monotonic()
-        while time.monotonic() < end:
-            now = time.monotonic()
-            if now >= next_t:
-                self.publish_samples(skip)
-                next_t = max(next_t + 0.001, now - 0.005)   # no bursts after a stall
-            self.spin(0.0005)
-            if until is not None and until():
-                return True
-        return until is None
+        """Publish every input but ``skip`` at 1 kHz (``NodeAndProbe.paced``)."""
+        return self.paced(lambda: self.publish_samples(skip), seconds, until)
 
     def status(self, name):
         """Return the named status of the last diagnostics received (None before any)."""

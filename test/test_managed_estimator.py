@@ -82,26 +82,20 @@ class Operator(NodeAndProbe):
     def state(self):
         return self.call(self.get, GetState.Request()).current_state.id
 
+    def publish_inputs(self):
+        """Publish one sample of every input, stamped now."""
+        stamp = self.probe.get_clock().now().to_msg()
+        for name, pub in self.pubs.items():
+            if name in interface.PRESSURE_INPUTS:
+                msg = FluidPressure(fluid_pressure=VALUES[name])
+                msg.header.stamp = stamp
+            else:
+                msg = Float64(data=VALUES[name])
+            pub.publish(msg)
+
     def feed(self, seconds, until=None):
-        """Publish every input at 1 kHz for ``seconds`` or until ``until()``; return if it held."""
-        end = time.monotonic() + seconds
-        next_t = time.monotonic()
-        while time.monotonic() < end:
-            now = time.monotonic()
-            if now >= next_t:
-                stamp = self.probe.get_clock().now().to_msg()
-                for name, pub in self.pubs.items():
-                    if name in interface.PRESSURE_INPUTS:
-                        msg = FluidPressure(fluid_pressure=VALUES[name])
-                        msg.header.stamp = stamp
-                    else:
-                        msg = Float64(data=VALUES[name])
-                    pub.publish(msg)
-                next_t = max(next_t + 0.001, now - 0.005)   # no bursts after a stall
-            self.spin(0.0005)
-            if until is not None and until():
-                return True
-        return until is None
+        """Publish every input at 1 kHz (``NodeAndProbe.paced``)."""
+        return self.paced(self.publish_inputs, seconds, until)
 
     def published_topics(self):
         return {name for name, _ in self.node.get_publisher_names_and_types_by_node(
