@@ -60,7 +60,6 @@ import gc
 import time
 from typing import Deque, Dict, Optional
 
-from builtin_interfaces.msg import Time as TimeMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.duration import Duration
@@ -84,10 +83,6 @@ LIMIT_TOPICS = (interface.CURRENT_LIMITS_TOPIC, interface.CURRENT_LIMIT_TOPIC,
                 interface.DRIVE_LIMITS_TOPIC)
 #: ... for at most this long (s)
 LAST_LIMITS_WAIT_S = 1.0
-
-
-def _stamp_msg(ns: int) -> TimeMsg:
-    return TimeMsg(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
 
 class EstimatorRunner:
@@ -371,7 +366,7 @@ class EstimatorRunner:
                 waiting_for_clock=self.waiting_for_clock, latency_ms=self.latency_ms,
                 view=self.view.text())
             arr = DiagnosticArray()
-            arr.header.stamp = _stamp_msg(now_ns)
+            arr.header.stamp = topics.time_msg(now_ns)
             node, namespace = self.node.get_name(), self.node.get_namespace()
             arr.status = [
                 DiagnosticStatus(level=bytes([d.level]),

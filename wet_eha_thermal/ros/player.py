@@ -47,7 +47,6 @@ import sys
 import time
 from typing import Dict, Iterator, List, NamedTuple, Optional, Sequence, TextIO
 
-from builtin_interfaces.msg import Time as TimeMsg
 import rclpy
 from rclpy.duration import Duration
 from rclpy.node import Node
@@ -55,7 +54,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from wet_eha_thermal.bag.reader import BagError, BagInfo, iter_raw, open_bag, RawMessage
-from wet_eha_thermal.ros.topics import message_class
+from wet_eha_thermal.ros.topics import message_class, time_msg
 import yaml
 
 NODE_NAME = 'eha_player'
@@ -124,10 +123,6 @@ def shift_header_stamp(data: bytes, shift_ns: int) -> bytes:
         return data                   # zero means 'use the clock': keep it
     sec, nanosec = divmod(sec * 1_000_000_000 + nanosec + shift_ns, 1_000_000_000)
     return data[:_STAMP_AT] + layout.pack(sec, nanosec) + data[_STAMP_AT + 8:]
-
-
-def _time_msg(ns: int) -> TimeMsg:
-    return TimeMsg(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
 
 class _Output(NamedTuple):
@@ -246,7 +241,7 @@ class PlayerNode(Node):
         if self.clock_pub is None:
             return
         self._clock_floor_ns = max(self._clock_floor_ns, clock_ns)
-        self._clock.clock = _time_msg(self._clock_floor_ns)
+        self._clock.clock = time_msg(self._clock_floor_ns)
         self.clock_pub.publish(self._clock)
         self._clock_wall_s = now_s
 

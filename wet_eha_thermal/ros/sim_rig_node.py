@@ -74,7 +74,6 @@ import sys
 import time
 from typing import Dict, List, Optional, Tuple
 
-from builtin_interfaces.msg import Time as TimeMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 import numpy as np
 import rclpy
@@ -94,7 +93,7 @@ from wet_eha_thermal.offline.simulated_rig import (AMBIENT_SIGMA_K, NOISE_SIGMA,
                                                    THERMOCOUPLE_SIGMA_K)
 from wet_eha_thermal.ros.runtime import (declare_parameters, descriptor, prepare_model_step,
                                          run_node, shared_parameters)
-from wet_eha_thermal.ros.topics import input_qos, latched_qos, publish_inputs
+from wet_eha_thermal.ros.topics import input_qos, latched_qos, publish_inputs, time_msg
 from wet_eha_thermal.units import C_TO_K
 
 NODE_NAME = RIG_NODE
@@ -106,10 +105,6 @@ MAX_BURST_S = 0.1
 RIG_BLOCK_S = 0.1
 #: Tick intervals and publish lags kept for the jitter figures (a ring of this many).
 STATS_WINDOW = 20000
-
-
-def _stamp(ns: int) -> TimeMsg:
-    return TimeMsg(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
 
 class _Ring:
@@ -384,7 +379,7 @@ class SimRigNode(Node):
                 self._next_block(now_ns)
             row = self.block[k - self.block_first]
             sched_ns = self.t0_ns + k * self.period_ns
-            publish_inputs(pubs, msgs, is_pressure, row, _stamp(sched_ns))
+            publish_inputs(pubs, msgs, is_pressure, row, time_msg(sched_ns))
             lag = (now_ns - sched_ns) * 1e-9
             self.lags.add(lag)
             self.max_lag_s = max(self.max_lag_s, lag)

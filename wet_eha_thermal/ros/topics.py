@@ -7,6 +7,7 @@ The names (topics, message types, estimates, thermocouples) are in
 
 import importlib
 
+from builtin_interfaces.msg import Time as TimeMsg
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, qos_profile_sensor_data, QoSProfile,
                        ReliabilityPolicy)
 from wet_eha_thermal import interface
@@ -21,6 +22,11 @@ def message_class(type_name: str):
         raise ValueError(f'message type {type_name!r}: expected pkg/msg/Type')
     module = importlib.import_module(f'{parts[0]}.{parts[1]}')
     return getattr(module, parts[2])
+
+
+def time_msg(ns: int) -> TimeMsg:
+    """Return a ROS time message of ``ns`` nanoseconds (cheaper than rclpy.time.Time.to_msg)."""
+    return TimeMsg(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
 
 #: What ``topic_prefix`` says by default: the node's namespace (or /eha at the root).
