@@ -1,4 +1,4 @@
-"""The drive's limits as numbers (interface.DriveLimits): the layout, its checks, the codes."""
+"""The drive's numbers (interface.DriveLimits, DriveAlerts): the layouts, their checks, codes."""
 
 import math
 
@@ -7,8 +7,10 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from wet_eha_thermal import messages
+from wet_eha_thermal.estimator.alerts import AlertManager, rules_from_config
 from wet_eha_thermal.estimator.limits import current_limits, fallback_limits
-from wet_eha_thermal.interface import DriveLimits, LimitStatus
+from wet_eha_thermal.estimator.session import json_safe
+from wet_eha_thermal.interface import DriveAlerts, DriveLimits, ESTIMATES, LimitStatus
 
 
 def test_layout_round_trip_at_fixed_places():
@@ -66,3 +68,61 @@ def test_trusted_limits_say_ok_in_both_forms():
         LimitStatus.OK, 'ok', '', 'ok')
     _, data, _ = messages.drive_limits(limits, 1)
     assert deserialize_message(data, Float64MultiArray).data[4] == 0.0
+
+
+def _alerts_of(manager):
+    """Return the drive's numbers of a manager's summary, as a reader decodes them."""
+    _, data, _ = messages.alert_messages(json_safe(manager.summary()), 5, None)[1]
+    return deserialize_message(data, Float64MultiArray).data.tolist()
+
+
+def test_alerts_as_numbers_follow_the_levels_and_the_acknowledgement():
+    band = {'hysteresis_K': 3.0, 'min_duration_s': 0.0}
+    rules = rules_from_config({
+        'winding_hotspot': {'warn_C': 160.0, 'critical_C': 175.0, 'latch': True, **band},
+        'magnet': {'warn_C': 135.0, 'critical_C': 145.0, 'latch': False, **band},
+        'oil': {'warn_C': 120.0, 'critical_C': 130.0, 'latch': False, **band}})
+    manager = AlertManager(rules)
+    data = _alerts_of(manager)
+    # before any estimate: every level OK, no value, stamp 0; quantity i read by index
+    assert data[:7] == [1.0, 0.0, 0.0, 5.0, 0.0, 3.0, 8.0]
+    assert [data[7 + 8 * i] for i in range(3)] == [
+        ESTIMATES.index(q) for q in ('winding_hotspot', 'magnet', 'oil')]
+    assert math.isnan(data[7 + 4]) and math.isnan(data[7 + 7])
+    manager.update(100.25, {'winding_hotspot': 176.0, 'magnet': 100.0, 'oil': 125.5})
+    data = _alerts_of(manager)
+    assert data[:5] == [1.0, 100.0, 250_000_000.0, 5.0, 2.0]
+    # winding: CRITICAL reported and active, not acknowledged, 176 against 160/175, since 100.25
+    assert data[7:15] == [1.0, 2.0, 2.0, 0.0, 176.0, 160.0, 175.0, 100.25]
+    assert data[15 + 1:15 + 5] == [0.0, 0.0, 0.0, 100.0]      # magnet OK
+    assert data[23 + 1:23 + 5] == [1.0, 1.0, 0.0, 125.5]      # oil WARN
+    # the winding cools: its latch holds CRITICAL while the estimate says OK
+    manager.update(101.0, {'winding_hotspot': 150.0})
+    assert _alerts_of(manager)[7 + 1:7 + 5] == [2.0, 0.0, 0.0, 150.0]
+    # the oil acknowledged while still hot: reported WARN, marked acknowledged
+    manager.acknowledge('oil')
+    assert _alerts_of(manager)[23 + 1:23 + 4] == [1.0, 1.0, 1.0]
+    decoded = DriveAlerts.from_data(_alerts_of(manager))
+    assert [(q.quantity, q.reported, q.acknowledged) for q in decoded.quantities] == [
+        ('winding_hotspot', 2, False), ('magnet', 0, False), ('oil', 1, True)]
+    assert DriveAlerts.from_data(decoded.to_data()) == decoded
+
+
+@pytest.mark.parametrize('data, message', [
+    ([], 'not drive alerts v1'),
+    ([2.0, 0, 0, 1, 0, 0, 8], 'not drive alerts v1'),
+    ([1.0, 0, 0, 1, 0, 1, 8], 'n = 1, m = 8 for 7 numbers'),
+    ([1.0, 0, 0, 1, 0, 0, 3], 'm = 3'),
+    ([1.0, 0, 0, 1, 0, 1, 8, 99, 0, 0, 0, 20.0, 160, 175, 0], 'quantity index 99'),
+])
+def test_malformed_alerts_are_refused(data, message):
+    with pytest.raises(ValueError, match=message):
+        DriveAlerts.from_data(data)
+
+
+def test_a_longer_quantity_block_of_a_later_version_is_read_by_its_stride():
+    one = [1.0, 0, 0, 1, 1, 2, 9]
+    one += [1, 1, 1, 0, 161.0, 160, 175, 3.0, 42.0] + [4, 0, 0, 0, 90.0, 135, 145, 0.0, 42.0]
+    got = DriveAlerts.from_data(one)
+    assert [(q.quantity, q.reported, q.value_C) for q in got.quantities] == [
+        ('winding_hotspot', 1, 161.0), ('magnet', 0, 90.0)]

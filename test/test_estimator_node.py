@@ -260,6 +260,15 @@ def test_latched_alert_and_acknowledge(context, tmp_path):
         hot = late[-1]['quantities']['winding_hotspot']
         assert hot['reported'] == 'WARN' and not hot['acknowledged']
         assert 'winding_hotspot WARN' in late[-1]['message']
+        # and as numbers, latched too: the winding's block by index (quantity 0, stride 8)
+        numbers = []
+        rig.probe.create_subscription(Float64MultiArray, interface.DRIVE_ALERTS_TOPIC,
+                                      lambda m: numbers.append(m.data.tolist()),
+                                      topics.latched_qos())
+        assert rig.feed(3.0, until=lambda: numbers)
+        w = 7 + 8 * list(late[-1]['quantities']).index('winding_hotspot')
+        assert numbers[-1][4] == 1.0 and numbers[-1][w:w + 4] == [
+            interface.ESTIMATES.index('winding_hotspot'), 1.0, 1.0, 0.0]
         # the state's names are latched too: one per element of the state
         names, states = [], []
         rig.probe.create_subscription(String, interface.STATE_NAMES_TOPIC,
@@ -277,6 +286,8 @@ def test_latched_alert_and_acknowledge(context, tmp_path):
         assert late[-1]['quantities']['winding_hotspot']['acknowledged']
         assert '(acknowledged)' in late[-1]['message']
         assert any('acknowledged' in e for e in late[-1]['events'])
+        assert rig.feed(3.0, until=lambda: numbers[-1][w + 3] == 1.0)
+        assert numbers[-1][w + 1] == 1.0          # still reported WARN: it is still active
         # an unknown quantity is logged and ignored, never raised
         rig.ack_pub.publish(String(data='no_such_quantity'))
         rig.feed(0.3)
@@ -772,3 +783,15 @@ def test_a_replay_writes_what_the_node_published_for_the_same_samples(
     live = [key(d) for d in published[interface.ALERT_TOPIC]]
     replay = [key(d) for d in replayed[interface.ALERT_TOPIC][1:]]
     assert live == replay and live[-1][0] == 1 and live[0][1], live
+    # the drive's numbers of each summary, numbered alike (the node's first went out at
+    # its start): the same sequence, levels, acknowledgements, thresholds and changes
+
+    def numbers(data):
+        a = interface.DriveAlerts.from_data(
+            deserialize_message(data, Float64MultiArray).data.tolist())
+        return (a.sequence, a.level, [(q.quantity, q.reported, q.active, q.acknowledged,
+                                       q.warn_C, q.critical_C, q.since_s) for q in a.quantities])
+
+    live = [numbers(d) for d in published[interface.DRIVE_ALERTS_TOPIC]]
+    replay = [numbers(d) for d in replayed[interface.DRIVE_ALERTS_TOPIC][1:]]
+    assert live == replay and live[0][0] == 2 and live[-1][1] == 1, live

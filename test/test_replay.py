@@ -20,6 +20,7 @@ from wet_eha_thermal.bag.reader import iter_raw, open_bag
 from wet_eha_thermal.bag.writer import BagWriter
 from wet_eha_thermal.cli import main
 from wet_eha_thermal.config import ConfigError, default_config_path, with_values
+from wet_eha_thermal.estimator.alerts import Level
 from wet_eha_thermal.estimator.session import EstimatorSession
 from wet_eha_thermal.offline import replay as rp
 from wet_eha_thermal.ros.recorder_node import recorded_topics
@@ -62,7 +63,7 @@ def test_estimates_mcap_reads_back_with_an_independent_decoder(result, tmp_path)
     # the live node's form: each estimate with its own variance, the state with its names,
     # the alert summary as JSON
     path = rp.write_mcap(result, tmp_path / 'estimates.mcap')
-    got, state, summaries, names = {}, {}, [], None
+    got, state, summaries, numbers, names = {}, {}, [], [], None
     with open(path, 'rb') as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
         for schema, channel, message, msg in reader.iter_decoded_messages():
@@ -77,6 +78,8 @@ def test_estimates_mcap_reads_back_with_an_independent_decoder(result, tmp_path)
                 names = json.loads(msg.data)['names']
             elif channel.topic == interface.ALERT_TOPIC:
                 summaries.append(json.loads(msg.data))
+            elif channel.topic == interface.DRIVE_ALERTS_TOPIC:
+                numbers.append(interface.DriveAlerts.from_data(list(msg.data)))
     assert len(got) == len(state) == len(result.stamp_s)
     for k, stamp in enumerate(result.stamp_s):
         temperature, variance = got[round(float(stamp), 6)]
@@ -88,6 +91,12 @@ def test_estimates_mcap_reads_back_with_an_independent_decoder(result, tmp_path)
     assert len(summaries) == len(result.alerts) >= 1
     assert summaries[-1]['level'] == result.alert_level[-1]
     assert {'data_gaps', 'clock_jumps', 'events', 'quantities'} <= set(summaries[-1])
+    # each summary again as the drive's numbers, numbered from 1
+    assert [a.sequence for a in numbers] == list(range(1, len(summaries) + 1))
+    assert [(a.level, [(q.quantity, q.reported, q.acknowledged) for q in a.quantities])
+            for a in numbers] == [
+        (s['level'], [(q, Level[d['reported']], d['acknowledged'])
+                      for q, d in s['quantities'].items()]) for s in summaries]
     assert open_bag(path).metadata[interface.CONFIG_METADATA][interface.CONFIG_METADATA_KEY]
 
 

@@ -27,7 +27,8 @@ variance = uncertainty^2) for every name in ``ESTIMATES``; /eha/state
 each element on /eha/state_names (std_msgs/String holding JSON, transient-local:
 the names do not change within a run); /diagnostics
 (diagnostic_msgs/DiagnosticArray, 1 Hz); /eha/alerts (std_msgs/String holding
-JSON, transient-local so a late subscriber gets the last one); acknowledgements
+JSON, transient-local so a late subscriber gets the last one) and the same as
+numbers on /eha/drive/alerts (:class:`DriveAlerts`); acknowledgements
 on /eha/alerts/ack (std_msgs/String: a quantity, or empty for all); the drive's
 current limits on /eha/current_limits (sensor_msgs/JointState) and
 /eha/current_limit (std_msgs/Float64), below. The recorder
@@ -117,6 +118,10 @@ CURRENT_LIMIT_TOPIC = f'{PREFIX}/current_limit'
 #: std_msgs/Float64MultiArray of the layout :class:`DriveLimits` documents (reliable,
 #: depth 10), one message per limit tick
 DRIVE_LIMITS_TOPIC = f'{PREFIX}/drive/limits'
+#: The alerts' state as numbers only: a std_msgs/Float64MultiArray of the layout
+#: :class:`DriveAlerts` documents, latched (reliable, transient local) like ALERT_TOPIC and
+#: sent with it: at start, at every change of a level or an acknowledgement
+DRIVE_ALERTS_TOPIC = f'{PREFIX}/drive/alerts'
 #: What-if from the live state (docs/live.md#what-if-from-the-live-state), std_msgs/String JSON
 #: both ways, reliable and volatile. The request: {"id": text, one duty of "stage" (1..6),
 #: "table" {"time_s", "flow_L_min", "load_MPa": [...]} or "samples" {"time_s", "current_A",
@@ -225,6 +230,7 @@ def topic_table(prefix: str = PREFIX) -> Dict[str, Tuple[str, str]]:
     found[CURRENT_LIMITS_TOPIC] = (JOINT_STATE, OUTPUT)
     found[CURRENT_LIMIT_TOPIC] = (FLOAT64, OUTPUT)
     found[DRIVE_LIMITS_TOPIC] = (FLOAT64_ARRAY, OUTPUT)
+    found[DRIVE_ALERTS_TOPIC] = (FLOAT64_ARRAY, LATCHED)
     found[READY_TOPIC] = (STRING, LATCHED)
     found[RECORDER_HEALTH_TOPIC] = (STRING, LATCHED)
     found[ACK_TOPIC] = (STRING, OUTPUT)
@@ -358,6 +364,102 @@ class DriveLimits:
                    sequence=int(data[3]), status=status, binding_A=float(data[5]),
                    binding_horizon_s=float(data[6]), horizons_s=tuple(data[cls.HEAD::2]),
                    limits_A=limits)
+
+
+@dataclass(frozen=True)
+class QuantityAlert:
+    """
+    One monitored quantity's alert in :class:`DriveAlerts`.
+
+    ``quantity``: its name (on the wire its index in :data:`ESTIMATES`);
+    ``reported``: the level a drive acts on, 0 OK, 1 WARN, 2 CRITICAL (the
+    alarm), the latch included; ``active``: the level the estimate holds
+    now; ``acknowledged``: an operator acknowledged it (the level stays
+    reported while its condition holds); ``value_C``: the estimate the
+    alerts last judged (NaN before any); ``warn_C``, ``critical_C``: its
+    thresholds; ``since_s``: sample time of the last change of ``reported``
+    (NaN before any estimate).
+    """
+
+    quantity: str
+    reported: int
+    active: int
+    acknowledged: bool
+    value_C: float
+    warn_C: float
+    critical_C: float
+    since_s: float
+
+
+@dataclass(frozen=True)
+class DriveAlerts:
+    """
+    The alerts' state on DRIVE_ALERTS_TOPIC: numbers at fixed places, no text.
+
+    The Float64MultiArray's ``data`` (every number a float64; codes and
+    counts are whole numbers)::
+
+        [0] layout version (1)      [4] worst reported level (0 OK, 1 WARN, 2 CRITICAL)
+        [1] stamp sec               [5] n: the number of quantities that follow
+        [2] stamp nanosec           [6] m: the numbers per quantity (8)
+        [3] sequence
+        [7 + m i + 0] quantity: its index in ESTIMATES (1 winding_hotspot, 4 magnet, 12 oil)
+        [7 + m i + 1] reported level    [7 + m i + 5] warn threshold (degC)
+        [7 + m i + 2] active level      [7 + m i + 6] critical threshold (degC)
+        [7 + m i + 3] acknowledged 0/1  [7 + m i + 7] since: sample time of the last
+        [7 + m i + 4] value (degC)                     change of the reported level (s)
+
+    The stamp is the sample time of the estimate the alerts last judged (0
+    before any); the sequence counts the estimator's alert messages from 1
+    (the first is sent at start). A reader finds quantity i at 7 + m i,
+    taking m from the message, so a later version may append numbers to a
+    quantity without moving the ones above. ``layout.dim[0].label`` names
+    the fields.
+    """
+
+    stamp_ns: int
+    sequence: int
+    level: int
+    quantities: Sequence[QuantityAlert]
+
+    VERSION = 1
+    HEAD = 7
+    STRIDE = 8
+    LABEL = ('wet_eha_thermal drive alerts v1: version, stamp_sec, stamp_nanosec, sequence, '
+             'level, n, m, then n x (quantity index in ESTIMATES, reported, active, '
+             'acknowledged, value_C, warn_C, critical_C, since_s)')
+
+    def to_data(self) -> list:
+        """Return the message's ``data``."""
+        sec, nanosec = divmod(int(self.stamp_ns), 1_000_000_000)
+        out = [float(self.VERSION), float(sec), float(nanosec), float(self.sequence),
+               float(self.level), float(len(self.quantities)), float(self.STRIDE)]
+        for q in self.quantities:
+            out += [float(ESTIMATES.index(q.quantity)), float(q.reported), float(q.active),
+                    float(bool(q.acknowledged)), float(q.value_C), float(q.warn_C),
+                    float(q.critical_C), float(q.since_s)]
+        return out
+
+    @classmethod
+    def from_data(cls, data: Sequence[float]) -> 'DriveAlerts':
+        """Return the alerts of a message's ``data``; ValueError if they are malformed."""
+        if len(data) < cls.HEAD or data[0] != cls.VERSION:
+            raise ValueError(f'not drive alerts v{cls.VERSION}: {len(data)} numbers, version '
+                             f'{data[0] if len(data) else None}')
+        n, m = int(data[5]), int(data[6])
+        if n != data[5] or m != data[6] or m < cls.STRIDE or len(data) != cls.HEAD + n * m:
+            raise ValueError(f'drive alerts: n = {data[5]}, m = {data[6]} for {len(data)} '
+                             'numbers')
+        quantities = []
+        for i in range(n):
+            q = data[cls.HEAD + m * i:cls.HEAD + m * i + cls.STRIDE]
+            index = int(q[0])
+            if index != q[0] or not 0 <= index < len(ESTIMATES):
+                raise ValueError(f'drive alerts: quantity index {q[0]} not in ESTIMATES')
+            quantities.append(QuantityAlert(ESTIMATES[index], int(q[1]), int(q[2]), q[3] != 0.0,
+                                            *(float(v) for v in q[4:8])))
+        return cls(stamp_ns=int(data[1]) * 1_000_000_000 + int(data[2]),
+                   sequence=int(data[3]), level=int(data[4]), quantities=tuple(quantities))
 
 
 #: The line of a node's :class:`NodeReport` starts with this, then its JSON.

@@ -18,7 +18,10 @@ published for the same estimates:
   ``position``, the limits as ``effort``, the status in ``header.frame_id``)
   and ``/eha/current_limit`` (std_msgs/Float64, the binding limit); live, the
   same limits as numbers on ``/eha/drive/limits`` (std_msgs/Float64MultiArray,
-  :class:`~wet_eha_thermal.interface.DriveLimits`), numbered in the order sent.
+  :class:`~wet_eha_thermal.interface.DriveLimits`), numbered in the order sent;
+- ``/eha/drive/alerts`` (std_msgs/Float64MultiArray,
+  :class:`~wet_eha_thermal.interface.DriveAlerts`): each alert summary again as
+  numbers, numbered in the order sent.
 
 Topic names are the interface's; a node with a ``topic_prefix`` maps them.
 """
@@ -30,6 +33,7 @@ import numpy as np
 
 from . import interface
 from .bag import cdr
+from .estimator.alerts import Level
 from .estimator.limits import CurrentLimits
 from .estimator.session import Output
 
@@ -81,6 +85,33 @@ def drive_limits(lim: CurrentLimits, sequence: int) -> Message:
             cdr.encode_float64_array(drive.LABEL, np.asarray(drive.to_data())), ns)
 
 
+def drive_alerts(summary: dict, sequence: int) -> bytes:
+    """
+    Return an alert summary (the JSON's dict) as the drive reads it: numbers, no text.
+
+    ``sequence`` numbers the alert messages of a run from 1; a value or a
+    time the summary does not have yet (None) goes out as NaN.
+    """
+    def num(value) -> float:
+        return np.nan if value is None else float(value)
+
+    stamp_s = summary['stamp_s']
+    alerts = interface.DriveAlerts(
+        stamp_ns=0 if stamp_s is None else int(round(stamp_s * 1e9)), sequence=sequence,
+        level=int(summary['level']), quantities=tuple(
+            interface.QuantityAlert(q, Level[d['reported']], Level[d['active']],
+                                    d['acknowledged'], num(d['value_C']), d['warn_C'],
+                                    d['critical_C'], num(d['since_s']))
+            for q, d in summary['quantities'].items()))
+    return cdr.encode_float64_array(alerts.LABEL, np.asarray(alerts.to_data()))
+
+
+def alert_messages(summary: dict, sequence: int, stamp_ns: Optional[int]) -> List[Message]:
+    """Return an alert summary's messages: the JSON for people, the numbers for a drive."""
+    return [(interface.ALERT_TOPIC, alerts(summary), stamp_ns),
+            (interface.DRIVE_ALERTS_TOPIC, drive_alerts(summary, sequence), stamp_ns)]
+
+
 class EstimateMessages:
     """Build an estimate's messages: the temperatures with their variances, and the state."""
 
@@ -111,8 +142,8 @@ class OutputMessages:
 
     The last estimate of each output (or the held one, stamped with the
     clock), never one stamped at or before the last sent (the stamps start
-    over when the clock jumped); the alert summary; the limits, then the same
-    limits as the drive's numbers.
+    over when the clock jumped); the alert summary, then the same as the
+    drive's numbers; the limits, then the same limits as the drive's numbers.
     """
 
     def __init__(self, frame_id: str = 'eha', label: str = state_label()) -> None:
@@ -122,6 +153,8 @@ class OutputMessages:
         self.published = 0
         #: limits sent: the sequence of the last drive limits
         self.limits_sent = 0
+        #: alert summaries sent: the sequence of the last drive alerts
+        self.alerts_sent = 0
 
     def build(self, out: Output) -> List[Message]:
         """Return the messages of ``out`` (see the class)."""
@@ -133,7 +166,8 @@ class OutputMessages:
         elif out.held is not None:
             msgs += self._estimate(*out.held)
         if out.alerts is not None:
-            msgs.append((interface.ALERT_TOPIC, alerts(out.alerts), self._last_ns))
+            self.alerts_sent += 1
+            msgs += alert_messages(out.alerts, self.alerts_sent, self._last_ns)
         for lim in out.limits:
             self.limits_sent += 1
             msgs += limits(lim)

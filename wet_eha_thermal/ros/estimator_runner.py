@@ -32,8 +32,9 @@ steps more than ``estimator.max_steps_per_call`` steps: after a stall the model
 catches up over several calls. Each new estimate is published: one
 sensor_msgs/Temperature per name in ``interface.ESTIMATES`` (stamped with the
 estimate's sample time, strictly increasing), the state vector, and the alert
-summary whenever it changes (latched). The rest of each tick's budget
-(``background_budget_ms``) goes to the limits, the forecast and the margin;
+summary whenever it changes (latched; as JSON and as the drive's numbers on
+``/eha/drive/alerts``, :class:`~wet_eha_thermal.interface.DriveAlerts`). The rest
+of each tick's budget (``background_budget_ms``) goes to the limits, the forecast and the margin;
 each tick's limits go out as the JointState, the binding Float64 and the
 drive's numbers (``/eha/drive/limits``, :class:`~wet_eha_thermal.interface.DriveLimits`).
 Every publisher takes its message type and QoS from ``interface.topic_table``,
@@ -77,7 +78,7 @@ from wet_eha_thermal.units import C_TO_K
 #: The estimator's published topics (all but /eha/ready, which :class:`Readiness` owns)
 PUBLISHED = messages.ESTIMATE_TOPICS + (
     interface.STATE_TOPIC, interface.ALERT_TOPIC, interface.CURRENT_LIMITS_TOPIC,
-    interface.CURRENT_LIMIT_TOPIC, interface.DRIVE_LIMITS_TOPIC)
+    interface.CURRENT_LIMIT_TOPIC, interface.DRIVE_LIMITS_TOPIC, interface.DRIVE_ALERTS_TOPIC)
 #: The limits' topics: a stopping runner waits until their last message is acknowledged...
 LIMIT_TOPICS = (interface.CURRENT_LIMITS_TOPIC, interface.CURRENT_LIMIT_TOPIC,
                 interface.DRIVE_LIMITS_TOPIC)

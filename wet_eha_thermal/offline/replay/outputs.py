@@ -76,7 +76,8 @@ def write_mcap(result: ReplayResult, path: Path) -> Path:
     The messages of :mod:`wet_eha_thermal.messages`, the node's bytes: per
     estimate kept, the ``/eha/estimate/<name>`` Temperatures (each with its
     own variance) and ``/eha/state`` (its names once, latched); the alert
-    summaries the session published (JSON, on ``/eha/alerts``); with the
+    summaries the session published (JSON, on ``/eha/alerts``, and as the
+    drive's numbers on DRIVE_ALERTS_TOPIC, numbered from 1); with the
     outlook, every tick's limits (a JointState on CURRENT_LIMITS_TOPIC, the
     binding limit as a Float64 on CURRENT_LIMIT_TOPIC, the drive's numbers on
     DRIVE_LIMITS_TOPIC, numbered from 1 as the node numbers them). Each is
@@ -93,7 +94,8 @@ def write_mcap(result: ReplayResult, path: Path) -> Path:
     topics = [(t, interface.TEMPERATURE, offered_qos(depth=10)) for t in messages.ESTIMATE_TOPICS]
     topics += [(interface.STATE_TOPIC, interface.FLOAT64_ARRAY, offered_qos(depth=10)),
                (interface.STATE_NAMES_TOPIC, interface.STRING, latched),
-               (interface.ALERT_TOPIC, interface.STRING, latched)]
+               (interface.ALERT_TOPIC, interface.STRING, latched),
+               (interface.DRIVE_ALERTS_TOPIC, interface.FLOAT64_ARRAY, latched)]
     if result.outlook:
         # the live node's publishers: reliable, volatile, 10 deep
         topics += [(interface.CURRENT_LIMITS_TOPIC, interface.JOINT_STATE, offered_qos(depth=10)),
@@ -102,9 +104,10 @@ def write_mcap(result: ReplayResult, path: Path) -> Path:
                     offered_qos(depth=10))]
     # the alerts and limits in time order behind the estimates (a summary before the first
     # estimate goes out with it)
-    later = sorted([(-math.inf if s is None else s, 0, (
-        interface.ALERT_TOPIC, messages.alerts(a), None if s is None else int(round(s * 1e9))))
-                    for s, a in result.alerts]
+    later = sorted([(-math.inf if s is None else s, 0, m)
+                    for seq, (s, a) in enumerate(result.alerts, start=1)
+                    for m in messages.alert_messages(
+                        a, seq, None if s is None else int(round(s * 1e9)))]
                    + [(lim.stamp_s, 1, m)
                       for seq, lim in enumerate(result.current_limits, start=1)
                       for m in messages.limits(lim) + [messages.drive_limits(lim, seq)]],
