@@ -104,9 +104,18 @@ actuators:
 """
 
 
+def _sim_inputs(tmp_path):
+    """Return ACTUATORS with an inputs file a simulated rig feeds (the defaults, in a file)."""
+    same = tmp_path / 'sim.inputs.yaml'
+    same.write_text('inputs:\n  current_A: {topic: /eha/current, message_type: '
+                    'std_msgs/msg/Float64, unit: A}\n')
+    return ACTUATORS.replace('ros2_control_rig.inputs.yaml', str(same)), str(same)
+
+
 def test_an_actuators_file_gives_each_its_own_files(tmp_path):
     path = tmp_path / 'rigs.yaml'
-    path.write_text(ACTUATORS)
+    text, inputs_file = _sim_inputs(tmp_path)
+    path.write_text(text)
     nodes = plan_from_arguments(_defaults(actuators_file=str(path), stage='5'), SHARE)
     left = [n for n in nodes if n.namespace == '/rig_pc/left']
     right = [n for n in nodes if n.namespace == '/right']
@@ -123,14 +132,40 @@ def test_an_actuators_file_gives_each_its_own_files(tmp_path):
     assert _own(by_name['/rig_pc/left', 'eha_sim_rig'])['stage'] == 2
     assert _own(by_name['/right', 'eha_sim_rig'])['stage'] == 5
     for node in ('eha_thermal_estimator', 'eha_recorder'):
-        assert _own(by_name['/rig_pc/left', node])['inputs_file'] == \
-            'ros2_control_rig.inputs.yaml'
+        assert _own(by_name['/rig_pc/left', node])['inputs_file'] == inputs_file
         assert 'inputs_file' not in _own(by_name['/right', node])
+
+
+def test_a_real_rigs_inputs_file_with_a_simulated_rig_is_refused_naming_both(tmp_path):
+    # the ros2_control rig's inputs: JointStates that the simulated rig never publishes,
+    # so its estimator would wait for ever; a real rig runs without the simulated one
+    path = tmp_path / 'rigs.yaml'
+    path.write_text(ACTUATORS)
+    with pytest.raises(ValueError) as err:
+        plan_from_arguments(_defaults(actuators_file=str(path)), SHARE)
+    text = str(err.value)
+    for words in ('actuator /rig_pc/left: inputs_file ros2_control_rig.inputs.yaml',
+                  'current_A on /joint_states (JointState joint eha_motor effort, A_peak)',
+                  'simulated rig publishes current_A on /rig_pc/left/current (Float64, A)',
+                  'p_a_Pa on /rig_pc/left/pressure_a (FluidPressure, Pa)',
+                  'launch with sim_rigs:=false'):
+        assert words in text, text
+    assert 'p_acc_Pa' in text and 'chamber_a' not in text      # only what differs
+    nodes = plan_from_arguments(_defaults(actuators_file=str(path), sim_rigs='false'), SHARE)
+    assert {n.name for n in nodes} == {'eha_thermal_estimator', 'eha_recorder'}
+    # a unit alone differing is refused too: the rig's values would be read wrongly
+    bar = tmp_path / 'bar.inputs.yaml'
+    bar.write_text('inputs:\n  p_acc_Pa: {topic: /eha/pressure_acc, message_type: '
+                   'sensor_msgs/msg/FluidPressure, unit: bar}\n')
+    with pytest.raises(ValueError, match=r'p_acc_Pa on /left/pressure_acc \(FluidPressure, '
+                       r'bar\), but its simulated rig publishes p_acc_Pa on /left/pressure_acc '
+                       r'\(FluidPressure, Pa\)'):
+        plan([Actuator('/left', inputs_file=str(bar))], SHARE)
 
 
 def test_the_nodes_declare_every_parameter_planned_for_them(tmp_path):
     path = tmp_path / 'rigs.yaml'
-    path.write_text(ACTUATORS)
+    path.write_text(_sim_inputs(tmp_path)[0])
     nodes = plan_from_arguments(_defaults(actuators_file=str(path), view='true'), SHARE)
     declared = {'eha_thermal_estimator': set(estimator_node.PARAMETERS),
                 'eha_recorder': set(recorder_node.PARAMETERS)}

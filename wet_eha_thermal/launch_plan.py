@@ -28,12 +28,13 @@ file (YAML)::
 Nothing here imports ROS.
 """
 
+import dataclasses
 from dataclasses import dataclass, field
 import os
 import re
 from typing import Dict, List, Mapping, Optional, Sequence, Tuple
 
-from wet_eha_thermal import interface
+from wet_eha_thermal import inputs, interface
 import yaml
 
 PACKAGE = 'wet_eha_thermal'
@@ -150,6 +151,40 @@ def load_actuators(names: str, path: str = '') -> List[Actuator]:
     return actuators_from_names(names)
 
 
+def check_sim_rig_feeds(a: Actuator) -> None:
+    """
+    Raise ValueError unless a simulated rig feeds every input of ``a``'s inputs file.
+
+    The simulated rig publishes the default topics (interface.INPUT_TOPICS, the
+    ambient and the thermocouples under the namespace, Float64, FluidPressure
+    and Temperature in SI units). An inputs file that declares any of them
+    otherwise (a real rig's JointStates, blocks, another topic or unit) would
+    leave the estimator waiting for topics nobody publishes, or read the
+    rig's values in the wrong unit: the message names the file, what it
+    declares and what the simulated rig publishes. A bad inputs file raises
+    its own ConfigError (a ValueError) naming the key.
+    """
+    spec, default = inputs.load_inputs(a.inputs_file), inputs.Inputs()
+    channels = [f.name for f in dataclasses.fields(inputs.Inputs) if f.name != 'thermocouples']
+    channels += [inputs.thermocouple_channel(tc) for tc in interface.THERMOCOUPLES]
+    differ = [c for c in channels if spec.signal(c) != default.signal(c)]
+    if not differ:
+        return
+
+    def where(sig: inputs.InputSignal) -> str:
+        joint = f' joint {sig.joint} {sig.field}' if sig.joint else ''
+        return (f'{interface.prefixed(sig.topic, a.namespace)} '
+                f'({sig.message_type.split("/")[-1]}{joint}, {sig.unit})')
+
+    raise ValueError(
+        f'actuator {a.namespace}: inputs_file {a.inputs_file} declares '
+        + '; '.join(f'{c} on {where(spec.signal(c))}' for c in differ)
+        + ', but its simulated rig publishes '
+        + '; '.join(f'{c} on {where(default.signal(c))}' for c in differ)
+        + '. For a real rig launch with sim_rigs:=false; for the simulated rig leave this '
+        "actuator's inputs_file empty")
+
+
 def plan(actuators: Sequence[Actuator], share_dir: str, *, sim_rigs: bool = True,
          record: bool = True, view: bool = False, stage: int = 6, duty_file: str = '',
          use_sim_time: bool = False, executor: str = 'events', honour_limit: bool = False,
@@ -168,7 +203,8 @@ def plan(actuators: Sequence[Actuator], share_dir: str, *, sim_rigs: bool = True
     the next on the next port. ``managed``: the estimators start as
     lifecycle nodes (``--managed``), unconfigured until an operator or a
     lifecycle manager configures and activates them. ValueError when two
-    actuators share a namespace or a port would leave 1..65535.
+    actuators share a namespace, a port would leave 1..65535, or a simulated
+    rig cannot feed an actuator's inputs file (:func:`check_sim_rig_feeds`).
     """
     seen: Dict[str, int] = {}
     for i, a in enumerate(actuators):
@@ -189,6 +225,8 @@ def plan(actuators: Sequence[Actuator], share_dir: str, *, sim_rigs: bool = True
                 common[key] = getattr(a, key)
         remaps = list(a.remappings)
         if sim_rigs:
+            if a.inputs_file:
+                check_sim_rig_feeds(a)
             rig = {**common, 'stage': a.stage or stage, 'duty_file': duty_file,
                    'honour_limit': honour_limit}
             nodes.append(NodePlan(RIG_EXE, interface.RIG_NODE, a.namespace, [params, rig],
