@@ -13,7 +13,7 @@ from rclpy.serialization import deserialize_message
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import get_typestore, Stores
 from sensor_msgs.msg import FluidPressure, Temperature
-from std_msgs.msg import Float64
+from std_msgs.msg import Float64, Float64MultiArray
 from wet_eha_thermal import inputs, interface
 from wet_eha_thermal.bag import cdr
 from wet_eha_thermal.bag.reader import iter_raw, open_bag
@@ -498,3 +498,26 @@ def test_an_actuator_in_a_namespace_replays_under_its_recorded_prefix(bag, resul
     moved = rp.replay(plan, output_rate_Hz=50.0, outlook=False)
     for name, values in result.temperatures_C.items():
         assert np.array_equal(moved.temperatures_C[name], values), name
+    # its estimates.mcap is under /left too, each topic with the type a live node under
+    # /left publishes it with: the replay compares topic for topic with that recording
+    assert plan.prefix == '/left'
+    written = open_bag(rp.write_mcap(moved, tmp_path / 'left_estimates.mcap')).topics
+    live = interface.topic_table('/left')
+    assert {t: i.type_name for t, i in written.items()} == {t: live[t][0] for t in written}
+    assert '/left/estimate/winding_hotspot' in written and '/left/drive/alerts' in written
+    # message for message the /eha replay's, the state naming where its names are now
+    eha = {}
+    for m in iter_raw(rp.write_mcap(result, tmp_path / 'eha_estimates.mcap')):
+        eha.setdefault(m.topic, []).append(m.data)
+    for m in iter_raw(tmp_path / 'left_estimates.mcap', ['/left/estimate/magnet']):
+        assert m.data == eha['/eha/estimate/magnet'].pop(0)
+    assert not eha['/eha/estimate/magnet']          # as many, none left over
+    state = next(iter_raw(tmp_path / 'left_estimates.mcap', ['/left/state']))
+    msg = deserialize_message(state.data, Float64MultiArray)
+    assert msg.layout.dim[0].label == 'state_K: names on /left/state_names'
+    assert msg.data.tolist() == result.state_K[0].tolist()
+    # --prefix puts them elsewhere; it must be a prefix
+    options = rp.ReplayOptions(prefix='/right/')
+    assert options.plan(left).prefix == '/right'
+    with pytest.raises(rp.ReplayError, match="--prefix 'right'"):
+        rp.ReplayOptions(prefix='right')

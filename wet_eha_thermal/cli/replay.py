@@ -44,6 +44,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    default=default(ReplayOptions, 'output_rate_Hz'),
                    help='rate of the estimates written (default: %(default)g; the model steps '
                         'at 50 Hz)')
+    p.add_argument('--prefix', default=None, metavar='/NAMESPACE',
+                   help="topic prefix of estimates.mcap, as a live node's under it (default: "
+                        'the one the bag was recorded under, else /eha)')
     p.add_argument('--no-report', action='store_true', help='skip the plots and report.md')
     p.add_argument('--open-loop', action='store_true',
                    help='do not let the thermocouples correct the model (estimator.correction '
@@ -63,7 +66,8 @@ def run(args: argparse.Namespace) -> int:
         options = rp.ReplayOptions(config_path=args.config, mapping=rp.parse_mapping(args.map),
                                    inputs_path=args.inputs,
                                    output_rate_Hz=args.output_rate_Hz, report=not args.no_report,
-                                   open_loop=args.open_loop, outlook=not args.no_outlook)
+                                   open_loop=args.open_loop, outlook=not args.no_outlook,
+                                   prefix=args.prefix)
     except rp.ReplayError as exc:
         raise BadArgument(str(exc)) from None
     bags = campaign.expand(args.bag)

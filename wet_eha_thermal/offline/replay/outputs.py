@@ -81,10 +81,15 @@ def write_mcap(result: ReplayResult, path: Path) -> Path:
     outlook, every tick's limits (a JointState on CURRENT_LIMITS_TOPIC, the
     binding limit as a Float64 on CURRENT_LIMIT_TOPIC, the drive's numbers on
     DRIVE_LIMITS_TOPIC, numbered from 1 as the node numbers them). Each is
-    logged at its sample time, in the order the node publishes them.
+    logged at its sample time, in the order the node publishes them, under
+    the plan's prefix (the one the bag was recorded under): a replay of
+    the /left actuator compares topic for topic with its live recording.
     """
     from ... import messages
     from ...bag.writer import BagWriter, offered_qos
+
+    def under(topic: str) -> str:
+        return interface.prefixed(topic, result.plan.prefix)
 
     cfg_yaml = result.plan.config_yaml
     metadata = {interface.CONFIG_METADATA: {interface.CONFIG_METADATA_KEY: cfg_yaml,
@@ -112,25 +117,26 @@ def write_mcap(result: ReplayResult, path: Path) -> Path:
                       for seq, lim in enumerate(result.current_limits, start=1)
                       for m in messages.limits(lim) + [messages.drive_limits(lim, seq)]],
                    key=lambda x: (x[0], x[1]))
-    build = messages.EstimateMessages()
+    build = messages.EstimateMessages(label=messages.state_label(
+        under(interface.STATE_NAMES_TOPIC)))
     temps = [result.temperatures_C[n].tolist() for n in interface.ESTIMATES]
     sigma = [result.uncertainty_K[n].tolist() for n in interface.ESTIMATES]
     with atomic(path) as tmp, BagWriter(tmp, metadata=metadata, flush_interval_s=3600.0) as w:
         for topic, type_name, qos in topics:
-            w.add_topic(topic, type_name, qos)
-        w.write(interface.STATE_NAMES_TOPIC, messages.state_names(result.state_names),
+            w.add_topic(under(topic), type_name, qos)
+        w.write(under(interface.STATE_NAMES_TOPIC), messages.state_names(result.state_names),
                 stamps_ns[0])
         j = 0
         for k, ns in enumerate(stamps_ns):
             for topic, data, _ in build.build(ns, [t[k] for t in temps], [s[k] for s in sigma],
                                               result.state_K[k]):
-                w.write(topic, data, ns)
+                w.write(under(topic), data, ns)
             while j < len(later) and later[j][0] <= result.stamp_s[k]:
                 topic, data, at = later[j][2]
-                w.write(topic, data, ns if at is None else at)
+                w.write(under(topic), data, ns if at is None else at)
                 j += 1
         for _, _, (topic, data, at) in later[j:]:
-            w.write(topic, data, stamps_ns[-1] if at is None else at)
+            w.write(under(topic), data, stamps_ns[-1] if at is None else at)
     return path
 
 

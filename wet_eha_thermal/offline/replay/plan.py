@@ -83,6 +83,9 @@ class ReplayPlan:
     #: topics the inputs file declares otherwise than the defaults, with their decoders
     decoded: Dict[str, InputsDecoder] = field(default_factory=dict)
     inputs_source: str = 'none: the /eha topics'
+    #: the prefix of the replay's outputs (estimates.mcap), as a live node's under it: the one
+    #: the bag was recorded under (:func:`recorded_prefix`), or ReplayOptions.prefix
+    prefix: str = interface.PREFIX
 
     @property
     def specs(self) -> Dict[str, object]:
@@ -295,7 +298,7 @@ def plan_replay(path: os.PathLike, config_path: Optional[os.PathLike] = None,
                           'says and with the default type: map one of them elsewhere')
     return ReplayPlan(cfg=cfg, config_source=source, config_yaml=text, inputs=inputs_found,
                       missing=missing, thermocouples=thermocouples, ambient=ambient, info=info,
-                      decoded=decoded, inputs_source=inputs_source)
+                      decoded=decoded, inputs_source=inputs_source, prefix=prefix)
 
 
 @dataclass
@@ -309,6 +312,12 @@ class ReplayOptions:
     report: bool = True
     open_loop: bool = False       # estimator.correction off: the thermocouples only compared
     outlook: bool = True          # the current limits, forecast and margin (off: faster)
+    prefix: Optional[str] = None  # the outputs' topic prefix (None: the bag's recorded one)
+
+    def __post_init__(self) -> None:
+        if self.prefix is not None and (not self.prefix.startswith('/') or self.prefix == '/'):
+            raise ReplayError(f'--prefix {self.prefix!r}: expected a topic prefix such as '
+                              '/left (absolute, not the root)')
 
     def plan(self, path: os.PathLike) -> ReplayPlan:
         """Return the :func:`plan_replay` of the bag ``path`` under these options."""
@@ -317,6 +326,8 @@ class ReplayOptions:
         plan = plan_replay(path, self.config_path, self.mapping, inputs=spec)
         if self.open_loop:
             plan.cfg = with_values(plan.cfg, {'estimator.correction.enabled': False})
+        if self.prefix is not None:
+            plan.prefix = self.prefix.rstrip('/')
         return plan
 
 
