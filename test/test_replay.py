@@ -46,7 +46,7 @@ def test_cli_writes_estimates_and_report(bag, tmp_path, capsys):
     assert main(['replay', str(bag), '--out', str(out)]) == 0
     text = capsys.readouterr().out
     assert 'stored in stage6.mcap' in text
-    assert 'dp_Pa <- /eha/pressure_diff' in text
+    assert 'dp_Pa <- /eha/pressure_diff' in text and 'outputs under /eha' in text
     assert 'winding_mean      - winding' in text
     for name in ('estimates.csv', 'estimates.mcap', 'limits.csv', 'report.md', 'inputs.png',
                  'temperatures.png', 'errors.png', 'alerts.png', 'limits.png'):

@@ -81,7 +81,8 @@ def _plan_text(plan) -> str:
     info = plan.info
     return (f'{info.path}: {info.message_count} messages, '
             f'{(info.end_time_ns - info.start_time_ns) * 1e-9:.1f} s; configuration: '
-            f'{plan.config_source}; inputs file: {plan.inputs_source}\n'
+            f'{plan.config_source}; inputs file: {plan.inputs_source}; outputs under '
+            f'{plan.prefix}\n'
             'inputs: ' + ', '.join(f'{n} <- {t}' for n, t in plan.inputs.items())
             + (f'; no topic, on fallback: {", ".join(plan.missing)}' if plan.missing else '')
             + f'; thermocouples: {", ".join(plan.thermocouples) or "none"}')
