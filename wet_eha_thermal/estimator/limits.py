@@ -305,9 +305,9 @@ def linearise(saved: bytes, shift_K: Optional[np.ndarray], held: HeldDuty, dt_s:
               ambient_K: float, peak_A: float, layout, alpha_copper: float,
               peaks: Sequence[str] = ()) -> tuple:
     """
-    Return (A, K, c0, c1, forms) of one probe step from the saved model ``saved``
-    (:func:`~..model.snapshot.save`, or plain pickled bytes).
+    Return (A, K, c0, c1, forms) of one probe step from the saved model ``saved``.
 
+    ``saved``: :func:`~..model.snapshot.save`'s bytes, or plain pickled ones.
     ``forms``: each of the ``peaks`` outputs as :func:`peak_forms` at the start.
 
     Its state moved first by ``shift_K`` (K; None: as it is), the held duty
