@@ -6,7 +6,7 @@ Run: OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_limits.py [--repea
 
 An estimator is fed ``--seconds`` of a steady duty (15 A, 800 rad/s, 3 MPa:
 test/test_limits.py's); then the job of one limit tick
-(:func:`~wet_eha_thermal.estimator.limits.limit_steps`, the model pickled as
+(:func:`~wet_eha_thermal.estimator.limits.limit_steps`, the model saved as
 the outlook does at a tick) runs ``--repeat`` times for the default horizons
 and for the ones up to a minute alone (no linearisation half-way), with the
 winding limit at ``--winding-limit-C`` so that the horizons bind. Printed:
@@ -15,7 +15,6 @@ median and minimum per tick (ms), and what that makes at 2 Hz in % of a core.
 
 import argparse
 from pathlib import Path
-import pickle
 import sys
 import time
 
@@ -26,6 +25,7 @@ from test_limits import feed, run  # noqa: E402 - the tests' duty and generator 
 from wet_eha_thermal.config import load_config  # noqa: E402
 from wet_eha_thermal.estimator.core import Estimator  # noqa: E402
 from wet_eha_thermal.estimator.limits import limit_steps, probing  # noqa: E402
+from wet_eha_thermal.model import snapshot  # noqa: E402
 
 
 def main() -> None:
@@ -44,7 +44,7 @@ def main() -> None:
     held = est._outlook.held_duty()
 
     def tick(horizons):
-        saved = pickle.dumps(est.model, pickle.HIGHEST_PROTOCOL)
+        saved = snapshot.save(est.model)       # as the outlook saves it
         return run(limit_steps(saved, est.model.state, setup, held, est.ambient_K,
                                est.latest.uncertainty_K, limits_C, lim.k_sigma, horizons,
                                lim.period_s, cfg.motor.peak_current_A))

@@ -45,7 +45,6 @@ uncertainty) the tick's sigma stands.
 
 from dataclasses import dataclass
 import math
-import pickle
 from typing import Dict, Generator, List, NamedTuple, Optional, Sequence, Tuple
 
 import numpy as np
@@ -54,6 +53,7 @@ from scipy.optimize import brentq
 from .correction import filter_layout
 from .kalman import copper_gain, coupled_transition
 from ..interface import limits_frame_id, limits_reason, LimitStatus
+from ..model import snapshot
 from ..model.eha import EHAModel, SampleBlock
 from ..model.quantities import PEAK
 from ..units import C_TO_K
@@ -305,8 +305,9 @@ def linearise(saved: bytes, shift_K: Optional[np.ndarray], held: HeldDuty, dt_s:
               ambient_K: float, peak_A: float, layout, alpha_copper: float,
               peaks: Sequence[str] = ()) -> tuple:
     """
-    Return (A, K, c0, c1, forms) of one probe step from the pickled model ``saved``.
+    Return (A, K, c0, c1, forms) of one probe step from the saved model ``saved``.
 
+    ``saved``: :func:`~..model.snapshot.save`'s bytes, or plain pickled ones.
     ``forms``: each of the ``peaks`` outputs as :func:`peak_forms` at the start.
 
     Its state moved first by ``shift_K`` (K; None: as it is), the held duty
@@ -314,7 +315,7 @@ def linearise(saved: bytes, shift_K: Optional[np.ndarray], held: HeldDuty, dt_s:
     jump of the pressures), a step at no current and one at ``peak_A``
     (module docstring).
     """
-    cold, hot = pickle.loads(saved), pickle.loads(saved)
+    cold, hot = snapshot.copy(saved), snapshot.copy(saved)
     for m in (cold, hot):
         m.hold_from(held.block(m.time_s, 0.0))
         if shift_K is not None:

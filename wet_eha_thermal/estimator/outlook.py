@@ -4,7 +4,7 @@ The estimator's outlook: the drive's current limits, when each limit would be re
 Everything here is computed at defined sample times from the state at those
 times, so a replay reproduces it bit for bit; only *when* it is done depends
 on the CPU. At every limit tick (each ``estimator.limits.period_s`` of
-sample time, :meth:`Outlook.tick`) the outlook saves the model (pickled) and
+sample time, :meth:`Outlook.tick`) the outlook saves the model (:mod:`~..model.snapshot`) and
 the recent duty, and queues a job that works out the drive's current limits
 (:mod:`.limits`). At every forecast tick (each ``forecast_period_s``, which
 falls on a limit tick, and the run's first tick) it queues a margin job, the
@@ -24,7 +24,6 @@ from collections import deque
 from dataclasses import dataclass, field
 import itertools
 import math
-import pickle
 import time
 from typing import Deque, Dict, Generator, List, Optional, Sequence, Tuple
 
@@ -34,6 +33,7 @@ from .limits import (ceiling_K, current_limits, CurrentLimits, fallback_limits, 
                      limit_steps, probing, RATING, step_statistics)
 from ..config import Config
 from ..interface import INPUTS, LimitStatus
+from ..model import snapshot
 from ..model.eha import EHAModel, SampleBlock
 from ..model.motor import MotorInputs, WetMotor
 from ..units import C_TO_K
@@ -54,8 +54,8 @@ CURRENT, *MEAN_INPUTS, POSITION = INPUTS
 
 
 def copy_model(saved: bytes) -> EHAModel:
-    """Return a model from its pickled bytes (a copy twice as fast as ``deepcopy``)."""
-    return pickle.loads(saved)
+    """Return a model from its saved bytes (:mod:`~..model.snapshot`; faster than ``deepcopy``)."""
+    return snapshot.copy(saved)
 
 
 @dataclass
@@ -178,8 +178,7 @@ class Outlook:
         why = self._distrust(sigma_K, stale)     # (code, detail) of a fallback, or None
         forecast_tick = tick % self.forecast_ticks == 0 or not self._forecast_tick_numbers
         # the state saved only for work that reads it (1 ms inside the estimator's step)
-        saved = pickle.dumps(self.model, pickle.HIGHEST_PROTOCOL) \
-            if forecast_tick or not why else b''
+        saved = snapshot.save(self.model) if forecast_tick or not why else b''
         if forecast_tick:
             # at every forecast tick and at the first tick of the run
             self._forecast_tick_numbers.append(tick)

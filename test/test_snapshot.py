@@ -1,0 +1,43 @@
+"""The outlook's model copies (model/snapshot.py): the same steps as a plain pickled copy."""
+
+import operator
+import pickle
+
+import numpy as np
+from wet_eha_thermal.config import load_config
+from wet_eha_thermal.estimator.core import Estimator, INPUTS
+from wet_eha_thermal.model import snapshot
+
+#: a loaded duty: 15 A, 800 rad/s, 3 MPa on port A, the rod moving
+DUTY = {'current_A': 15.0, 'speed_rad_s': 800.0, 'p_a_Pa': 3.0e6, 'p_b_Pa': 0.5e6,
+        'p_acc_Pa': 0.5e6}
+
+
+def test_a_snapshot_copy_steps_bit_for_bit_as_a_pickled_one_and_shares_only_the_fixed_parts():
+    est = Estimator(load_config())
+    for k in range(1, 2001):                 # 2 s at 1 kHz: coefficients refreshed, warm
+        t = k * 1e-3
+        for ch in INPUTS:
+            est.push(ch, t, DUTY.get(ch, 0.01 * t))
+        if k % 20 == 0:
+            est.advance(t)
+    saved = snapshot.save(est.model)
+    plain, shared = pickle.loads(pickle.dumps(est.model)), snapshot.copy(saved)
+    other = snapshot.copy(saved)
+    for path in snapshot.SHARED:
+        get = operator.attrgetter(path)
+        assert get(shared) is get(est.model) and get(other) is get(est.model), path
+    # everything else is the copy's own: the state and the network's coefficients
+    assert shared.state is not est.model.state
+    assert shared.motor.net.conductance is not est.model.motor.net.conductance
+    assert len(saved) < len(pickle.dumps(est.model))
+    held = est._outlook.held_duty()
+    for m in (plain, shared):
+        m.defer_refresh = False
+        for _ in range(5):                   # hotter: the coefficients move
+            m.step(held.block(m.time_s + 1.0, 25.0), est.ambient_K)
+    assert np.array_equal(plain.state, shared.state)
+    assert plain.outputs() == shared.outputs()
+    # the copies did not touch the original or each other
+    assert np.array_equal(other.state, est.model.state)
+    assert not np.array_equal(shared.state, est.model.state)
