@@ -117,6 +117,7 @@ def audit(cfg, duty, seconds: float, dt_s: float) -> dict:
     return {'input_kJ': put_in / 1e3,
             'audit': (stored_motor + stored_oil + stored_solid + to_ambient - put_in) / put_in,
             'ledger': (e['stored'] + e['to_ambient'] - e['sources']) / e['sources'],
+            'ledger_input': (e['stored'] + e['to_ambient'] - put_in) / put_in,
             'hotspot_C': out['winding_hotspot'] - C_TO_K, 'case_C': out['pump_case'] - C_TO_K}
 
 

@@ -25,6 +25,10 @@ def test_audit_closes_on_every_stage_at_the_default_step(cfg, stage):
     f = audit(cfg, stage_duty(cfg, stage), 600.0, 1.0)
     assert f['input_kJ'] > 10.0
     assert abs(f['audit']) < 1e-3, f
+    # and the model's own books on the same run: electrical energy in minus work to the load
+    # = heat stored + heat to ambient (by its ledger), and that = the heat its sources made
+    assert abs(f['ledger_input']) < 1e-3, f
+    assert abs(f['ledger']) < 1e-3, f
 
 
 def test_audit_closes_on_stage_2_at_a_tenth_of_a_second(cfg):
