@@ -164,7 +164,8 @@ def test_a_damaged_or_missing_file_is_named_and_the_rest_used(folder, tmp_path):
     assert cols.truncated and 'run_3.mcap' in cols.problem
     t = cols.topics['/eha/current'].log_time_ns
     assert np.all(np.diff(t) > 0) and len(t) == info.topics['/eha/current'].message_count
-    result = rp.replay(rp.plan_replay(bag), output_rate_Hz=10.0)
+    # the estimates of what could be read (the limits, 2.5 times the CPU, are not the point)
+    result = rp.replay(rp.plan_replay(bag), output_rate_Hz=10.0, outlook=False)
     assert result.truncated and 'run_11.mcap' in result.problem and result.steps > 0
 
 
