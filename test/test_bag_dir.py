@@ -118,7 +118,8 @@ def test_a_replay_of_the_directory_equals_that_of_the_file(single, run_dir, tmp_
     for name, series in a.temperatures_C.items():
         assert np.array_equal(series, b.temperatures_C[name]), name
     assert a.current_limits == b.current_limits and (len(a.current_limits) > 0) == outlook
-    assert main(['replay', str(run_dir), '--out', str(tmp_path / 'out'), '--no-outlook']) == 0
+    assert main(['replay', str(run_dir), '--out', str(tmp_path / 'out'), '--no-outlook',
+                 '--no-report']) == 0      # the command takes a directory; plots: test_replay
     assert (tmp_path / 'out' / 'estimates.csv').stat().st_size > 0
     # and a calibration log: the same data, its digest over the files in order
     config = rp.choose_config(open_bag(single), None)
@@ -163,7 +164,8 @@ def test_a_damaged_or_missing_file_is_named_and_the_rest_used(folder, tmp_path):
     assert cols.truncated and 'run_3.mcap' in cols.problem
     t = cols.topics['/eha/current'].log_time_ns
     assert np.all(np.diff(t) > 0) and len(t) == info.topics['/eha/current'].message_count
-    result = rp.replay(rp.plan_replay(bag), output_rate_Hz=10.0)
+    # the estimates of what could be read (the limits, 2.5 times the CPU, are not the point)
+    result = rp.replay(rp.plan_replay(bag), output_rate_Hz=10.0, outlook=False)
     assert result.truncated and 'run_11.mcap' in result.problem and result.steps > 0
 
 

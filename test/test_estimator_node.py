@@ -198,7 +198,14 @@ def test_current_limits_for_the_drive_every_half_second_and_their_fallback(rig):
     rig.probe.create_subscription(
         Float64MultiArray, interface.DRIVE_LIMITS_TOPIC,
         lambda m: drive.append(interface.DriveLimits.from_data(m.data)), 50)
-    assert rig.feed(10.0, until=lambda: sum(m.header.frame_id == 'ok' for m in limits) >= 4)
+
+    def ticks_apart():
+        """Return whether 4 limits said ok, two of them at successive ticks (0.5 s apart)."""
+        s = _stamps([m for m in limits if m.header.frame_id == 'ok'])
+        return len(s) >= 4 and any(abs(b - a - 0.5) < 1e-6 for a, b in zip(s, s[1:]))
+
+    # (a stall of the machine puts a data gap, and fallback ticks, between two ok ones)
+    assert rig.feed(10.0, until=ticks_apart)
     ok = [m for m in limits if m.header.frame_id == 'ok']
     m = ok[-1]
     assert list(m.name) == ['continuous', '10s', '60s', '600s']
@@ -208,7 +215,6 @@ def test_current_limits_for_the_drive_every_half_second_and_their_fallback(rig):
     # stamped with the sample time of the tick: 0.5 s apart, never backwards
     stamps = _stamps(limits)
     assert all(b > a for a, b in zip(stamps, stamps[1:]))
-    assert _stamps(ok)[-1] - _stamps(ok)[-2] == pytest.approx(0.5, abs=1e-6)
     assert _stamps(ok)[-1] == pytest.approx(rig.estimates['oil'][-1].header.stamp.sec
                                             + 1e-9 * rig.estimates['oil'][-1].header.stamp.nanosec,
                                             abs=1.0)
@@ -723,9 +729,10 @@ def test_a_replay_writes_what_the_node_published_for_the_same_samples(
     from wet_eha_thermal.offline import replay as rp
 
     bag = record_rig_log(tmp_path / 'rig.mcap', 6.0, seed=5)
+    # an alert raised half-way (the winding's warning at its temperature then: a run
+    # without the limits, which the temperatures do not depend on, finds it)
     plan = rp.plan_replay(bag)
-    first = rp.replay(plan, output_rate_Hz=50.0)
-    # an alert raised half-way (the winding's warning at its temperature then)
+    first = rp.replay(plan, output_rate_Hz=50.0, outlook=False)
     data = yaml.safe_load(plan.config_yaml)
     data['estimator']['alerts']['winding_hotspot'].update(
         warn_C=float(first.temperatures_C['winding_hotspot'][len(first.stamp_s) // 2]),

@@ -72,7 +72,9 @@ def test_live_runs_and_cleans_up(tmp_path):
     mark = uuid.uuid4().hex
     # in tmp_path: the recording goes to runs/ of the working folder
     port = _free_port()        # not 8765: another run on this machine may hold it
-    res = subprocess.run(_command('live', '--duration', '8', '--foxglove', f'127.0.0.1:{port}'),
+    # 5 s of duty, counted from the rig's start once all are ready: 250 estimates at 50 Hz
+    # against the 100 asked, and a rig report every second to check the truth against
+    res = subprocess.run(_command('live', '--duration', '5', '--foxglove', f'127.0.0.1:{port}'),
                          env=_env(mark), cwd=tmp_path, capture_output=True, text=True,
                          timeout=60)
     assert res.returncode == 0, res.stdout + res.stderr
