@@ -30,6 +30,7 @@ a few node temperatures (:class:`PeakForms`):
 """
 
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import List, Tuple
 
 import numpy as np
@@ -83,21 +84,34 @@ def hull_rows(forms: np.ndarray) -> np.ndarray:
     >>> hull_rows(np.stack([x, x], axis=1)).tolist()     # a segment: its ends
     [[0.0, 0.0], [1.0, 1.0]]
     """
+    forms = np.ascontiguousarray(forms, dtype=float)
+    return forms[_hull_keep(forms.shape, forms.tobytes())]
+
+
+# every model built (the estimator's, each uncertainty copy's) asks for the same few hulls
+# and slot fields: kept per process, by their inputs' exact values
+@lru_cache(maxsize=256)
+def _hull_keep(shape: Tuple[int, int], data: bytes) -> np.ndarray:
+    """Return the indices of :func:`hull_rows`' rows, for forms given as their bytes."""
+    forms = np.frombuffer(data).reshape(shape)
     centred = forms - forms.mean(axis=0)
     _, sv, vt = np.linalg.svd(centred, full_matrices=False)
     dims = int(np.sum(sv > 1e-9 * sv[0]))
     if dims == 0:
-        return forms[:1]
-    if dims > HULL_MAX_DIMS:
-        return forms
-    coords = centred @ vt[:dims].T
-    if dims == 1:
-        keep = [int(np.argmin(coords[:, 0])), int(np.argmax(coords[:, 0]))]
+        keep = np.arange(1)
+    elif dims > HULL_MAX_DIMS:
+        keep = np.arange(shape[0])
     else:
-        keep = ConvexHull(coords).vertices
-    return forms[np.sort(np.unique(keep))]
+        coords = centred @ vt[:dims].T
+        if dims == 1:
+            keep = np.unique([int(np.argmin(coords[:, 0])), int(np.argmax(coords[:, 0]))])
+        else:
+            keep = np.unique(ConvexHull(coords).vertices)
+    keep.flags.writeable = False
+    return keep
 
 
+@lru_cache(maxsize=32)
 def slot_section_field(r_inner_m: float, r_outer_m: float, angle_rad: float, k_W_mK: float,
                        h_wall_W_m2K: float, bands: int = 1, cells: Tuple[int, int] = SLOT_CELLS
                        ) -> Tuple[np.ndarray, np.ndarray]:
@@ -111,7 +125,8 @@ def slot_section_field(r_inner_m: float, r_outer_m: float, angle_rad: float, k_W
     top wall (r_inner) at unit temperature, then each band's stretch of both
     flanks at unit temperature (K per K). Finite volumes, second order, radial
     cells a multiple of the bands; the rows of the walls' columns sum to 1.
-    Returns (cells x (2 bands + 2), 2 bands + 2): field and area-weighted mean.
+    Returns (cells x (2 bands + 2), 2 bands + 2): field and area-weighted mean, read-only
+    (kept per process for the same arguments).
 
     >>> field, mean = slot_section_field(0.02, 0.038, 0.3, 0.9, 1e9, bands=2)
     >>> bool(np.allclose(field[:, 2:].sum(axis=1), 1.0)), round(float(mean[2:].sum()), 12)
@@ -158,7 +173,9 @@ def slot_section_field(r_inner_m: float, r_outer_m: float, angle_rad: float, k_W
     K = scipy.sparse.coo_matrix((vals, (rows, cols)), shape=(nr * nt,) * 2).tocsc()
     K = K + scipy.sparse.diags(diag)
     field = scipy.sparse.linalg.splu(K.tocsc()).solve(rhs)
-    return field, area @ field / area.sum()
+    mean = area @ field / area.sum()
+    field.flags.writeable = mean.flags.writeable = False     # cached: shared by every caller
+    return field, mean
 
 
 def slot_peak_forms(motor) -> List[PeakForms]:
