@@ -451,7 +451,10 @@ def _run_main(*args, interrupt_after=None):
 
     With ``interrupt_after`` the node gets SIGINT once it has printed that
     text: it first loads (or, on a cold cache, compiles) the model step, which
-    takes from a second to over a minute, so a fixed wait would be a race.
+    takes from a second to over a minute, so a fixed wait would be a race. It
+    then has 12 s times PATIENCE to stop: a quiet machine's node stops in 0.4 to
+    0.6 s, but one run among other test workers beside a busy core once had
+    printed nothing after 15 s (a deadline for a fact, the exit, never a pace).
     """
     env = dict(os.environ, OPENBLAS_NUM_THREADS='1', PYTHONUNBUFFERED='1')
     proc = subprocess.Popen([sys.executable, '-m', 'wet_eha_thermal.ros.estimator_node', *args],
@@ -471,7 +474,7 @@ def _run_main(*args, interrupt_after=None):
         seen.wait(timeout=180.0)          # a cold compile takes up to about 90 s here
         proc.send_signal(signal.SIGINT)
     try:
-        proc.wait(timeout=15 if interrupt_after is not None else 180)
+        proc.wait(timeout=12.0 * PATIENCE if interrupt_after is not None else 180)
     except subprocess.TimeoutExpired:
         proc.kill()
         proc.wait()
