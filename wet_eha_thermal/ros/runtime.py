@@ -134,25 +134,20 @@ def spin(executor) -> None:
     """
     Spin ``executor`` until SIGINT (Ctrl-C), SIGTERM or a shutdown of the context.
 
-    The signals only complete a future the executor spins on, so that no
+    The signals only set a flag, checked between callbacks, so that no
     KeyboardInterrupt lands inside a callback; the executor turns in slices
-    of 0.1 s (see the module docstring). The future, not a flag read between
-    slices: a slice does not end while callbacks are due, and a timer whose
-    callback outlasts its period (a starved machine) keeps one due for ever
-    (measured with the EventsExecutor: a 60 ms callback on a 50 ms timer held
-    one slice past 8 s, and a node ignored Ctrl-C); a completed future ends
-    the slice after the callback that runs.
+    of 0.1 s (see the module docstring).
     """
-    stop = Future()
+    stop = []
+    never = Future()
 
     def on_signal(signum, frame) -> None:
-        if not stop.done():
-            stop.set_result(signum)
+        stop.append(signum)
 
     old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        while rclpy.ok() and not stop.done():
-            executor.spin_until_future_complete(stop, timeout_sec=0.1)
+        while rclpy.ok() and not stop:
+            executor.spin_until_future_complete(never, timeout_sec=0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
