@@ -298,6 +298,18 @@ def limits_frame_id(code: LimitStatus, detail: str) -> str:
     return 'ok' if code == LimitStatus.OK else f'fallback: {limits_reason(code, detail)}'
 
 
+def _check_head(data: Sequence[float], what: str, version: int, head: int) -> None:
+    """Raise ValueError unless ``data`` has ``head`` numbers or more, the first ``version``."""
+    if len(data) < head or data[0] != version:
+        raise ValueError(f'not {what} v{version}: {len(data)} numbers, version '
+                         f'{data[0] if len(data) else None}')
+
+
+def _stamp_ns(data: Sequence[float]) -> int:
+    """Return the stamp (ns) of a drive message's ``data`` (its numbers 1 and 2: sec, nanosec)."""
+    return int(data[1]) * 1_000_000_000 + int(data[2])
+
+
 @dataclass(frozen=True)
 class DriveLimits:
     """
@@ -347,9 +359,7 @@ class DriveLimits:
     @classmethod
     def from_data(cls, data: Sequence[float]) -> 'DriveLimits':
         """Return the limits of a message's ``data``; ValueError if they are malformed."""
-        if len(data) < cls.HEAD or data[0] != cls.VERSION:
-            raise ValueError(f'not drive limits v{cls.VERSION}: {len(data)} numbers, version '
-                             f'{data[0] if len(data) else None}')
+        _check_head(data, 'drive limits', cls.VERSION, cls.HEAD)
         n = int(data[7])
         if n != data[7] or len(data) != cls.HEAD + 2 * n:
             raise ValueError(f'drive limits: n = {data[7]} for {len(data)} numbers')
@@ -360,10 +370,9 @@ class DriveLimits:
             status = LimitStatus(int(data[4]))
         except ValueError:
             status = LimitStatus.OTHER
-        return cls(stamp_ns=int(data[1]) * 1_000_000_000 + int(data[2]),
-                   sequence=int(data[3]), status=status, binding_A=float(data[5]),
-                   binding_horizon_s=float(data[6]), horizons_s=tuple(data[cls.HEAD::2]),
-                   limits_A=limits)
+        return cls(stamp_ns=_stamp_ns(data), sequence=int(data[3]), status=status,
+                   binding_A=float(data[5]), binding_horizon_s=float(data[6]),
+                   horizons_s=tuple(data[cls.HEAD::2]), limits_A=limits)
 
 
 @dataclass(frozen=True)
@@ -443,9 +452,7 @@ class DriveAlerts:
     @classmethod
     def from_data(cls, data: Sequence[float]) -> 'DriveAlerts':
         """Return the alerts of a message's ``data``; ValueError if they are malformed."""
-        if len(data) < cls.HEAD or data[0] != cls.VERSION:
-            raise ValueError(f'not drive alerts v{cls.VERSION}: {len(data)} numbers, version '
-                             f'{data[0] if len(data) else None}')
+        _check_head(data, 'drive alerts', cls.VERSION, cls.HEAD)
         n, m = int(data[5]), int(data[6])
         if n != data[5] or m != data[6] or m < cls.STRIDE or len(data) != cls.HEAD + n * m:
             raise ValueError(f'drive alerts: n = {data[5]}, m = {data[6]} for {len(data)} '
@@ -458,8 +465,8 @@ class DriveAlerts:
                 raise ValueError(f'drive alerts: quantity index {q[0]} not in ESTIMATES')
             quantities.append(QuantityAlert(ESTIMATES[index], int(q[1]), int(q[2]), q[3] != 0.0,
                                             *(float(v) for v in q[4:8])))
-        return cls(stamp_ns=int(data[1]) * 1_000_000_000 + int(data[2]),
-                   sequence=int(data[3]), level=int(data[4]), quantities=tuple(quantities))
+        return cls(stamp_ns=_stamp_ns(data), sequence=int(data[3]), level=int(data[4]),
+                   quantities=tuple(quantities))
 
 
 #: The line of a node's :class:`NodeReport` starts with this, then its JSON.
