@@ -130,29 +130,45 @@ def make_executor(kind: str):
     return SingleThreadedExecutor()
 
 
-def spin(executor) -> None:
+def spin(executor, node: Node, started: Optional[Callable[[], None]] = None) -> None:
     """
     Spin ``executor`` until SIGINT (Ctrl-C), SIGTERM or a shutdown of the context.
 
-    The signals only set a flag, checked between callbacks, so that no
-    KeyboardInterrupt lands inside a callback; the executor turns in slices
-    of 0.1 s (see the module docstring).
+    The executor turns in slices of 0.1 s (see the module docstring). The
+    signals only set a flag, so that no KeyboardInterrupt lands inside a
+    callback. The flag alone is not enough: an EventsExecutor slice ends at
+    its timeout only once its queue is empty, which on a busy machine (inputs
+    at 1 kHz, callbacks outlasting their timers' periods) may be never. So a
+    steady 10 Hz timer of ``node`` completes the future the slice waits on,
+    which ends it after the callback running. Not the handler itself: it may
+    interrupt the main thread inside that future's lock, which each slice
+    takes, and deadlock. ``started()`` runs once the handlers are in place
+    (a node logs that it spins there, so that a Ctrl-C sent on that line is
+    caught).
     """
-    stop = []
-    never = Future()
+    signals = []
+    stopped = Future()
 
     def on_signal(signum, frame) -> None:
-        stop.append(signum)
+        signals.append(signum)
 
+    def end_slice() -> None:
+        if signals and not stopped.done():
+            stopped.set_result(signals[0])
+
+    timer = node.create_timer(0.1, end_slice, clock=Clock(clock_type=ClockType.STEADY_TIME))
     old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        while rclpy.ok() and not stop:
-            executor.spin_until_future_complete(never, timeout_sec=0.1)
+        if started is not None:
+            started()
+        while rclpy.ok() and not signals:
+            executor.spin_until_future_complete(stopped, timeout_sec=0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
         for s, handler in old.items():
             signal.signal(s, handler)
+        node.destroy_timer(timer)
 
 
 def accept_whole_numbers(node: Node, defaults: Mapping[str, object]) -> None:
@@ -297,9 +313,9 @@ def run_node(args: Optional[List[str]], prog: str, description: str,
         try:
             # inside: a Ctrl-C while the node is added still shuts the executor down
             executor.add_node(node)
-            if log_executor:
-                node.get_logger().info(f'spinning with the {kind} executor')
-            spin(executor)
+            spin(executor, node, started=(
+                lambda: node.get_logger().info(f'spinning with the {kind} executor'))
+                if log_executor else None)
             if after_spin is not None:
                 after_spin(node, executor)
         except (KeyboardInterrupt, ExternalShutdownException):
