@@ -129,7 +129,8 @@ def test_the_search_finds_the_root_within_its_tolerance_whatever_its_guess(warm)
     setup = probing(est.model, ['winding_hotspot', 'magnet', 'oil'])
     terms = linearise(snapshot.save(est.model), None, est._outlook.held_duty(), lim.period_s,
                       est.ambient_K, top, setup.layout, setup.alpha_copper, setup.peaks)
-    for winding_C, horizon_s in ((40.0, 10.0), (44.0, 60.0), (80.0, 600.0), (200.0, 10.0)):
+    for winding_C, horizon_s in ((40.0, 10.0), (44.0, 60.0), (80.0, 600.0), (200.0, 10.0),
+                                 (20.0, 10.0)):
         limits_C = {'winding_hotspot': winding_C, 'magnet': 120.0, 'oil': 120.0}
         ceiling = {q: ceiling_K(c, est.latest.uncertainty_K[q], lim.k_sigma, None,
                                 est.ambient_K) for q, c in limits_C.items()}
