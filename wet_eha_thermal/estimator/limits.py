@@ -319,9 +319,9 @@ class LimitProblem:
                 r = 0.5 * (low + high)
             for k in dict.fromkeys(min(max(int(math.floor(r)) + j, low), high)
                                    for j in (0, 1)):
-                visit(k)
-                if lo is not None and hi is not None and hi - lo == 1:
-                    break
+                # a point beyond the bracket as it now stands would tell nothing new
+                if (lo is None or k > lo) and (hi is None or k < hi):
+                    visit(k)
 
 
 def probe(model: EHAModel, held: HeldDuty, current_A: float, dt_s: float, ambient_K: float,
