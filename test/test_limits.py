@@ -8,9 +8,11 @@ import pickle
 import pytest
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.estimator.core import Estimator, INPUTS
-from wet_eha_thermal.estimator.limits import limit_steps, probing, RATING
+from wet_eha_thermal.estimator.limits import (ceiling_K, limit_steps, LimitProblem, linearise,
+                                              probing, RATING, TOL_A2)
 from wet_eha_thermal.estimator.session import EstimatorSession
 from wet_eha_thermal.interface import LimitStatus
+from wet_eha_thermal.model import snapshot
 from wet_eha_thermal.units import C_TO_K
 
 pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
@@ -103,6 +105,54 @@ def test_a_limit_takes_the_model_to_its_limit_and_no_further(warm, winding_C, ho
     # and it is the largest: 1 A more crosses the limit
     if tol_K <= 0.5:
         assert peak_excess(est, limits_C, amps + 1.0, horizon_s, lim.k_sigma) > 0.0
+
+
+def bisected_root(f, top):
+    """Return the largest I^2 in [0, ``top``] with ``f`` <= 0, by bisection to 1e-6 A^2."""
+    if f(0.0) > 0.0:
+        return 0.0
+    if f(top) <= 0.0:
+        return top
+    lo, hi = 0.0, top
+    while hi - lo > 1e-6:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if f(mid) <= 0.0 else (lo, mid)
+    return lo
+
+
+def test_the_search_finds_the_root_within_its_tolerance_whatever_its_guess(warm):
+    # the search of each tick starts at the last tick's answer: against a brute-force
+    # bisection of the same linearised problem, within TOL_A2 (A^2), the same answer from
+    # any start, and two evaluations when the guess is right
+    est = warm
+    lim, top = est.cfg.estimator.limits, est.cfg.motor.peak_current_A
+    setup = probing(est.model, ['winding_hotspot', 'magnet', 'oil'])
+    terms = linearise(snapshot.save(est.model), None, est._outlook.held_duty(), lim.period_s,
+                      est.ambient_K, top, setup.layout, setup.alpha_copper, setup.peaks)
+    for winding_C, horizon_s in ((40.0, 10.0), (44.0, 60.0), (80.0, 600.0), (200.0, 10.0),
+                                 (20.0, 10.0)):
+        limits_C = {'winding_hotspot': winding_C, 'magnet': 120.0, 'oil': 120.0}
+        ceiling = {q: ceiling_K(c, est.latest.uncertainty_K[q], lim.k_sigma, None,
+                                est.ambient_K) for q, c in limits_C.items()}
+        problem = LimitProblem(*terms, est.model.state, setup.rows, ceiling)
+        steps = int(round(horizon_s / lim.period_s))
+        calls = []
+
+        def excess(i_sq, n=steps, p=problem):
+            calls.append(i_sq)
+            return p.horizon_excess(i_sq, n)
+
+        root = bisected_root(lambda s: excess(s)[0], top ** 2)
+        answers = set()
+        for guess in (None, 0.0, 5.0, math.sqrt(root) - 0.5, math.sqrt(root) + 0.5, top):
+            answers.add(problem.solve(excess, top, guess))
+        assert len(answers) == 1, answers
+        ((amps, binds),) = answers
+        assert abs(amps ** 2 - root) <= TOL_A2, (winding_C, horizon_s)
+        assert binds == (RATING if root == top ** 2 else 'winding_hotspot')
+        calls.clear()
+        assert problem.solve(excess, top, amps) == (amps, binds)
+        assert len(calls) <= 2, calls
 
 
 def test_a_cold_motor_is_limited_by_its_rating_over_short_horizons():

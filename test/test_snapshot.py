@@ -41,3 +41,30 @@ def test_a_snapshot_copy_steps_bit_for_bit_as_a_pickled_one_and_shares_only_the_
     # the copies did not touch the original or each other
     assert np.array_equal(other.state, est.model.state)
     assert not np.array_equal(shared.state, est.model.state)
+
+
+def test_a_second_copy_stepped_from_the_same_point_takes_the_firsts_matrices_to_the_bit():
+    # the limits step two copies from one state (model/network.py's memo): the second
+    # copy's coefficients are the first's, so it reuses their reduction and exponential
+    est = Estimator(load_config())
+    for k in range(1, 1001):
+        t = k * 1e-3
+        for ch in INPUTS:
+            est.push(ch, t, DUTY.get(ch, 0.01 * t))
+        if k % 20 == 0:
+            est.advance(t)
+    saved = snapshot.save(est.model)
+    held = est._outlook.held_duty()
+    first, second = snapshot.copy(saved), snapshot.copy(saved)
+    plain = pickle.loads(pickle.dumps(est.model))     # its own structure: computes its own
+    counts = []
+    for m, amps in ((first, 0.0), (second, 25.0), (plain, 25.0)):
+        m.defer_refresh = False
+        before = m.motor.net.discretise_count
+        m.step(held.block(m.time_s + 0.5, amps), est.ambient_K, max_substep_s=0.5,
+               exact_coefficients=True)
+        counts.append(m.motor.net.discretise_count - before)
+    assert counts == [1, 0, 1]
+    assert second.motor.net.last_disc is first.motor.net.last_disc
+    assert np.array_equal(second.state, plain.state)
+    assert second.outputs() == plain.outputs()

@@ -22,7 +22,8 @@ peak rating, give the four terms: A and K from the model's own linearisation
 :func:`~.kalman.coupled_transition`), c0 and c1 from where the copies
 ended. The state at every power of two of dt and at H follows from powers of
 the augmented matrix [[A + I^2 K, c0 + I^2 c1], [0, 1]] by squaring (a
-dozen 71 x 71 products for 600 s), and scipy's ``brentq`` finds the I^2
+dozen 81 x 81 products for 600 s), and a search on a fixed grid of I^2
+(:meth:`LimitProblem.solve`), started at the last tick's answer, finds
 where the worst quantity meets its limit.
 
 What it leaves out (``test/test_limits.py`` measures it against the model
@@ -48,7 +49,6 @@ import math
 from typing import Dict, Generator, List, NamedTuple, Optional, Sequence, Tuple
 
 import numpy as np
-from scipy.optimize import brentq
 
 from .correction import filter_layout
 from .kalman import copper_gain, coupled_transition
@@ -68,8 +68,6 @@ FALLBACK = 'fallback'
 RELINEARISE_AFTER_S = 120.0
 #: I^2 tolerance of the search (A^2): 0.04 A at 25 A, a tenth of the model's own spread
 TOL_A2 = 2.0
-#: half-width of a search started near a guess (A)
-NEAR_A = 1.0
 
 
 def horizon_name(horizon_s: float) -> str:
@@ -245,36 +243,85 @@ class LimitProblem:
             return math.inf, ''
         return self._excess(X)
 
-    def solve(self, excess, top_A: float, near_A: Optional[float] = None) -> Tuple[float, str]:
+    def solve(self, excess, top_A: float, guess_A: Optional[float] = None) -> Tuple[float, str]:
         """
         Return the largest current (A) in [0, ``top_A``] whose ``excess`` is <= 0, and what binds.
 
         ``excess(i_sq)`` -> (K, quantity) grows with I^2. 0 A when even no
         current is too much, ``top_A`` (bound by the rating) when it is not.
-        ``near_A``: a guess; the search starts within ``NEAR_A`` of it.
+        Otherwise the search finds the cell of a fixed grid of I^2 (spacing
+        2 ``TOL_A2``, ``top_A`` squared its last point) whose lower end is
+        within the limit and whose upper end is not, and returns the cell's
+        middle, within ``TOL_A2`` of the root, bound by what exceeds at its
+        upper end. The answer does not depend on where the search starts:
+        ``guess_A`` (the last tick's answer, which moves little from tick to
+        tick) only spares evaluations, two when the root stayed in its cell.
         """
-        def f(i_sq: float) -> float:
-            return min(excess(i_sq)[0], 1e6)    # brentq needs finite values: a runaway
+        cell = 2.0 * TOL_A2
+        top = top_A ** 2
+        last = max(1, math.ceil(top / cell))        # the grid's points: k cell, then top
+        seen: Dict[int, Tuple[float, str]] = {}
+        lo = hi = None        # the highest point seen within the limit, the lowest past it
 
-        lo, hi = 0.0, top_A ** 2
-        if near_A is not None:
-            a, b = max(near_A - NEAR_A, 0.0) ** 2, min(near_A + NEAR_A, top_A) ** 2
-            fa, fb = f(a), f(b)
-            if fa < 0.0 < fb:
-                return self._root(excess, f, a, b)
-            lo, hi = (b, hi) if fb <= 0.0 else (lo, a)
-        e0, q0 = excess(lo)
-        if e0 >= 0.0:
-            return math.sqrt(lo), q0
-        if f(hi) <= 0.0:
-            return math.sqrt(hi), RATING if hi == top_A ** 2 else excess(hi)[1]
-        return self._root(excess, f, lo, hi)
+        def at(k: int) -> float:
+            return top if k >= last else k * cell
 
-    @staticmethod
-    def _root(excess, f, lo: float, hi: float) -> Tuple[float, str]:
-        """Return the root of ``f`` in [lo, hi] (A) and what binds there."""
-        root = brentq(f, lo, hi, xtol=TOL_A2)
-        return math.sqrt(root), excess(root)[1]
+        def visit(k: int) -> None:
+            nonlocal lo, hi
+            if k in seen:
+                return
+            e, q = excess(at(k))
+            seen[k] = (min(e, 1e6), q)        # a runaway: large, but a number to interpolate
+            if e <= 0.0:
+                lo = k if lo is None else max(lo, k)
+            else:
+                hi = k if hi is None else min(hi, k)
+
+        def crossing(a: int, b: int) -> float:
+            """Return where the line through points a and b crosses zero (grid units)."""
+            ea, eb = seen[a][0], seen[b][0]
+            return a - ea * (b - a) / (eb - ea) if eb > ea else math.nan
+
+        if guess_A is None:
+            start = (0, last)
+        else:
+            k = min(max(int(guess_A ** 2 // cell), 0), last - 1)
+            start = (last,) if guess_A >= top_A else (k, k + 1)
+        for k in start:
+            visit(k)
+        width = 2 * last + 2      # the last round's bracket: none yet, so interpolate first
+        while True:
+            if lo is None and hi == 0:
+                return 0.0, seen[0][1]
+            if hi is None and lo == last:
+                return top_A, RATING
+            if lo is not None and hi is not None:
+                if hi - lo == 1:
+                    return math.sqrt(0.5 * (at(lo) + at(hi))), seen[hi][1]
+                # inside the bracket: the two points around the line's crossing, or the
+                # middle when the last round did not halve the bracket
+                r = crossing(lo, hi) if hi - lo <= width // 2 else math.nan
+                width = hi - lo
+                low, high = lo + 1, hi - 1
+            else:
+                # beyond every point seen: the line through the two nearest (from one
+                # point, its neighbour), or halfway to the end when it does not slope up
+                pts = sorted(seen)
+                if lo is None:
+                    a, b = pts[:2] if len(pts) > 1 else (pts[0], pts[0])
+                    low, high = 0, a - 1
+                    r = crossing(a, b) if a != b else high
+                else:
+                    a, b = pts[-2:] if len(pts) > 1 else (pts[0], pts[0])
+                    low, high = b + 1, last
+                    r = crossing(a, b) if a != b else low
+            if not math.isfinite(r):
+                r = 0.5 * (low + high)
+            for k in dict.fromkeys(min(max(int(math.floor(r)) + j, low), high)
+                                   for j in (0, 1)):
+                # a point beyond the bracket as it now stands would tell nothing new
+                if (lo is None or k > lo) and (hi is None or k < hi):
+                    visit(k)
 
 
 def probe(model: EHAModel, held: HeldDuty, current_A: float, dt_s: float, ambient_K: float,
@@ -397,7 +444,8 @@ def ceiling_K(limit_C: float, sigma_K: float, k_sigma: float, relative: Optional
 def limit_steps(saved: bytes, x0: np.ndarray, setup: Probing, held: HeldDuty,
                 ambient_K: float, sigma_K: Dict[str, float], limits_C: Dict[str, float],
                 k_sigma: float, horizons_s: Sequence[float], dt_s: float, peak_A: float,
-                relative: Optional[Dict[str, float]] = None
+                relative: Optional[Dict[str, float]] = None,
+                guesses: Optional[Dict[Tuple[float, int], float]] = None
                 ) -> Generator[None, None, List[Tuple[float, str]]]:
     """
     Compute a tick's limit for each horizon from the pickled model ``saved``, in slices.
@@ -412,7 +460,10 @@ def limit_steps(saved: bytes, x0: np.ndarray, setup: Probing, held: HeldDuty,
     (:func:`ceiling_K`). A horizon longer than ``RELINEARISE_AFTER_S`` is solved
     again on the linearisation at the middle of the first solution's path:
     over minutes the oil's viscosity, and with it the friction and the
-    leakage heat, move far from the tick's.
+    leakage heat, move far from the tick's. ``guesses``: where each search
+    starts, by (horizon, 0 for the first solution or 1 for the second),
+    updated with this tick's answers (an outlook keeps it from tick to tick:
+    the answers do not depend on it, :meth:`LimitProblem.solve`).
     """
     relative = relative or {}
     ceiling = {name: ceiling_K(lim, sigma_K[name], k_sigma, relative.get(name), ambient_K)
@@ -424,16 +475,20 @@ def limit_steps(saved: bytes, x0: np.ndarray, setup: Probing, held: HeldDuty,
                                        setup.layout, setup.alpha_copper, setup.peaks),
                             x0, setup.rows, ceiling)
 
+    guesses = {} if guesses is None else guesses
     problem = problem_at(None)
     out = []
     for h in horizons_s:
         yield
         steps = max(1, int(round(h / dt_s)))
-        amps, binds = problem.solve(lambda s, n=steps: problem.horizon_excess(s, n), peak_A)
+        amps, binds = problem.solve(lambda s, n=steps: problem.horizon_excess(s, n), peak_A,
+                                    guesses.get((h, 0)))
+        guesses[(h, 0)] = amps
         if h > RELINEARISE_AFTER_S:
             yield
             again = problem_at(problem.trajectory(amps ** 2, steps // 2)[:, -1] - x0)
             amps, binds = again.solve(lambda s, n=steps: again.horizon_excess(s, n), peak_A,
-                                      near_A=amps)
+                                      guesses.get((h, 1), amps))
+            guesses[(h, 1)] = amps
         out.append((amps, binds))
     return out

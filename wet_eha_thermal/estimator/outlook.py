@@ -123,6 +123,8 @@ class Outlook:
         self.forecasts_skipped = 0     # forecast ticks while a forecast was under way
         self._margin_motor = WetMotor(cfg.motor, model.oil)
         self._probing = probing(model, list(limits_C))
+        #: where the limits' searches start: the last answers (:func:`~.limits.limit_steps`)
+        self._guesses: Dict[Tuple[float, int], float] = {}
 
     @property
     def busy(self) -> bool:
@@ -199,7 +201,8 @@ class Outlook:
             return
         steps = limit_steps(saved, self.model.state, self._probing, held, ambient_K, sigma_K,
                             self.limits_C, self.lim.k_sigma, self.lim.horizons_s,
-                            self.lim.period_s, self.cfg.motor.peak_current_A, relative)
+                            self.lim.period_s, self.cfg.motor.peak_current_A, relative,
+                            self._guesses)
         delay = int(round(MARGIN_DELAY_S / self.lim.period_s))
         margin_tick = max((f for f in self._forecast_tick_numbers if f <= tick - delay),
                           default=None)

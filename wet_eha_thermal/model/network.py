@@ -27,6 +27,7 @@ time integral of the state over the step follows from the same exponential,
 which makes step-averaged heat flows (and so energy balances) exact as well.
 """
 
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Dict, List, Optional, Sequence, Tuple, Union
 
@@ -54,6 +55,15 @@ class Discretisation:
     Bd: np.ndarray
     Mx: np.ndarray  # mean of x over the step = Mx x + Mw w
     Mw: np.ndarray
+
+
+#: Reductions and discretisations kept by their exact inputs, the last few: the limits'
+#: two probes of a tick (:mod:`~wet_eha_thermal.estimator.limits`) step copies of one model
+#: from one state, whose coefficients come out the same to the bit (the copies share the
+#: network's structure, :mod:`.snapshot`): the second takes the first's matrices instead of
+#: computing them again (about 8 ms of reduction and exponential). Values are only read.
+_MEMO: 'OrderedDict[tuple, list]' = OrderedDict()
+_MEMO_SIZE = 2
 
 
 class ThermalNetwork:
@@ -383,6 +393,12 @@ class ThermalNetwork:
         self.freeze()
         if self._reduced is not None:
             return self._reduced
+        memo = self._memo((self.conductance, self.advection_rate, self.capacity))
+        if memo[1] is not None:
+            self._used = (self.conductance.copy(), self.advection_rate.copy(),
+                          self.capacity.copy())
+            self._reduced = memo[1]
+            return self._reduced
         K, Gb, E = self.matrices(reduced_order=True)
         W = np.hstack([Gb, E])  # input map of w = [T_b; P]
         d, a = self._d, self._a
@@ -423,8 +439,27 @@ class ThermalNetwork:
         A = -K_red / cap
         B = W_red / cap
         self._used = (self.conductance.copy(), self.advection_rate.copy(), self.capacity.copy())
-        self._reduced = (A, B, d, a, out_x, out_w)
+        self._reduced = memo[1] = (A, B, d, a, out_x, out_w)
         return self._reduced
+
+    def _memo(self, coefficients: tuple) -> list:
+        """
+        Return the :data:`_MEMO` entry of ``coefficients``: [structure, reduced, discs by dt].
+
+        Keyed by the coefficients' bytes (conductances, advection rates,
+        capacities) and the structure's identity (the entry holds the
+        structure, so that identity is not reused while it lives): equal
+        inputs, so the same matrices to the bit.
+        """
+        key = (id(self._scatter_reduced),) + tuple(c.tobytes() for c in coefficients)
+        entry = _MEMO.get(key)
+        if entry is None or entry[0] is not self._scatter_reduced:
+            entry = _MEMO[key] = [self._scatter_reduced, None, {}]
+            while len(_MEMO) > _MEMO_SIZE:
+                _MEMO.popitem(last=False)
+        else:
+            _MEMO.move_to_end(key)
+        return entry
 
     def state_space(self) -> Tuple[np.ndarray, np.ndarray]:
         """Return (A, B) of the reduced network ``dx/dt = A x + B [T_b; P]``."""
@@ -444,6 +479,10 @@ class ThermalNetwork:
             return self._disc        # (dropped with the reduced matrices it was made of)
         A, B = self._reduce()[:2]
         dt_s = round(dt_s, 9) or dt_s
+        discs = self._memo(self._used)[2]     # the coefficients A and B were made of
+        if dt_s in discs:
+            self._disc = discs[dt_s]
+            return self._disc
         self.discretise_count += 1
         # Ad = e^{A dt}; F1 = int_0^dt e^{As} ds = A^-1 (Ad - I) and
         # F2 = int_0^dt (dt - s) e^{As} ds = A^-1 (F1 - dt I) (by parts). A is
@@ -458,8 +497,8 @@ class ThermalNetwork:
         F1 = scipy.linalg.lu_solve(lu, Ad - eye, check_finite=False)
         F2 = scipy.linalg.lu_solve(lu, F1 - dt_s * eye, check_finite=False)
         # all in C order (lu_solve returns Fortran's): the kernels that take them compile once
-        self._disc = Discretisation(dt_s, Ad, F1 @ B, np.ascontiguousarray(F1) / dt_s,
-                                    (F2 @ B) / dt_s)
+        self._disc = discs[dt_s] = Discretisation(
+            dt_s, Ad, F1 @ B, np.ascontiguousarray(F1) / dt_s, (F2 @ B) / dt_s)
         return self._disc
 
     # ---------------------------------------------------------------- solve
