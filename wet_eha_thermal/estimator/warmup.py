@@ -15,7 +15,7 @@ from typing import List
 
 import numpy as np
 
-from .intake import sensor_signal
+from .intake import sensor_signal, split_differential
 from .session import EstimatorSession
 from ..config import Config
 from ..model.kinetics import KineticModel, stage_duty, ThermalFeedback
@@ -77,6 +77,9 @@ def compile_estimator(cfg: Config) -> float:
         # the filter starts at the first usable reading, which so short a record never
         # gives (a thermocouple is first watched for its noise and for being stuck)
         est._correction.warm_up(est.model, cfg.estimator.step_s)
+    # a rig with one differential pressure (estimator.pressure_inputs) splits it in the
+    # intake: its kernel too, so that every configuration's first block finds it compiled
+    split_differential(np.zeros(2), 0.0)
     _warmed.append(cfg)
     return time.perf_counter() - start
 

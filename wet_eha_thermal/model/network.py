@@ -29,6 +29,7 @@ which makes step-averaged heat flows (and so energy balances) exact as well.
 
 from collections import OrderedDict
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
@@ -371,17 +372,7 @@ class ThermalNetwork:
         if not na:
             return None
         k_idx = self._scatter_reduced[0]
-        i, j = np.divmod(k_idx, self.n)
-        inside = (i >= m) & (j >= m)
-        i, j = np.unique(np.stack([i[inside] - m, j[inside] - m]), axis=1)   # once each
-        pattern = scipy.sparse.csr_matrix((np.ones(i.size), (i, j)), shape=(na, na))
-        order = reverse_cuthill_mckee(pattern + pattern.T, symmetric_mode=True)
-        rank = np.empty(na, dtype=int)
-        rank[order] = np.arange(na)
-        pi, pj = rank[i], rank[j]
-        half = max(int(np.abs(pi - pj).max()), 0)
-        # LAPACK's gbtrf storage of a band with kl = ku = half: A[r, c] at row 2 half + r - c
-        return order, half, (i + m, j + m), (2 * half + pi - pj, pj)
+        return _band(self.n, m, na, k_idx.dtype.str, k_idx.tobytes())
 
     def algebraic_map(self) -> Tuple[np.ndarray, np.ndarray]:
         """Return the algebraic nodes and their temperatures' sensitivity to the states (K/K)."""
@@ -643,3 +634,25 @@ def zoh_step(Ad, Bd, Mx, Mw, out_x, out_w, dynamic, algebraic, x, w):
     from_inputs = out_w @ w        # the algebraic nodes' share of the inputs, once for both
     return (x_new, _scatter_temperatures(dynamic, algebraic, out_x, x_new, from_inputs),
             _scatter_temperatures(dynamic, algebraic, out_x, x_mean, from_inputs))
+
+
+# every model built (the estimator's, each uncertainty copy's, a calibration's runs) has
+# one of a few topologies: their band orders are kept per process, by the exact indices
+@lru_cache(maxsize=64)
+def _band(n: int, m: int, na: int, dtype: str, k_idx_bytes: bytes) -> tuple:
+    """Return :meth:`ThermalNetwork._algebraic_band` of K's scatter indices (given as bytes)."""
+    k_idx = np.frombuffer(k_idx_bytes, dtype=dtype)
+    i, j = np.divmod(k_idx, n)
+    inside = (i >= m) & (j >= m)
+    i, j = np.unique(np.stack([i[inside] - m, j[inside] - m]), axis=1)   # once each
+    pattern = scipy.sparse.csr_matrix((np.ones(i.size), (i, j)), shape=(na, na))
+    order = reverse_cuthill_mckee(pattern + pattern.T, symmetric_mode=True)
+    rank = np.empty(na, dtype=int)
+    rank[order] = np.arange(na)
+    pi, pj = rank[i], rank[j]
+    half = max(int(np.abs(pi - pj).max()), 0)
+    # LAPACK's gbtrf storage of a band with kl = ku = half: A[r, c] at row 2 half + r - c
+    out = order, half, (i + m, j + m), (2 * half + pi - pj, pj)
+    for a in (order, *out[2], *out[3]):
+        a.flags.writeable = False           # shared by every network of this topology
+    return out
