@@ -58,11 +58,14 @@ def serial(logs, tmp_path_factory):
     out = tmp_path_factory.mktemp('serial')
     ref = {}
     for bag in sorted(logs.iterdir()):
-        assert main(['replay', str(bag), '--out', str(out / bag.name), '--no-report',
-                     '--no-outlook']) == 0
-        figures = campaign.summarise(rp.replay(rp.plan_replay(bag), outlook=False))
-        ref[bag.name] = (figures, {name: (out / bag.name / name).read_bytes()
-                                   for name in ('estimates.csv', 'estimates.mcap')})
+        # the calls of ``replay BAG --no-report --no-outlook`` (cli/replay.py), once: its
+        # outputs and the figures of the same result
+        result = rp.replay(rp.plan_replay(bag), output_rate_Hz=rp.ReplayOptions().output_rate_Hz,
+                           outlook=False)
+        rp.write_outputs(result, out / bag.name, False)
+        ref[bag.name] = (campaign.summarise(result), {
+            name: (out / bag.name / name).read_bytes()
+            for name in ('estimates.csv', 'estimates.mcap')})
     return ref
 
 
@@ -82,8 +85,12 @@ def dask_cluster(folder: Path, workers: int = 2):
     """
     address = f'tcp://127.0.0.1:{_free_port()}'
     dask = [sys.executable, '-m', 'dask']
-    # no nanny: the process started is the worker, so killing it kills the worker
-    env = dict(os.environ, OPENBLAS_NUM_THREADS='1')
+    # no nanny: the process started is the worker, so killing it kills the worker. Dask's
+    # health checks as the local cluster sets them (campaign.LOCAL_CLUSTER_CONFIG): at its
+    # defaults each process wakes every 20 ms, for the whole module
+    env = dict(os.environ, OPENBLAS_NUM_THREADS='1', **{
+        'DASK_' + key.upper().replace('.', '__').replace('-', '_'): value
+        for key, value in campaign.LOCAL_CLUSTER_CONFIG.items()})
     procs = []
     try:
         with open(folder / 'scheduler.log', 'w') as log:

@@ -632,7 +632,13 @@ def test_foxglove_view_shows_the_published_estimates(context):
 
 
 def test_whatif_is_answered_while_the_estimates_go_on(rig):
-    """A ten-minute what-if runs beside the estimator, whose estimates keep up with the samples."""
+    """
+    A three-minute what-if runs beside the estimator, whose estimates keep up with the samples.
+
+    Three minutes of stage 6 take a few seconds of the worker on a quiet machine: a stall of
+    the node for the what-if's time would exceed the 0.5 s gap bound several times over
+    (ten minutes checked the same at three times the cost).
+    """
     answers, arrivals = [], []
     rig.probe.create_subscription(String, interface.WHATIF_RESPONSE_TOPIC,
                                   lambda m: answers.append(json.loads(m.data)),
@@ -659,27 +665,27 @@ def test_whatif_is_answered_while_the_estimates_go_on(rig):
     rig.feed(2.0)
     t0 = time.monotonic()
     lag_before = max(lag for _, lag in arrivals[before:])
-    pub.publish(String(data='{"id": "hour", "stage": 6, "duration_s": 600}'))
+    pub.publish(String(data='{"id": "long", "stage": 6, "duration_s": 180}'))
     pub.publish(String(data='{"id": "second", "stage": 6, "duration_s": 60}'))
-    assert rig.feed(120.0, until=lambda: any(a['id'] == 'hour' for a in answers))
+    assert rig.feed(120.0, until=lambda: any(a['id'] == 'long' for a in answers))
     t1 = time.monotonic()
     by_id = {a['id']: a for a in answers}
-    assert "busy: what-if 'hour'" in by_id['second']['error']
-    hour = by_id['hour']
-    assert hour['ok'] and hour['time_s'][-1] == 600.0 and hour['source'] == 'live estimator'
-    assert hour['start_stamp_s'] is not None and set(hour['temperatures_C']) == set(
+    assert "busy: what-if 'long'" in by_id['second']['error']
+    long = by_id['long']
+    assert long['ok'] and long['time_s'][-1] == 180.0 and long['source'] == 'live estimator'
+    assert long['start_stamp_s'] is not None and set(long['temperatures_C']) == set(
         interface.ESTIMATES)
     during = [(t, lag) for t, lag in arrivals if t0 <= t <= t1]
     gaps = np.diff([t for t, _ in during])
     lag_during = max(lag for _, lag in during)
-    print(f'what-if of 10 min of stage 6: {t1 - t0:.1f} s wall ({hour["wall_s"]:.1f} s in the '
+    print(f'what-if of 3 min of stage 6: {t1 - t0:.1f} s wall ({long["wall_s"]:.1f} s in the '
           f'worker); {len(during)} estimates, each behind its newest sample by at most '
           f'{lag_before * 1e3:.0f} ms before and {lag_during * 1e3:.0f} ms during; longest gap '
           f'{gaps.max() * 1e3:.0f} ms')
     # no stall (a what-if worked in the node would hold the estimates for its own time), and
     # the estimates kept up with the samples: on a busy machine the node and this probe, one
     # executor, slow alike, so a rate in wall time would measure the machine, not the node
-    assert len(during) > 10 and gaps.max() < max(0.5, 0.25 * hour['wall_s'])
+    assert len(during) > 10 and gaps.max() < max(0.5, 0.25 * long['wall_s'])
     assert lag_during < 1.0
 
 
@@ -690,7 +696,7 @@ def test_whatif_command_asks_the_running_estimator(rig, tmp_path, capsys):
     assert rig.feed(10.0, until=lambda: len(rig.estimates['oil']) > 20)
     done = []
     worker = threading.Thread(target=lambda: done.append(cli.main([
-        'whatif', '--stage', '3', '--duration', '120', '--timeout', '60',
+        'whatif', '--stage', '3', '--duration', '30', '--timeout', '60',
         '--out', str(tmp_path)])))
     worker.start()
     assert rig.feed(60.0, until=lambda: done)

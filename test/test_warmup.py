@@ -11,7 +11,9 @@ pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-
 
 # In a process of its own (a test session has compiled more by then): the warm-up, then
 # live-like work with the node's calls, noise, thermocouples, the forecast and the margin, a
-# silence and data again. Prints the kernel signatures that the warm-up missed. 12 s of each
+# silence and data again, and a second of one differential pressure (the warm-up is that of the
+# shipped configuration, as scripts/dev runs it: port pressures). Prints the kernel signatures
+# that the warm-up missed. 12 s of each
 # stage: past the uncertainty's copy period (10 s) and many limits' ticks (0.5 s); without
 # the warm-up, runs of 12 s and of 30 s called the same 41 signatures of 33 kernels.
 RUN = """
@@ -57,6 +59,17 @@ for stage, (t0, t1) in ((6, (0.0, 12.0)), (3, (400.0, 412.0))):
     while est.work(0.05):
         pass
     est.step(t1 + 360.0 if stage == 6 else t1, all_steps=True)
+# one differential pressure (as the recorder's logs hold): the intake splits it into the
+# three the model takes; the rest of the path is the one above
+cfg_dp = load_config(overrides={'estimator.pressure_inputs': 'differential'})
+est = EstimatorSession(cfg_dp)
+t = np.arange(1, 1001) / 1000.0
+s = kin.sample(stage_duty(cfg_dp, 6), t, ThermalFeedback.uniform())
+sig = {n: sensor_signal(s, n) for n in est.inputs}
+for k, tk in enumerate(t):
+    for n in est.inputs:
+        est.take(n, tk, sig[n][k], now_s=tk)
+est.step(t[-1], all_steps=True)
 after = signatures()
 json.dump({k: sorted(v - before.get(k, set())) for k, v in after.items()
            if v - before.get(k, set())}, sys.stdout)

@@ -43,8 +43,9 @@ def compile_estimator(cfg: Config) -> float:
     (:meth:`~.session.EstimatorSession.take`, ``add_measured``) on
     ``WARM_SECONDS`` of stage-6 signals, then ``WARM_SILENCE_S`` of silence
     (stale inputs, held blocks), the uncertainty's copies over that record and
-    the live correction's filter once. Returns at once in a process that has
-    done it for an equal configuration.
+    the live correction's filter once; and the split of a differential
+    pressure, whichever pressure inputs ``cfg`` has. Returns at once in a
+    process that has done it for an equal configuration.
     """
     start = time.perf_counter()
     if any(cfg == done for done in _warmed):
@@ -77,9 +78,9 @@ def compile_estimator(cfg: Config) -> float:
         # the filter starts at the first usable reading, which so short a record never
         # gives (a thermocouple is first watched for its noise and for being stuck)
         est._correction.warm_up(est.model, cfg.estimator.step_s)
-    # a rig with one differential pressure (estimator.pressure_inputs) splits it in the
-    # intake: its kernel too, so that every configuration's first block finds it compiled
-    split_differential(np.zeros(2), 0.0)
+    # scripts/dev warms the shipped configuration (port pressures) for the processes that
+    # follow, and those that run one differential pressure (recorded logs) call this one too
+    split_differential(np.zeros(1), cfg.hydraulics.accumulator.pressure_Pa)
     _warmed.append(cfg)
     return time.perf_counter() - start
 
