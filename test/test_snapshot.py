@@ -13,14 +13,20 @@ DUTY = {'current_A': 15.0, 'speed_rad_s': 800.0, 'p_a_Pa': 3.0e6, 'p_b_Pa': 0.5e
         'p_acc_Pa': 0.5e6}
 
 
-def test_a_snapshot_copy_steps_bit_for_bit_as_a_pickled_one_and_shares_only_the_fixed_parts():
+def _warm_estimator(samples: int) -> Estimator:
+    """Return an estimator fed ``samples`` ms of DUTY at 1 kHz (coefficients refreshed)."""
     est = Estimator(load_config())
-    for k in range(1, 2001):                 # 2 s at 1 kHz: coefficients refreshed, warm
+    for k in range(1, samples + 1):
         t = k * 1e-3
         for ch in INPUTS:
             est.push(ch, t, DUTY.get(ch, 0.01 * t))
         if k % 20 == 0:
             est.advance(t)
+    return est
+
+
+def test_a_snapshot_copy_steps_bit_for_bit_as_a_pickled_one_and_shares_only_the_fixed_parts():
+    est = _warm_estimator(2000)              # 2 s at 1 kHz: coefficients refreshed, warm
     saved = snapshot.save(est.model)
     plain, shared = pickle.loads(pickle.dumps(est.model)), snapshot.copy(saved)
     other = snapshot.copy(saved)
@@ -46,13 +52,7 @@ def test_a_snapshot_copy_steps_bit_for_bit_as_a_pickled_one_and_shares_only_the_
 def test_a_second_copy_stepped_from_the_same_point_takes_the_firsts_matrices_to_the_bit():
     # the limits step two copies from one state (model/network.py's memo): the second
     # copy's coefficients are the first's, so it reuses their reduction and exponential
-    est = Estimator(load_config())
-    for k in range(1, 1001):
-        t = k * 1e-3
-        for ch in INPUTS:
-            est.push(ch, t, DUTY.get(ch, 0.01 * t))
-        if k % 20 == 0:
-            est.advance(t)
+    est = _warm_estimator(1000)
     saved = snapshot.save(est.model)
     held = est._outlook.held_duty()
     first, second = snapshot.copy(saved), snapshot.copy(saved)
