@@ -76,7 +76,7 @@ def run(cfg, data, thermocouples=(), reading=None, watch=None, start=None):
         out = {'t': [], 'temps': [], 'sigma': [], 'error': {q: [] for q in WATCH}}
     else:
         k0, (est, out) = start[0], copy.deepcopy(start[1:])
-        out['error'] = {q: list(e) for q, e in out['error'].items()}
+        out['error'] = {q: list(e) for q, e in out['error'].items()}   # arrays when returned
         prev = (float(data[k0 - 1][0]['t_s'][-1]), data[k0 - 1][1])
     for k, (block, true, tc) in enumerate(data[k0:], start=k0):
         for name in est.inputs:

@@ -14,6 +14,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+import threading
 
 from node_probe import PATIENCE
 import pytest
@@ -54,18 +55,29 @@ def test_a_signal_stops_an_executor_whose_timer_is_always_due(kind, signum):
                ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
     proc = subprocess.Popen([sys.executable, '-c', CHILD, kind], cwd=ROOT, env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    lines = []
-    try:
-        # signalled after two overrunning callbacks: by then the timer is due again at once
+    lines, ticked = [], threading.Event()
+
+    def read():          # ticked: two overrunning callbacks ran, or the child's output ended
         for line in proc.stdout:
             lines.append(line)
-            if lines.count('tick\n') == 2:
-                proc.send_signal(signum)
-                break
+            if line == 'tick\n' and lines.count(line) == 2:
+                ticked.set()
+        ticked.set()
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    try:
+        # a deadline for a fact, never a pace: the child's rclpy start takes seconds when busy
+        assert ticked.wait(timeout=12.0 * PATIENCE), ''.join(lines)
+        # signalled after two overrunning callbacks: by then the timer is due again at once
+        proc.send_signal(signum)
         proc.wait(timeout=12.0 * PATIENCE)
     except subprocess.TimeoutExpired:
-        proc.kill()
         pytest.fail(f'the {kind} executor ignored signal {signum.name}')
-    text = ''.join(lines) + proc.stdout.read()
-    proc.stdout.close()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        reader.join(timeout=10.0)
+    text = ''.join(lines)
     assert proc.returncode == 0 and 'spinning' in text and 'stopped' in text, text
