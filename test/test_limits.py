@@ -5,6 +5,7 @@ import dataclasses
 import math
 import pickle
 
+import numpy as np
 import pytest
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.estimator.core import Estimator, INPUTS
@@ -292,3 +293,56 @@ def test_stopping_gives_up_the_waiting_ticks_then_says_stopped():
     st = session.status()
     assert st.limits is last and st.limits_published == len(live)
     assert st.limits_fallback == sum(lim.code != LimitStatus.OK for lim in live)
+
+
+def horizon_excess(est, horizon_s, current_A, steps):
+    """
+    Step every uncertainty copy on the held duty at ``current_A`` over ``horizon_s``.
+
+    Return each limited quantity's estimate plus k sigma at the horizon less its
+    limit (K), the sigma formed from the copies there as the estimator forms it
+    (the GUM sum over the copies, with the structural part): what the limit
+    promised, found without the limits' linearisation and without a figure per K
+    of rise carried from elsewhere.
+    """
+    prop, lim = est.propagation, est.cfg.estimator.limits
+    held = est._outlook.held_duty()
+    y = []
+    for m in prop.models:
+        c = snapshot.copy(snapshot.save(m))
+        c.hold_from(held.block(c.time_s, current_A))
+        for _ in range(steps):
+            dt = horizon_s / steps
+            c.step(held.block(c.time_s + dt, current_A), est.ambient_K, max_substep_s=dt)
+        out = c.outputs()
+        y.append([out[n] for n in prop.names])
+    y = np.array(y)
+    d = y[1:] - y[0]
+    rise = y[0] - est.ambient_K
+    sigma = np.sqrt(np.sum(d * d, axis=0) + (est.cfg.uncertainty.structural.rise_fraction
+                                             * rise) ** 2)
+    return {q: float(y[0][i] - C_TO_K + lim.k_sigma * sigma[i] - est.limits_C[q])
+            for i, q in enumerate(prop.names) if q in est.limits_C}
+
+
+def test_a_cold_start_limit_holds_with_the_sigma_its_horizon_will_have():
+    """
+    A cold start's 600 s limit, held for 600 s: the estimate plus k sigma stays at the limit.
+
+    In the first tens of seconds the copies all sit near ambient and know no sigma
+    per K of rise, while ten minutes at the limit raise the sigma to about 9 K. The
+    copies are stepped to the horizon at the limit (60 s steps) and no limited
+    quantity may end more than the 600 s linearisation's tolerance (3 K, as above)
+    past its limit. Measured at 7a4e4d1, without the cold start's figures: the
+    oil 8.2 K past at 38.8 A. With them: 34.7 A, the oil 9.1 K under, of which
+    the sigma per K of rise is 0.4 K (0.089 used, 0.096 at the horizon) and the
+    rest the linearisation of the cold, viscous oil, on the safe side.
+    """
+    est = Estimator(load_config(), outlook='inline')
+    feed(est, 0.0, 1.0)
+    limits = est._outlook.take_limits()[-1]
+    h = limits.names.index('600s')
+    amps, binds = limits.limits_A[h], limits.binds[h]
+    assert binds in est.limits_C and amps > est.cfg.motor.max_continuous_current_A
+    excess = horizon_excess(est, 600.0, amps, 10)
+    assert max(excess.values()) < 3.0, (binds, amps, excess)

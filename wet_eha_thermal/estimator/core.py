@@ -505,7 +505,7 @@ class Estimator:
             uncertainty = dict(zip(self.model.quantities.names, sigma.tolist()))
         if self.outlook_mode != 'off':
             self._outlook.tick(self.steps - m, self.steps, t1, self.ambient_K, temps,
-                               uncertainty, stale, self.propagation.relative()
+                               uncertainty, stale, self.propagation.relative
                                if self.propagation is not None else None)
         notices, self._intake.notices = self._intake.notices, []
         est = Estimate(

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import itertools
 import math
 import time
-from typing import Deque, Dict, Generator, List, Optional, Sequence, Tuple
+from typing import Callable, Deque, Dict, Generator, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -161,14 +161,16 @@ class Outlook:
     # ---------------------------------------------------------------- ticks
     def tick(self, steps_before: int, steps_after: int, stamp_s: float, ambient_K: float,
              now_C: Dict[str, float], sigma_K: Dict[str, float], stale: Sequence[str],
-             relative: Optional[Dict[str, float]] = None) -> None:
+             relative: Optional[Callable[[HeldDuty, float], Dict[str, float]]] = None) -> None:
         """
         Start the work of a tick if the step from ``steps_before`` to ``steps_after`` made one.
 
         ``stamp_s`` the step's end (sample time), ``now_C`` and ``sigma_K``
         its estimate and 1-sigma uncertainty, ``stale`` its stale inputs,
-        ``relative`` each quantity's 1 sigma per K of rise where the
-        propagated uncertainty knows it (:func:`~.limits.ceiling_K`).
+        ``relative`` gives each quantity's 1 sigma per K of rise for the
+        held duty and the ambient, where the propagated uncertainty knows it
+        (:meth:`~.uncertainty.Propagation.relative`, :func:`~.limits.ceiling_K`);
+        None: the constant sigma.
         Call it after the model's step and its correction: the tick's state
         is the model's as it stands.
         """
@@ -181,12 +183,13 @@ class Outlook:
         forecast_tick = tick % self.forecast_ticks == 0 or not self._forecast_tick_numbers
         # the state saved only for work that reads it (1 ms inside the estimator's step)
         saved = snapshot.save(self.model) if forecast_tick or not why else b''
+        per_rise = relative(held, ambient_K) if relative is not None and saved else {}
         if forecast_tick:
             # at every forecast tick and at the first tick of the run
             self._forecast_tick_numbers.append(tick)
             self._start_forecast(saved, stamp_s, ambient_K, now_C)
             target = ceiling_K(self.limits_C['winding_hotspot'], sigma_K['winding_hotspot'],
-                               self.lim.k_sigma, (relative or {}).get('winding_hotspot'),
+                               self.lim.k_sigma, per_rise.get('winding_hotspot'),
                                ambient_K)
             self._margin_jobs.append((tick, self._margin_steps(
                 saved, held.speed_rad_s, ambient_K, target)))
@@ -201,7 +204,7 @@ class Outlook:
             return
         steps = limit_steps(saved, self.model.state, self._probing, held, ambient_K, sigma_K,
                             self.limits_C, self.lim.k_sigma, self.lim.horizons_s,
-                            self.lim.period_s, self.cfg.motor.peak_current_A, relative,
+                            self.lim.period_s, self.cfg.motor.peak_current_A, per_rise,
                             self._guesses)
         delay = int(round(MARGIN_DELAY_S / self.lim.period_s))
         margin_tick = max((f for f in self._forecast_tick_numbers if f <= tick - delay),
