@@ -41,8 +41,9 @@ from ..config import Config
 from ..estimator.intake import sensor_inputs, sensor_signal
 from ..interface import (AMBIENT_TOPIC, INPUT_TOPICS, INPUT_TYPES, MEASURED_PREFIX,
                          PRESSURE_INPUTS, SENSOR, TEMPERATURE, THERMOCOUPLES)
+from ..model.duty import Duty
 from ..model.eha import EHAModel
-from ..model.kinetics import Duty, KineticModel, ThermalFeedback
+from ..model.kinetics import KineticModel, ThermalFeedback
 from ..units import C_TO_K
 
 #: Length of one kinetics block and one truth-model step (s).

@@ -18,8 +18,9 @@ import numpy as np
 
 from ..config import Config
 from ..interface import INPUTS
+from ..model.duty import Duty, DutyError
 from ..model.eha import EHAModel, SampleBlock
-from ..model.kinetics import Duty, DutyError, KineticModel, ThermalFeedback
+from ..model.kinetics import KineticModel, ThermalFeedback
 from ..units import C_TO_K, MPA, RPM_PER_RAD_S
 
 RUNAWAY_C = 300.0   # far past every limit (oil 135, insulation 180 degC): stop, do not extrapolate
@@ -62,11 +63,11 @@ class SensorTable:
     ``columns`` maps each of :data:`~..interface.INPUTS` to its values at ``time_s`` (SI
     units; ``position_m`` may be left out: the piston then stands still at
     mid-stroke). The signals are linear between the rows and repeat with the
-    period ``time_s[-1]``, as a :class:`~.model.kinetics.TableDuty` does; the
+    period ``time_s[-1]``, as a :class:`~.model.duty.TableDuty` does; the
     table's time 0 is the model time ``start_s``. :func:`simulate` feeds them
     to the thermal model as they are, without the kinetic model, so a run on
     them has no electrical energy or load work (NaN). Raises
-    :class:`~.model.kinetics.DutyError` for a table it cannot use.
+    :class:`~.model.duty.DutyError` for a table it cannot use.
     """
 
     def __init__(self, time_s, columns: Mapping[str, object], start_s: float = 0.0,

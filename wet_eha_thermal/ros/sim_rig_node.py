@@ -87,7 +87,7 @@ from wet_eha_thermal.interface import (AMBIENT_TOPIC, DIAGNOSTICS_TOPIC, DRIVE_L
                                        DriveLimits, INPUT_TOPICS, LimitStatus, MEASURED_PREFIX,
                                        NodeReport, prefixed, PRESSURE_INPUTS,
                                        READY_TOPIC, RIG_NODE, status_name, THERMOCOUPLES)
-from wet_eha_thermal.model.kinetics import DutyError, load_duty_csv, stage_duty, STAGES
+from wet_eha_thermal.model.duty import DutyError, load_duty_csv, stage_duty, STAGES
 from wet_eha_thermal.model.uncertainty import as_built
 from wet_eha_thermal.offline.simulated_rig import (AMBIENT_SIGMA_K, NOISE_SIGMA, SimulatedRig,
                                                    THERMOCOUPLE_SIGMA_K)
