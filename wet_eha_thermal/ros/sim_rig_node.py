@@ -219,7 +219,19 @@ class SimRigNode(Node):
         self.start_timeout_s = p['start_timeout_s']
         self.ready_nodes: Dict[str, dict] = {}      # node name -> its ready message
         self.started_after_s: Optional[float] = None
-        # publishers
+        self._make_publishers(p)
+        if p['honour_limit']:
+            self._follow_limits(p)
+        self._reset_schedule()
+        self.create_timer(self.period_s, self._tick)
+        self.create_timer(1.0, self._publish_ambient)
+        self.create_timer(1.0 / p['thermocouple_rate_Hz'], self._publish_thermocouples)
+        self.create_timer(1.0, self._publish_diagnostics)
+        self.get_logger().info(self._start_text(p, duty.name if p['duty_file'] else
+                                                f'stage {p["stage"]}'))
+
+    def _make_publishers(self, p: Dict[str, object]) -> None:
+        """Make the publishers of the inputs, ambient, thermocouples, diagnostics and readiness."""
         prefix = p['topic_prefix']
         # a second of samples: a reliable reader that stalls catches up instead of losing them
         q = input_qos(p['qos'], depth=max(10, int(round(1.0 / self.period_s))))
@@ -242,13 +254,19 @@ class SimRigNode(Node):
         self.ready_topic = prefixed(READY_TOPIC, prefix)
         self.ready_pub = self.create_publisher(String, self.ready_topic, latched_qos())
         self.create_subscription(String, self.ready_topic, self._on_ready, latched_qos())
-        if p['honour_limit']:
-            # by default the conservative value the estimator falls back to: one number
-            self.drive = DriveLimit(p['limit_watchdog_s'], p['limit_fallback_A']
-                                    or self.cfg.estimator.limits.fallback_current_A)
-            # best effort: the watchdog, not the transport, deals with a lost limit
-            self.create_subscription(Float64MultiArray, prefixed(DRIVE_LIMITS_TOPIC, prefix),
-                                     self.drive.take, qos_profile_sensor_data)
+
+    def _follow_limits(self, p: Dict[str, object]) -> None:
+        """Make the drive honour the current limits the estimator publishes."""
+        # by default the conservative value the estimator falls back to: one number
+        self.drive = DriveLimit(p['limit_watchdog_s'], p['limit_fallback_A']
+                                or self.cfg.estimator.limits.fallback_current_A)
+        # best effort: the watchdog, not the transport, deals with a lost limit
+        self.create_subscription(Float64MultiArray,
+                                 prefixed(DRIVE_LIMITS_TOPIC, p['topic_prefix']),
+                                 self.drive.take, qos_profile_sensor_data)
+
+    def _reset_schedule(self) -> None:
+        """Set the schedule before the first sample and the publishing statistics to zero."""
         # schedule: sample k (1, 2, ...) has duty time k * period and is due at t0 + k * period
         self.t0_ns: Optional[int] = None
         self.last_now_ns = 0
@@ -268,15 +286,14 @@ class SimRigNode(Node):
         self.started_wall = time.monotonic()
         self.started_cpu = time.process_time()
         self._diag_mark = (self.started_wall, self.started_cpu)
-        self.create_timer(self.period_s, self._tick)
-        self.create_timer(1.0, self._publish_ambient)
-        self.create_timer(1.0 / p['thermocouple_rate_Hz'], self._publish_thermocouples)
-        self.create_timer(1.0, self._publish_diagnostics)
-        what = duty.name if p['duty_file'] else f'stage {p["stage"]}'
-        self.get_logger().info(
+
+    def _start_text(self, p: Dict[str, object], what: str) -> str:
+        """Return the log line that says what the rig runs, how, and against which truth."""
+        return (
             f'rig: {what} at {1.0 / self.period_s:g} Hz ({self.n_block} samples per '
             f'{self.rig.block_s * 1e3:g} ms block), noise {"on" if self.noise else "off"}, '
-            f'ambient {p["ambient_C"]:g} degC, qos {p["qos"]}, topics under {prefix}; '
+            f'ambient {p["ambient_C"]:g} degC, qos {p["qos"]}, topics under '
+            f'{p["topic_prefix"]}; '
             + (f'the truth is a rig as built (draw {self.as_built_seed} of the configured '
                'uncertainty)' if self.truth_cfg is not self.cfg else
                'the truth is the configuration itself')
