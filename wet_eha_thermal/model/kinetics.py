@@ -243,38 +243,13 @@ class KineticModel:
         port_a = p_a + dpl
         port_b = p_b - dpl
         dpp = port_a - port_b
-        p_high = np.maximum(port_a, port_b)
-        # viscosity at the mean pressure of each gap: port to port, high port to case
-        p_gap = np.empty(2 * n)
-        np.add(port_a, port_b, out=p_gap[:n])
-        np.add(p_high, self.p_case, out=p_gap[n:])
-        p_gap *= 0.5
-        rho = self.oil.density(fb.pump_oil_K, p_gap, self.log)
-        mu = self.oil.kinematic_viscosity(fb.pump_oil_K, p_gap, self.log) * rho
-        mu_ports = mu[:n]
-        q_int, re_int = gap_leakage(self._c_int, dpp, mu_ports, rho[:n], *self._gap)
-        q_ext, re_ext = gap_leakage(self._c_ext, p_high - self.p_case, mu[n:], rho[n:],
-                                    *self._gap)
-        check_gap_leakage(self.log, re_int)
-        check_gap_leakage(self.log, re_ext)
-        np.maximum(q_ext, 0.0, out=q_ext)
+        q_int, q_ext, mu_ports = self._leakage(port_a, port_b, dpp, fb.pump_oil_K)
         # D w = Q + Q_int + s Q_ext, s = +1 when port A is the high port (docstring)
         w = q + q_int
         w += np.where(dpp >= 0.0, q_ext, -q_ext)
         w /= self.d_rad
-        sw = np.sign(w)
         aw = np.abs(w)
-        t_fric = pump_friction_torque(w, dpp, mu_ports, self.d_rad, self._c_v, self._c_f,
-                                      self._t_c)
-        t_fric *= sw
-        torque = self.d_rad * dpp
-        torque += t_fric
-        if fb.drag_W is no_loss:
-            t_drag = np.zeros(n)
-        else:
-            t_drag = sw * np.asarray(fb.drag_W(aw), dtype=float)
-            t_drag /= np.maximum(aw, SPEED_EPS_RAD_S)
-            torque += t_drag
+        torque, t_fric, t_drag = self._shaft_torque(w, aw, dpp, mu_ports, fb)
         current = np.abs(torque)
         current /= self._k_t
         copper = current * current
@@ -294,6 +269,56 @@ class KineticModel:
             port_a_Pa=port_a, port_b_Pa=port_b, q_internal_m3_s=q_int, q_external_m3_s=q_ext,
             torque_Nm=torque, electrical_power_W=electrical, copper_W=copper,
             electromagnetic_W=em, pump_friction_W=t_fric * w, drag_W=t_drag * w)
+
+    def _leakage(self, port_a: np.ndarray, port_b: np.ndarray, dpp: np.ndarray,
+                 pump_oil_K: float) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """
+        Return the internal and external leakage (m^3/s) and the viscosity between the ports.
+
+        Internal: port A -> B, signed; external: high port -> case, >= 0. Oil
+        properties at the pump oil temperature and each gap's mean pressure
+        (class docstring).
+        """
+        n = dpp.size
+        p_high = np.maximum(port_a, port_b)
+        # viscosity at the mean pressure of each gap: port to port, high port to case
+        p_gap = np.empty(2 * n)
+        np.add(port_a, port_b, out=p_gap[:n])
+        np.add(p_high, self.p_case, out=p_gap[n:])
+        p_gap *= 0.5
+        rho = self.oil.density(pump_oil_K, p_gap, self.log)
+        mu = self.oil.kinematic_viscosity(pump_oil_K, p_gap, self.log) * rho
+        mu_ports = mu[:n]
+        q_int, re_int = gap_leakage(self._c_int, dpp, mu_ports, rho[:n], *self._gap)
+        q_ext, re_ext = gap_leakage(self._c_ext, p_high - self.p_case, mu[n:], rho[n:],
+                                    *self._gap)
+        check_gap_leakage(self.log, re_int)
+        check_gap_leakage(self.log, re_ext)
+        np.maximum(q_ext, 0.0, out=q_ext)
+        return q_int, q_ext, mu_ports
+
+    def _shaft_torque(self, w: np.ndarray, aw: np.ndarray, dpp: np.ndarray,
+                      mu_ports: np.ndarray, fb: ThermalFeedback
+                      ) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """
+        Return the shaft torque (N m) at speed ``w`` (|w|: ``aw``), with its friction parts.
+
+        ``(torque, pump friction, drag)``: T = D dp' + sgn(w) T_f + sgn(w) P_drag / |w|
+        (class docstring); the drag is zero when the feedback has none.
+        """
+        sw = np.sign(w)
+        t_fric = pump_friction_torque(w, dpp, mu_ports, self.d_rad, self._c_v, self._c_f,
+                                      self._t_c)
+        t_fric *= sw
+        torque = self.d_rad * dpp
+        torque += t_fric
+        if fb.drag_W is no_loss:
+            t_drag = np.zeros(w.size)
+        else:
+            t_drag = sw * np.asarray(fb.drag_W(aw), dtype=float)
+            t_drag /= np.maximum(aw, SPEED_EPS_RAD_S)
+            torque += t_drag
+        return torque, t_fric, t_drag
 
     def sample_limited(self, duty: Duty, t_s: np.ndarray, fb: ThermalFeedback,
                        limit_A: float) -> Tuple[Samples, np.ndarray]:
