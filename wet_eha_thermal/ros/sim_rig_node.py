@@ -31,7 +31,8 @@ estimator's current limits as a real drive would, numbers at fixed places
 carries at most the binding one where the duty asks for more (the load yields:
 :meth:`~wet_eha_thermal.model.kinetics.KineticModel.sample_limited`); the
 truth model heats with what the drive carried. Its watchdog, as a drive's
-should be: a limit whose stamp (the sample time it belongs to) is older than
+should be (:class:`~wet_eha_thermal.offline.simulated_rig.DriveLimit`): a
+limit whose stamp (the sample time it belongs to) is older than
 ``limit_watchdog_s`` by the rig's clock, or none yet, gives way to
 ``limit_fallback_A``; a limit whose status code is not OK (the estimator's
 fallback) is applied, never above ``limit_fallback_A``. The limit is taken
@@ -72,7 +73,7 @@ import json
 import math
 import sys
 import time
-from typing import Dict, List, Optional, Tuple
+from typing import Dict, List, Optional
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 import numpy as np
@@ -84,13 +85,13 @@ from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64, Float64MultiArray, String
 from wet_eha_thermal.config import ConfigError, load_config
 from wet_eha_thermal.interface import (AMBIENT_TOPIC, DIAGNOSTICS_TOPIC, DRIVE_LIMITS_TOPIC,
-                                       DriveLimits, INPUT_TOPICS, LimitStatus, MEASURED_PREFIX,
-                                       NodeReport, prefixed, PRESSURE_INPUTS,
-                                       READY_TOPIC, RIG_NODE, status_name, THERMOCOUPLES)
+                                       INPUT_TOPICS, MEASURED_PREFIX, NodeReport, prefixed,
+                                       PRESSURE_INPUTS, READY_TOPIC, RIG_NODE, status_name,
+                                       THERMOCOUPLES)
 from wet_eha_thermal.model.duty import DutyError, load_duty_csv, stage_duty, STAGES
 from wet_eha_thermal.model.uncertainty import as_built
-from wet_eha_thermal.offline.simulated_rig import (AMBIENT_SIGMA_K, NOISE_SIGMA, SimulatedRig,
-                                                   THERMOCOUPLE_SIGMA_K)
+from wet_eha_thermal.offline.simulated_rig import (AMBIENT_SIGMA_K, DriveLimit, NOISE_SIGMA,
+                                                   SimulatedRig, THERMOCOUPLE_SIGMA_K)
 from wet_eha_thermal.ros.runtime import (declare_parameters, descriptor, prepare_model_step,
                                          run_node, shared_parameters)
 from wet_eha_thermal.ros.topics import input_qos, latched_qos, publish_inputs, time_msg
@@ -124,62 +125,6 @@ class _Ring:
     def percentiles(self, qs) -> List[float]:
         v = self.values()
         return [float(x) for x in np.percentile(v, qs)] if v.size else [math.nan] * len(qs)
-
-
-class DriveLimit:
-    """
-    The current limit the simulated drive applies: the estimator's, or its own fallback.
-
-    :meth:`take` keeps the binding limit of the last limits message (the
-    ``data`` of a Float64MultiArray, :class:`~wet_eha_thermal.interface.DriveLimits`).
-    :meth:`applied` says what the drive carries at most now: that limit
-    while its stamp is at most ``watchdog_s`` old, else (or before any)
-    ``fallback_A``; one whose status code is not OK is applied up to
-    ``fallback_A`` only.
-    """
-
-    def __init__(self, watchdog_s: float, fallback_A: float) -> None:
-        self.watchdog_s = watchdog_s
-        self.fallback_A = fallback_A
-        self.value_A: Optional[float] = None        # the last message's binding limit
-        self.stamp_ns = 0
-        self.status = LimitStatus.OK                # the last message's status code
-        self.received = 0
-        self.rejected = 0
-        self.missed = 0                             # gaps in the sequence
-        self.sequence = 0
-
-    def take(self, msg: Float64MultiArray) -> None:
-        """
-        Take one limits message; a malformed one is counted and left to the watchdog.
-
-        Malformed: not the layout (version, count), or a limit NaN or negative
-        (+inf is no limit within that horizon).
-        """
-        try:
-            limits = DriveLimits.from_data(msg.data)
-        except ValueError:
-            self.rejected += 1
-            return
-        self.received += 1
-        if limits.sequence > self.sequence + 1 and self.sequence:
-            self.missed += limits.sequence - self.sequence - 1
-        self.sequence = limits.sequence
-        self.value_A = limits.binding_A
-        self.stamp_ns = limits.stamp_ns
-        self.status = limits.status
-
-    def applied(self, now_ns: int) -> Tuple[float, str]:
-        """Return the limit to carry at ``now_ns`` (the rig's clock, ns) and whose it is."""
-        if self.value_A is None:
-            return self.fallback_A, 'fallback: no limit yet'
-        age_s = (now_ns - self.stamp_ns) * 1e-9
-        if age_s > self.watchdog_s:
-            return self.fallback_A, f'fallback: the last limit is {age_s:.1f} s old'
-        if self.status != LimitStatus.OK:
-            return min(self.value_A, self.fallback_A), \
-                f'estimator fallback: {self.status.name.lower()}'
-        return self.value_A, 'estimator'
 
 
 class SimRigNode(Node):
@@ -263,7 +208,7 @@ class SimRigNode(Node):
         # best effort: the watchdog, not the transport, deals with a lost limit
         self.create_subscription(Float64MultiArray,
                                  prefixed(DRIVE_LIMITS_TOPIC, p['topic_prefix']),
-                                 self.drive.take, qos_profile_sensor_data)
+                                 lambda msg: self.drive.take(msg.data), qos_profile_sensor_data)
 
     def _reset_schedule(self) -> None:
         """Set the schedule before the first sample and the publishing statistics to zero."""
