@@ -48,7 +48,7 @@ def write_log(job: tuple) -> str:
     import yaml
     from wet_eha_thermal import interface
     from wet_eha_thermal.config import default_config_path, load_config, with_values
-    from wet_eha_thermal.model.kinetics import stage_duty
+    from wet_eha_thermal.model.duty import stage_duty
     from wet_eha_thermal.offline.simulated_rig import SimulatedRig, write_rig_bag
 
     path, stage, minutes = job

@@ -88,11 +88,12 @@ from wet_eha_thermal import interface
 from wet_eha_thermal.config import default_config_path, load_config
 from wet_eha_thermal.estimator.intake import sensor_inputs, sensor_signal
 from wet_eha_thermal.inputs import encode_batch, SI_UNIT
-from wet_eha_thermal.live_view import CHANNELS
-from wet_eha_thermal.model.kinetics import KineticModel, stage_duty, ThermalFeedback
+from wet_eha_thermal.model.duty import stage_duty
+from wet_eha_thermal.model.kinetics import KineticModel, ThermalFeedback
 from wet_eha_thermal.model.oil import get_oil
 from wet_eha_thermal.ros import topics
 from wet_eha_thermal.ros.runtime import make_executor
+from wet_eha_thermal.view_channels import CHANNELS
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]

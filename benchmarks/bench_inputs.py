@@ -30,7 +30,8 @@ from wet_eha_thermal.estimator.intake import sensor_inputs, sensor_signal
 from wet_eha_thermal.estimator.session import EstimatorSession
 from wet_eha_thermal.inputs import (BATCH, decoders, encode_batch, FLUID_PRESSURE, Inputs,
                                     InputSignal, SI_UNIT)
-from wet_eha_thermal.model.kinetics import KineticModel, stage_duty, ThermalFeedback
+from wet_eha_thermal.model.duty import stage_duty
+from wet_eha_thermal.model.kinetics import KineticModel, ThermalFeedback
 from wet_eha_thermal.model.oil import get_oil
 from wet_eha_thermal.model.warmup import compile_model
 

@@ -79,7 +79,7 @@ def run_phase(phase: str, path: Path) -> None:
 def write_log(path: Path, minutes: float) -> None:
     """Write ``minutes`` of the simulated rig on stage 6 to ``path``, with progress."""
     from wet_eha_thermal.config import load_config
-    from wet_eha_thermal.model.kinetics import stage_duty
+    from wet_eha_thermal.model.duty import stage_duty
     from wet_eha_thermal.offline.simulated_rig import SimulatedRig, write_rig_bag
 
     cfg = load_config(overrides={'estimator.pressure_inputs': 'differential'})

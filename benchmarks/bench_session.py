@@ -36,7 +36,8 @@ from wet_eha_thermal.estimator.intake import sensor_inputs, sensor_signal
 from wet_eha_thermal.estimator.session import EstimatorSession
 from wet_eha_thermal.estimator.warmup import compile_estimator
 from wet_eha_thermal.inputs import decoders, FLUID_PRESSURE, Inputs, InputSignal, SI_UNIT
-from wet_eha_thermal.model.kinetics import KineticModel, stage_duty, ThermalFeedback
+from wet_eha_thermal.model.duty import stage_duty
+from wet_eha_thermal.model.kinetics import KineticModel, ThermalFeedback
 from wet_eha_thermal.model.oil import get_oil
 
 #: (class, method, what it is), timed while measuring

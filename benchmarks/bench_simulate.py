@@ -19,7 +19,7 @@ import time
 import numpy as np
 
 from wet_eha_thermal.config import load_config
-from wet_eha_thermal.model.kinetics import stage_duty
+from wet_eha_thermal.model.duty import stage_duty
 from wet_eha_thermal.offline.simulation import simulate
 from wet_eha_thermal.units import C_TO_K
 

@@ -49,7 +49,8 @@ from wet_eha_thermal.config import load_config, with_values
 from wet_eha_thermal.estimator.core import Estimator
 from wet_eha_thermal.estimator.intake import sensor_inputs, sensor_signal
 from wet_eha_thermal.interface import THERMOCOUPLES
-from wet_eha_thermal.model.kinetics import KineticModel, stage_duty, ThermalFeedback
+from wet_eha_thermal.model.duty import stage_duty
+from wet_eha_thermal.model.kinetics import KineticModel, ThermalFeedback
 from wet_eha_thermal.model.oil import get_oil
 from wet_eha_thermal.offline.simulated_rig import NOISE_SIGMA
 from wet_eha_thermal.units import C_TO_K

@@ -23,7 +23,7 @@ import time
 
 from wet_eha_thermal import calibration as cb
 from wet_eha_thermal.config import load_config, with_values
-from wet_eha_thermal.model.kinetics import stage_duty, TableDuty
+from wet_eha_thermal.model.duty import stage_duty, TableDuty
 from wet_eha_thermal.offline.simulated_rig import SimulatedRig
 from wet_eha_thermal.units import L_MIN
 

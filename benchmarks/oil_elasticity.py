@@ -31,8 +31,8 @@ import math
 
 import numpy as np
 from wet_eha_thermal.config import load_config
+from wet_eha_thermal.model.duty import STAGES
 from wet_eha_thermal.model.fluid_power import gap_leakage
-from wet_eha_thermal.model.kinetics import STAGES
 from wet_eha_thermal.model.oil import get_oil
 from wet_eha_thermal.units import C_TO_K
 

@@ -40,7 +40,7 @@ import numpy as np
 from wet_eha_thermal import calibration as cb
 from wet_eha_thermal.config import load_config, with_values
 from wet_eha_thermal.estimator.core import Estimator
-from wet_eha_thermal.model.kinetics import stage_duty
+from wet_eha_thermal.model.duty import stage_duty
 from wet_eha_thermal.offline.simulated_rig import SimulatedRig
 from wet_eha_thermal.units import C_TO_K
 

@@ -9,7 +9,7 @@ import rclpy
 from rclpy.context import Context
 from wet_eha_thermal import interface
 from wet_eha_thermal.config import default_config_path, load_config
-from wet_eha_thermal.model.kinetics import stage_duty
+from wet_eha_thermal.model.duty import stage_duty
 from wet_eha_thermal.model.warmup import compile_model
 from wet_eha_thermal.offline.simulated_rig import SimulatedRig, write_rig_bag
 import yaml

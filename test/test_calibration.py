@@ -27,7 +27,7 @@ from wet_eha_thermal.cli import main
 from wet_eha_thermal.config import (config_from_yaml, ConfigError, default_config_path,
                                     load_config, with_values)
 from wet_eha_thermal.estimator.session import EstimatorSession
-from wet_eha_thermal.model.kinetics import stage_duty
+from wet_eha_thermal.model.duty import stage_duty
 from wet_eha_thermal.offline import replay as rp
 from wet_eha_thermal.offline.simulated_rig import SimulatedRig
 import yaml

@@ -5,7 +5,7 @@ from pathlib import Path
 import pytest
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.estimator.session import EstimatorSession
-from wet_eha_thermal.model.kinetics import load_duty_csv
+from wet_eha_thermal.model.duty import load_duty_csv
 from wet_eha_thermal.model.uncertainty import as_built
 from wet_eha_thermal.offline.simulated_rig import SimulatedRig
 from wet_eha_thermal.units import C_TO_K

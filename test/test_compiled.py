@@ -16,7 +16,7 @@ RUN = """
 import json, sys
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.model import compiled
-from wet_eha_thermal.model.kinetics import stage_duty
+from wet_eha_thermal.model.duty import stage_duty
 from wet_eha_thermal.offline.simulation import simulate
 cfg = load_config()
 r = simulate(cfg, stage_duty(cfg, 6), 60.0, record_every_s=60.0)

@@ -22,7 +22,7 @@ from wet_eha_thermal.config import (config_from_yaml, ConfigError, default_confi
                                     load_config, with_values)
 from wet_eha_thermal.estimator.correction import ThermalCorrection
 from wet_eha_thermal.estimator.session import EstimatorSession
-from wet_eha_thermal.model.kinetics import stage_duty
+from wet_eha_thermal.model.duty import stage_duty
 from wet_eha_thermal.offline.simulated_rig import feedback, SimulatedRig
 from wet_eha_thermal.units import C_TO_K
 import yaml

@@ -2,8 +2,8 @@
 
 import numpy as np
 import pytest
+from wet_eha_thermal.model.duty import SinusoidalDuty, Stage, stage_duty, TableDuty
 from wet_eha_thermal.model.hydraulics import HydraulicCircuit, LINKS, OIL_NODES, StepFlows
-from wet_eha_thermal.model.kinetics import SinusoidalDuty, Stage, stage_duty, TableDuty
 from wet_eha_thermal.model.oil import get_oil, isenthalpic_throttle_temperature_rise
 from wet_eha_thermal.offline.simulation import RUNAWAY_C, simulate, ThermalRunaway
 from wet_eha_thermal.units import C_TO_K

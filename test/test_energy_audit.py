@@ -13,7 +13,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'benchmarks'))
 from audit_energy import audit, periodic_duty  # noqa: E402 (the benchmark's audit, reused)
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
-from wet_eha_thermal.model.kinetics import stage_duty  # noqa: E402
+from wet_eha_thermal.model.duty import stage_duty  # noqa: E402
 from wet_eha_thermal.offline.simulation import simulate  # noqa: E402
 
 pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci

@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.estimator.core import Estimator, INPUTS
+from wet_eha_thermal.model.duty import stage_duty
 from wet_eha_thermal.model.eha import EHAModel
-from wet_eha_thermal.model.kinetics import KineticModel, stage_duty, ThermalFeedback
+from wet_eha_thermal.model.kinetics import KineticModel, ThermalFeedback
 from wet_eha_thermal.offline.simulation import feedback, simulate
 from wet_eha_thermal.units import C_TO_K
 

@@ -33,10 +33,10 @@ from test_foxglove_view import Client
 from wet_eha_thermal import interface
 from wet_eha_thermal.config import default_config_path
 from wet_eha_thermal.inputs import AMBIENT, decoders, load_inputs, thermocouple_channel
-from wet_eha_thermal.live_view import CHANNELS, view_topics
 from wet_eha_thermal.ros import topics
 from wet_eha_thermal.ros.estimator_node import EstimatorNode
 from wet_eha_thermal.units import C_TO_K
+from wet_eha_thermal.view_channels import CHANNELS, view_topics
 import yaml
 
 pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci

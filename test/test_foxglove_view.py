@@ -24,13 +24,14 @@ from wet_eha_thermal.cli import main as cli_main
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.estimator.session import EstimatorSession
 from wet_eha_thermal.layouts import layout_for, where_to_get
-from wet_eha_thermal.live_view import (address_text, app_url, BAND_SIGMAS, CHANNELS, LiveView,
-                                       parse_address, PENDING_ESTIMATES, view_topics)
+from wet_eha_thermal.live_view import (address_text, app_url, LiveView, parse_address,
+                                       PENDING_ESTIMATES)
 from wet_eha_thermal.model.quantity_table import LIMITED
 from wet_eha_thermal.offline.whatif import model_outputs, parse_request
 from wet_eha_thermal.offline.whatif_worker import run_request
 from wet_eha_thermal.ros.recorder_node import recorded_topics
 from wet_eha_thermal.ros.topics import message_class
+from wet_eha_thermal.view_channels import BAND_SIGMAS, CHANNELS, view_topics
 
 pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
 

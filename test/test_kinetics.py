@@ -5,10 +5,10 @@ import warnings
 import numpy as np
 import pytest
 from scipy.integrate import cumulative_trapezoid
+from wet_eha_thermal.model.duty import (DutyError, load_duty_csv, SinusoidalDuty, Stage,
+                                        stage_duty, STAGES, TableDuty)
 from wet_eha_thermal.model.fluid_power import line_pressure_drop
-from wet_eha_thermal.model.kinetics import (DutyError, KineticModel, load_duty_csv,
-                                            SinusoidalDuty, Stage, stage_duty, STAGES, T40_K,
-                                            TableDuty, ThermalFeedback)
+from wet_eha_thermal.model.kinetics import KineticModel, T40_K, ThermalFeedback
 from wet_eha_thermal.model.losses import copper_resistance
 from wet_eha_thermal.model.oil import get_oil
 from wet_eha_thermal.units import L_MIN, MPA, RPM

@@ -5,8 +5,9 @@ import dataclasses
 import numpy as np
 import pytest
 
+from wet_eha_thermal.model.duty import stage_duty
 from wet_eha_thermal.model.fluid_power import check_gap_leakage, GAP_LAMINAR_RE, gap_leakage
-from wet_eha_thermal.model.kinetics import KineticModel, stage_duty, ThermalFeedback
+from wet_eha_thermal.model.kinetics import KineticModel, ThermalFeedback
 from wet_eha_thermal.model.oil import get_oil
 from wet_eha_thermal.model.validity import ValidityLog
 from wet_eha_thermal.units import C_TO_K

@@ -12,7 +12,7 @@ import csv
 import pytest
 
 from wet_eha_thermal.config import ConfigError, default_config_path, load_config
-from wet_eha_thermal.model.kinetics import stage_duty
+from wet_eha_thermal.model.duty import stage_duty
 from wet_eha_thermal.model.motor import MotorInputs, WetMotor
 from wet_eha_thermal.model.oil import get_oil
 from wet_eha_thermal.model.validity import ValidityLog

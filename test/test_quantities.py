@@ -8,8 +8,8 @@ from wet_eha_thermal import interface
 from wet_eha_thermal.config import load_config, Thermocouples
 from wet_eha_thermal.estimator.correction import ThermalCorrection
 from wet_eha_thermal.estimator.kalman import output_variances
+from wet_eha_thermal.model.duty import stage_duty
 from wet_eha_thermal.model.hydraulics import NODES
-from wet_eha_thermal.model.kinetics import stage_duty
 from wet_eha_thermal.model.quantities import MAX, MEAN, PEAK, PORT, Quantity, QuantityMap, STATE
 from wet_eha_thermal.offline.simulation import simulate
 

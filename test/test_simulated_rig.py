@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 from wet_eha_thermal.config import load_config
-from wet_eha_thermal.model.kinetics import stage_duty
+from wet_eha_thermal.model.duty import stage_duty
 from wet_eha_thermal.offline.simulated_rig import SimulatedRig
 from wet_eha_thermal.units import C_TO_K
 

@@ -24,7 +24,8 @@ from wet_eha_thermal.config import load_config
 from wet_eha_thermal.estimator.session import EstimatorSession
 from wet_eha_thermal.estimator.intake import sensor_signal
 from wet_eha_thermal.estimator.warmup import compile_estimator
-from wet_eha_thermal.model.kinetics import KineticModel, stage_duty, ThermalFeedback
+from wet_eha_thermal.model.duty import stage_duty
+from wet_eha_thermal.model.kinetics import KineticModel, ThermalFeedback
 from wet_eha_thermal.model.oil import get_oil
 
 

@@ -15,8 +15,8 @@ from wet_eha_thermal import interface
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.estimator.session import EstimatorSession
 from wet_eha_thermal.interface import INPUTS
+from wet_eha_thermal.model.duty import stage_duty, TableDuty
 from wet_eha_thermal.model.eha import EHAModel, SampleBlock
-from wet_eha_thermal.model.kinetics import stage_duty, TableDuty
 from wet_eha_thermal.offline.simulation import SensorTable, simulate
 from wet_eha_thermal.offline.whatif import (MAX_DURATION_S, model_outputs, parse_request,
                                             RequestError, what_if)

@@ -15,7 +15,7 @@ import dataclasses
 from pathlib import Path
 import sys
 import typing
-from typing import Any, List, Optional
+from typing import Any, List, Mapping, Optional
 
 from .config import Config, config_dir, ConfigError, load_config, range_text
 from .config_spec import choices_of
@@ -147,6 +147,46 @@ def _optional(f: dataclasses.Field) -> bool:
     return f.default is not dataclasses.MISSING or f.default_factory is not dataclasses.MISSING
 
 
+def _alike_sections(cls: type, group: type, key: str, values: List[Any], names: List[str],
+                    out: List[str]) -> None:
+    """
+    Append a section of alike subsections (one per input, per thermocouple, all ``group``).
+
+    What each one is, their keys once, then the values of each file in ``names``.
+    """
+    members = [f.name for f in dataclasses.fields(cls)]
+    out += [f'Each of these keys is a section `{group.__name__}`:', '', '| key | meaning |',
+            '| --- | --- |']
+    out += [f'| `{f.name}` | {_meaning(f)} |' for f in dataclasses.fields(cls)]
+    out += ['', _summary(group), '']
+    out += _header([])
+    hints = typing.get_type_hints(group)
+    out += [_row(f, hints[f.name], []) for f in dataclasses.fields(group)]
+    fields = [f.name for f in dataclasses.fields(group)]
+    for name, value in zip(names, values):
+        if value is None:
+            continue
+        out += ['', f'In {name}:', '', '| `' + key + '` | ' + ' | '.join(
+            f'`{f}`' for f in fields) + ' |', '| --- ' * (1 + len(fields)) + '|']
+        out += [f'| `{m}` | ' + ' | '.join(_value_text(getattr(getattr(value, m), f))
+                                           for f in fields) + ' |' for m in members]
+
+
+def _mapping_table(key: str, name: str, entries: Mapping[str, Any]) -> List[str]:
+    """Return the table of a mapping in the file ``name`` (of sections: a column per field)."""
+    item = next(iter(entries.values()))
+    if not dataclasses.is_dataclass(item):
+        return (['', f'`{key}` in {name}:', '', '| key | value |', '| --- | --- |']
+                + [f'| `{k}` | {_value_text(v)} |' for k, v in entries.items()])
+    cols = [g.name for g in dataclasses.fields(item)]
+    return (['', f'`{key}` in {name} (each a section `{type(item).__name__}`: '
+             + '; '.join(f'`{g.name}`: {_meaning(g)}' for g in dataclasses.fields(item)) + '):',
+             '', '| key | ' + ' | '.join(f'`{c}`' for c in cols) + ' |',
+             '| --- ' * (1 + len(cols)) + '|']
+            + [f'| `{k}` | ' + ' | '.join(_value_text(getattr(v, c)) for c in cols) + ' |'
+               for k, v in entries.items()])
+
+
 def _section(cls: type, key: str, values: List[Any], names: List[str], optional: bool,
              out: List[str]) -> None:
     """Append the table of one section and, after it, those of its subsections."""
@@ -155,24 +195,7 @@ def _section(cls: type, key: str, values: List[Any], names: List[str], optional:
             _summary(cls), '']
     group = _group_of(cls)
     if group is not None:
-        # alike subsections (one per input, per thermocouple): what each one is, their keys
-        # once, then the values
-        members = [f.name for f in dataclasses.fields(cls)]
-        out += [f'Each of these keys is a section `{group.__name__}`:', '', '| key | meaning |',
-                '| --- | --- |']
-        out += [f'| `{f.name}` | {_meaning(f)} |' for f in dataclasses.fields(cls)]
-        out += ['', _summary(group), '']
-        out += _header([])
-        hints = typing.get_type_hints(group)
-        out += [_row(f, hints[f.name], []) for f in dataclasses.fields(group)]
-        fields = [f.name for f in dataclasses.fields(group)]
-        for name, value in zip(names, values):
-            if value is None:
-                continue
-            out += ['', f'In {name}:', '', '| `' + key + '` | ' + ' | '.join(
-                f'`{f}`' for f in fields) + ' |', '| --- ' * (1 + len(fields)) + '|']
-            out += [f'| `{m}` | ' + ' | '.join(_value_text(getattr(getattr(value, m), f))
-                                               for f in fields) + ' |' for m in members]
+        _alike_sections(cls, group, key, values, names, out)
         return
     out += _header(names)
     hints = typing.get_type_hints(cls)
@@ -196,20 +219,7 @@ def _section(cls: type, key: str, values: List[Any], names: List[str], optional:
         out.append(_row(f, tp, cells))
     for kind, sub_key, sub_values, sub_optional in later:
         if kind is dict:
-            name, entries = sub_values
-            item = next(iter(entries.values()))
-            if dataclasses.is_dataclass(item):      # a mapping of sections: one column each
-                cols = [g.name for g in dataclasses.fields(item)]
-                out += ['', f'`{sub_key}` in {name} (each a section `{type(item).__name__}`: '
-                        + '; '.join(f'`{g.name}`: {_meaning(g)}'
-                                    for g in dataclasses.fields(item)) + '):', '',
-                        '| key | ' + ' | '.join(f'`{c}`' for c in cols) + ' |',
-                        '| --- ' * (1 + len(cols)) + '|']
-                out += [f'| `{k}` | ' + ' | '.join(_value_text(getattr(v, c)) for c in cols)
-                        + ' |' for k, v in entries.items()]
-                continue
-            out += ['', f'`{sub_key}` in {name}:', '', '| key | value |', '| --- | --- |']
-            out += [f'| `{k}` | {_value_text(v)} |' for k, v in entries.items()]
+            out += _mapping_table(sub_key, *sub_values)
         else:
             _section(kind, sub_key, sub_values, names, sub_optional, out)
 

@@ -185,6 +185,29 @@ def check_sim_rig_feeds(a: Actuator) -> None:
         "actuator's inputs_file empty")
 
 
+def _check_namespaces_and_ports(actuators: Sequence[Actuator],
+                                foxglove_port: Optional[int]) -> None:
+    """Raise ValueError when two actuators share a namespace or their views leave 1..65535."""
+    seen: Dict[str, int] = {}
+    for i, a in enumerate(actuators):
+        if a.namespace in seen:
+            raise ValueError(f'actuators {seen[a.namespace]} and {i} share the namespace '
+                             f'{a.namespace}: each actuator needs its own')
+        seen[a.namespace] = i
+    if foxglove_port is not None and not 1 <= foxglove_port <= 65536 - len(actuators):
+        raise ValueError(f'foxglove_port = {foxglove_port}: {len(actuators)} views need ports '
+                         f'{foxglove_port}..{foxglove_port + len(actuators) - 1} within 1..65535')
+
+
+def _record_output(record_output: str, namespace: str) -> str:
+    """Return where the recorder of ``namespace`` records when several share ``record_output``."""
+    if not record_output:
+        return record_output       # each recorder's own runs/eha_<UTC time>
+    name = namespace.strip('/').replace('/', '_')
+    stem, ext = os.path.splitext(record_output)
+    return f'{stem}_{name}.mcap' if ext == '.mcap' else os.path.join(record_output, name)
+
+
 def plan(actuators: Sequence[Actuator], share_dir: str, *, sim_rigs: bool = True,
          record: bool = True, view: bool = False, stage: int = 6, duty_file: str = '',
          use_sim_time: bool = False, executor: str = 'events', honour_limit: bool = False,
@@ -206,15 +229,7 @@ def plan(actuators: Sequence[Actuator], share_dir: str, *, sim_rigs: bool = True
     actuators share a namespace, a port would leave 1..65535, or a simulated
     rig cannot feed an actuator's inputs file (:func:`check_sim_rig_feeds`).
     """
-    seen: Dict[str, int] = {}
-    for i, a in enumerate(actuators):
-        if a.namespace in seen:
-            raise ValueError(f'actuators {seen[a.namespace]} and {i} share the namespace '
-                             f'{a.namespace}: each actuator needs its own')
-        seen[a.namespace] = i
-    if view and not 1 <= foxglove_port <= 65536 - len(actuators):
-        raise ValueError(f'foxglove_port = {foxglove_port}: {len(actuators)} views need ports '
-                         f'{foxglove_port}..{foxglove_port + len(actuators) - 1} within 1..65535')
+    _check_namespaces_and_ports(actuators, foxglove_port if view else None)
     shipped = os.path.join(share_dir, 'config', 'estimator.params.yaml')
     nodes = []
     for i, a in enumerate(actuators):
@@ -241,12 +256,8 @@ def plan(actuators: Sequence[Actuator], share_dir: str, *, sim_rigs: bool = True
                               [params, est], ['--executor', executor] + ['--managed'] * managed,
                               remaps, port))
         if record:
-            output = record_output
-            if record_output and len(actuators) > 1:
-                name = a.namespace.strip('/').replace('/', '_')
-                stem, ext = os.path.splitext(record_output)
-                output = f'{stem}_{name}.mcap' if ext == '.mcap' else \
-                    os.path.join(record_output, name)
+            output = _record_output(record_output, a.namespace) if len(actuators) > 1 \
+                else record_output
             rec = {**common, 'params_file': params, 'output': output}
             if a.inputs_file:       # its topics recorded, the file stored for replay
                 rec['inputs_file'] = a.inputs_file

@@ -169,8 +169,18 @@ def report_text(run: CalibrationRun, images: Sequence[Path], command: str = '') 
           f'{log_fit.log.start_C:.2f} degC',
           f'{log_fit.start_offset_after_K:+.2f} K' if log_fit.role == 'fit' else '-')
          for log_fit in run.logs))
-    lines += ['', '## Parameters', '']
-    lines += markdown_table(
+    lines += _parameters_section(run)
+    if run.messages:
+        lines += ['', '## Warnings', ''] + [f'- {m}' for m in run.messages]
+    lines += _errors_sections(run)
+    lines += ['', '## Plots', ''] + [f'![{p.stem}]({p.name})' for p in images]
+    return '\n'.join(lines) + '\n'
+
+
+def _parameters_section(run: CalibrationRun) -> List[str]:
+    """Return the parameters section: the table, how identifiability and intervals are set."""
+    c = run.base_cfg.calibration
+    lines = ['', '## Parameters', ''] + markdown_table(
         ('key', 'bounds', 'nominal', 'calibrated', '95 % interval', 'step shift', 'identifiable',
          'largest effect across the bounds', 'collinearity index', 'note'),
         ((p.key, f'{p.low:.4g} .. {p.high:.4g}', f'{p.nominal:.4g}', f'{p.value:.4g}',
@@ -197,8 +207,13 @@ def report_text(run: CalibrationRun, images: Sequence[Path], command: str = '') 
               'start for each fit log (a nuisance parameter, table above), while the errors '
               "below use the readings' start, as the estimator would; the ambient of each "
               'minute is the mean of its readings; the model runs open-loop.']
-    if run.messages:
-        lines += ['', '## Warnings', ''] + [f'- {m}' for m in run.messages]
+    return lines
+
+
+def _errors_sections(run: CalibrationRun) -> List[str]:
+    """Return the report's error tables, before and after, of the fit and the held-out logs."""
+    c = run.base_cfg.calibration
+    lines: List[str] = []
     for role, title in (('fit', 'Fit logs'), ('validate', 'Held-out logs')):
         chosen = [log_fit for log_fit in run.logs if log_fit.role == role]
         if not chosen:
@@ -209,5 +224,4 @@ def report_text(run: CalibrationRun, images: Sequence[Path], command: str = '') 
                   'compares every single reading (its noise included).']
         for log_fit in chosen:
             lines += ['', f'### {log_fit.log.name}', ''] + error_table(log_fit)
-    lines += ['', '## Plots', ''] + [f'![{p.stem}]({p.name})' for p in images]
-    return '\n'.join(lines) + '\n'
+    return lines

@@ -19,7 +19,7 @@ from typing import List, Optional
 
 from .arguments import BadArgument, Parser
 from ..config import ConfigError
-from ..model.kinetics import DutyError
+from ..model.duty import DutyError
 
 #: The commands, in the order ``--help`` lists them: each is the module ``cli/<name>.py``.
 COMMANDS = ('maps', 'sensitivity', 'simulate', 'live', 'layout', 'replay', 'calibrate', 'whatif',

@@ -82,8 +82,8 @@ def in_range(low: float, high: float, unit: str) -> Callable[[str], float]:
 
 
 def stage(text: str) -> int:
-    """Return a reference stage number (a key of :data:`~..model.kinetics.STAGES`)."""
-    from ..model.kinetics import STAGES
+    """Return a reference stage number (a key of :data:`~..model.duty.STAGES`)."""
+    from ..model.duty import STAGES
 
     valid = ', '.join(str(k) for k in STAGES)
     try:

@@ -84,7 +84,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Check the configuration and the duty, then run the twin."""
-    from ..model.kinetics import load_duty_csv, stage_duty
+    from ..model.duty import load_duty_csv, stage_duty
     from ..ros.live_children import LiveOptions
 
     # check the configuration and the duty here, so that a mistake is one line, not two

@@ -64,7 +64,7 @@ def _check_temperatures(cfg, ambient_C: float, initial_C: float) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Simulate, print the report, write the CSV and the plot; 1 if the run stopped early."""
-    from ..model.kinetics import load_duty_csv, stage_duty
+    from ..model.duty import load_duty_csv, stage_duty
     from ..offline import report, simulation
 
     _check(args)

@@ -56,7 +56,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def request_of(args: argparse.Namespace, cfg) -> dict:
     """Return the request of the command line (the duty's files read and checked)."""
-    from ..model.kinetics import load_duty_csv
+    from ..model.duty import load_duty_csv
     from ..offline.whatif import read_samples_csv, RequestError
     from ..units import L_MIN, MPA
 

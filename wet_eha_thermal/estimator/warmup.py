@@ -18,7 +18,8 @@ import numpy as np
 from .intake import sensor_signal, split_differential
 from .session import EstimatorSession
 from ..config import Config
-from ..model.kinetics import KineticModel, stage_duty, ThermalFeedback
+from ..model.duty import stage_duty
+from ..model.kinetics import KineticModel, ThermalFeedback
 from ..model.oil import get_oil
 from ..model.warmup import compile_model
 

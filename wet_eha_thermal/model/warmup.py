@@ -12,8 +12,9 @@ import time
 
 import numpy as np
 
+from .duty import stage_duty
 from .eha import EHAModel
-from .kinetics import KineticModel, stage_duty, ThermalFeedback
+from .kinetics import KineticModel, ThermalFeedback
 from ..config import Config
 from ..units import C_TO_K
 

@@ -23,8 +23,9 @@ import numpy as np
 from .simulated_rig import SimulatedRig
 from ..config import Config, with_values
 from ..estimator.core import Estimator
+from ..model.duty import stage_duty
 from ..model.eha import EHAModel, SampleBlock
-from ..model.kinetics import stage_duty, ThermalFeedback
+from ..model.kinetics import ThermalFeedback
 from ..units import C_TO_K
 
 #: the quantities the drive's limits read, and the oil volumes

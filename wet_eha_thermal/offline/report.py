@@ -177,12 +177,21 @@ def check_limit(label: str, t_s: Sequence[float], T_C: Sequence[float], limit_C:
             'peak_C': float(y[i_peak]), 'peak_time_s': float(t[i_peak])}
     over = np.flatnonzero(y >= limit_C)
     if over.size:
-        i = int(over[0])
-        t_hit = float(t[i])
-        if i > 0:
-            t_hit = float(t[i - 1] + (limit_C - y[i - 1]) / (y[i] - y[i - 1])
-                          * (t[i] - t[i - 1]))
-        return LimitCheck(**base, time_to_limit_s=t_hit, method='in run')
+        return LimitCheck(**base, time_to_limit_s=_first_crossing(t, y, limit_C, int(over[0])),
+                          method='in run')
+    return _extrapolated(base, t, y, limit_C, fit_fraction)
+
+
+def _first_crossing(t: np.ndarray, y: np.ndarray, limit_C: float, i: int) -> float:
+    """Return when ``y`` reaches ``limit_C``, first at sample ``i``: linear between i-1 and i."""
+    if i == 0:
+        return float(t[0])
+    return float(t[i - 1] + (limit_C - y[i - 1]) / (y[i] - y[i - 1]) * (t[i] - t[i - 1]))
+
+
+def _extrapolated(base: dict, t: np.ndarray, y: np.ndarray, limit_C: float,
+                  fit_fraction: float) -> LimitCheck:
+    """Return the check of a history below its limit, from its last part (:func:`check_limit`)."""
     start = t[0] + (1.0 - fit_fraction) * (t[-1] - t[0])
     sel = np.flatnonzero(t >= start)
     if sel.size < 3:
@@ -210,6 +219,9 @@ def check_limit(label: str, t_s: Sequence[float], T_C: Sequence[float], limit_C:
     if T_inf < limit_C:
         return LimitCheck(**base, time_to_limit_s=None, method='not reached',
                           settles_C=T_inf, tau_s=tau, note=note)
+    t_hit = t_now + tau * math.log(max(T_inf - y_now, 1e-12) / max(T_inf - limit_C, 1e-12))
+    return LimitCheck(**base, time_to_limit_s=max(t_hit, t_now), method='extrapolated',
+                      settles_C=T_inf, tau_s=tau, note=note)
     t_hit = t_now + tau * math.log(max(T_inf - y_now, 1e-12) / max(T_inf - limit_C, 1e-12))
     return LimitCheck(**base, time_to_limit_s=max(t_hit, t_now), method='extrapolated',
                       settles_C=T_inf, tau_s=tau, note=note)

@@ -20,7 +20,8 @@ limit (:meth:`~wet_eha_thermal.model.kinetics.KineticModel.sample_limited`:
 the load yields where the duty asks for more current); it counts the samples
 it clamped, the first one's duty time and the largest cut. The truth model
 heats with the clamped current, and the rig keeps the truth's peak
-hot-spot.
+hot-spot. Which limit the drive applies, the estimator's or its own
+fallback, :class:`DriveLimit` decides.
 
 The ROS node (:mod:`wet_eha_thermal.ros.sim_rig_node`) publishes these
 blocks in real time; :func:`write_rig_bag` writes them straight to a bag,
@@ -31,7 +32,7 @@ into a calibration's log.
 
 import math
 import os
-from typing import Callable, Dict, Iterator, Optional, Tuple
+from typing import Callable, Dict, Iterator, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -39,10 +40,11 @@ import numpy as np
 from .simulation import feedback
 from ..config import Config
 from ..estimator.intake import sensor_inputs, sensor_signal
-from ..interface import (AMBIENT_TOPIC, INPUT_TOPICS, INPUT_TYPES, MEASURED_PREFIX,
-                         PRESSURE_INPUTS, SENSOR, TEMPERATURE, THERMOCOUPLES)
+from ..interface import (AMBIENT_TOPIC, DriveLimits, INPUT_TOPICS, INPUT_TYPES, LimitStatus,
+                         MEASURED_PREFIX, PRESSURE_INPUTS, SENSOR, TEMPERATURE, THERMOCOUPLES)
+from ..model.duty import Duty
 from ..model.eha import EHAModel
-from ..model.kinetics import Duty, KineticModel, ThermalFeedback
+from ..model.kinetics import KineticModel, ThermalFeedback
 from ..units import C_TO_K
 
 #: Length of one kinetics block and one truth-model step (s).
@@ -54,6 +56,63 @@ THERMOCOUPLE_SIGMA_K = 0.2
 AMBIENT_SIGMA_K = 0.05
 #: Where the point thermocouples sit, as a fraction of the stack length from the oil inlet.
 POINT_THERMOCOUPLE_Z = 0.5
+
+
+class DriveLimit:
+    """
+    The current limit the simulated drive applies: the estimator's, or its own fallback.
+
+    :meth:`take` keeps the binding limit of the last limits message (the
+    ``data`` of a Float64MultiArray on ``<prefix>/drive/limits``,
+    :class:`~wet_eha_thermal.interface.DriveLimits`).
+    :meth:`applied` says what the drive carries at most now: that limit
+    while its stamp is at most ``watchdog_s`` old, else (or before any)
+    ``fallback_A``; one whose status code is not OK is applied up to
+    ``fallback_A`` only.
+    """
+
+    def __init__(self, watchdog_s: float, fallback_A: float) -> None:
+        self.watchdog_s = watchdog_s
+        self.fallback_A = fallback_A
+        self.value_A: Optional[float] = None        # the last message's binding limit
+        self.stamp_ns = 0
+        self.status = LimitStatus.OK                # the last message's status code
+        self.received = 0
+        self.rejected = 0
+        self.missed = 0                             # gaps in the sequence
+        self.sequence = 0
+
+    def take(self, data: Sequence[float]) -> None:
+        """
+        Take one limits message; a malformed one is counted and left to the watchdog.
+
+        Malformed: not the layout (version, count), or a limit NaN or negative
+        (+inf is no limit within that horizon).
+        """
+        try:
+            limits = DriveLimits.from_data(data)
+        except ValueError:
+            self.rejected += 1
+            return
+        self.received += 1
+        if limits.sequence > self.sequence + 1 and self.sequence:
+            self.missed += limits.sequence - self.sequence - 1
+        self.sequence = limits.sequence
+        self.value_A = limits.binding_A
+        self.stamp_ns = limits.stamp_ns
+        self.status = limits.status
+
+    def applied(self, now_ns: int) -> Tuple[float, str]:
+        """Return the limit to carry at ``now_ns`` (the rig's clock, ns) and whose it is."""
+        if self.value_A is None:
+            return self.fallback_A, 'fallback: no limit yet'
+        age_s = (now_ns - self.stamp_ns) * 1e-9
+        if age_s > self.watchdog_s:
+            return self.fallback_A, f'fallback: the last limit is {age_s:.1f} s old'
+        if self.status != LimitStatus.OK:
+            return min(self.value_A, self.fallback_A), \
+                f'estimator fallback: {self.status.name.lower()}'
+        return self.value_A, 'estimator'
 
 
 class SimulatedRig:

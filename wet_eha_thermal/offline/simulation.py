@@ -18,8 +18,9 @@ import numpy as np
 
 from ..config import Config
 from ..interface import INPUTS
+from ..model.duty import Duty, DutyError
 from ..model.eha import EHAModel, SampleBlock
-from ..model.kinetics import Duty, DutyError, KineticModel, ThermalFeedback
+from ..model.kinetics import KineticModel, ThermalFeedback
 from ..units import C_TO_K, MPA, RPM_PER_RAD_S
 
 RUNAWAY_C = 300.0   # far past every limit (oil 135, insulation 180 degC): stop, do not extrapolate
@@ -62,11 +63,11 @@ class SensorTable:
     ``columns`` maps each of :data:`~..interface.INPUTS` to its values at ``time_s`` (SI
     units; ``position_m`` may be left out: the piston then stands still at
     mid-stroke). The signals are linear between the rows and repeat with the
-    period ``time_s[-1]``, as a :class:`~.model.kinetics.TableDuty` does; the
+    period ``time_s[-1]``, as a :class:`~.model.duty.TableDuty` does; the
     table's time 0 is the model time ``start_s``. :func:`simulate` feeds them
     to the thermal model as they are, without the kinetic model, so a run on
     them has no electrical energy or load work (NaN). Raises
-    :class:`~.model.kinetics.DutyError` for a table it cannot use.
+    :class:`~.model.duty.DutyError` for a table it cannot use.
     """
 
     def __init__(self, time_s, columns: Mapping[str, object], start_s: float = 0.0,
@@ -127,6 +128,45 @@ def motor_heat(model: EHAModel) -> Dict[str, float]:
     return heat
 
 
+class _InputMeans:
+    """
+    The inputs recorded with a row: their means over the record interval.
+
+    A snapshot of a 1 Hz duty taken every second would always catch the same
+    phase; the current is its RMS, the position the last sample's.
+    """
+
+    def __init__(self) -> None:
+        self.acc = np.zeros(5)   # integrals over the record interval: I^2, |w|, p_a, p_b, time
+
+    def add(self, s: SampleBlock, w: np.ndarray) -> None:
+        """Add the samples ``s``, each weighted by the time it stands for (``w``, s)."""
+        self.acc += [np.dot(s.current_A ** 2, w), np.dot(np.abs(s.speed_rad_s), w),
+                     np.dot(s.p_a_Pa, w), np.dot(s.p_b_Pa, w), w.sum()]
+
+    def take(self, s: SampleBlock) -> Dict[str, float]:
+        """Return the means since the last call (in the units people read), and start again."""
+        acc = self.acc
+        span = acc[4]
+        means = {'current_A_rms': float(np.sqrt(acc[0] / span)),
+                 'speed_rpm': float(acc[1] / span * RPM_PER_RAD_S),
+                 'p_a_MPa': float(acc[2] / span / MPA),
+                 'p_b_MPa': float(acc[3] / span / MPA),
+                 'position_mm': float(s.position_m[-1] * 1e3)}
+        acc[:] = 0.0
+        return means
+
+
+def _stop_on_runaway(res: SimulationResult, t_s: float, out: Dict[str, float],
+                     model: EHAModel) -> None:
+    """Raise :class:`ThermalRunaway`, the row at ``t_s`` recorded, when an output passed it."""
+    hottest = max(out.items(), key=lambda kv: kv[1])
+    if hottest[1] - C_TO_K > RUNAWAY_C:
+        res.append(t_s, out, {}, motor_heat(model))
+        raise ThermalRunaway(f'thermal runaway: {hottest[0]} passed {RUNAWAY_C:.0f} degC at '
+                             f't = {t_s:.0f} s; the cooling cannot hold this duty', res)
+
+
 def simulate(cfg: Config, duty: Union[Duty, SensorTable], duration_s: float, dt_s: float = 1.0,
              sample_rate_Hz: float = 200.0, ambient_C: float = 20.0,
              initial_C: Optional[float] = None, record_every_s: float = 1.0,
@@ -166,35 +206,20 @@ def simulate(cfg: Config, duty: Union[Duty, SensorTable], duration_s: float, dt_
     frac = np.arange(1, n_sub + 1) / n_sub
     record_every = max(1, int(round(record_every_s / dt_s)))
     report_every = max(1, steps // 100)
-    acc = np.zeros(5)   # integrals over the record interval: I^2, |w|, p_a, p_b, time
+    means = _InputMeans()
     for k in range(steps):
         t = t_start + (k + frac) * dt_s
         s = sample(t, feedback(model))
         model.step(s, amb_K)
         out = model.outputs()
-        hottest = max(out.items(), key=lambda kv: kv[1])
-        if hottest[1] - C_TO_K > RUNAWAY_C:
-            res.append(float(t[-1]), out, {}, motor_heat(model))
-            raise ThermalRunaway(f'thermal runaway: {hottest[0]} passed {RUNAWAY_C:.0f} degC at '
-                                 f't = {t[-1]:.0f} s; the cooling cannot hold this duty', res)
+        _stop_on_runaway(res, float(t[-1]), out, model)
         w = np.diff(np.concatenate([[t_start + k * dt_s], t]))
         if not table:
             res.electrical_J += float(np.dot(s.electrical_power_W, w))
             res.load_work_J += float(np.dot(s.load_power_W, w))
-        acc += [np.dot(s.current_A ** 2, w), np.dot(np.abs(s.speed_rad_s), w),
-                np.dot(s.p_a_Pa, w), np.dot(s.p_b_Pa, w), w.sum()]
+        means.add(s, w)
         if (k + 1) % record_every == 0 or k == steps - 1:
-            # inputs as means over the record interval (a snapshot of a 1 Hz duty
-            # taken every second would always catch the same phase)
-            span = acc[4]
-            res.append(float(t[-1]), out,
-                       {'current_A_rms': float(np.sqrt(acc[0] / span)),
-                        'speed_rpm': float(acc[1] / span * RPM_PER_RAD_S),
-                        'p_a_MPa': float(acc[2] / span / MPA),
-                        'p_b_MPa': float(acc[3] / span / MPA),
-                        'position_mm': float(s.position_m[-1] * 1e3)},
-                       motor_heat(model))
-            acc[:] = 0.0
+            res.append(float(t[-1]), out, means.take(s), motor_heat(model))
         if progress is not None and (k % report_every == 0 or k == steps - 1):
             progress(k + 1, steps, f't = {t[-1]:.0f} s')
     return res

@@ -35,8 +35,8 @@ from .simulation import SensorTable, simulate, ThermalRunaway
 from .. import interface
 from ..config import Config
 from ..model import quantity_table
+from ..model.duty import Duty, DutyError, stage_duty, STAGES, TableDuty
 from ..model.eha import EHAModel
-from ..model.kinetics import Duty, DutyError, stage_duty, STAGES, TableDuty
 from ..model.oil import OIL_GRADES
 from ..output_files import atomic, pyplot, save_figure
 from ..units import C_TO_K, L_MIN, MPA

@@ -13,6 +13,7 @@ from typing import List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 from wet_eha_thermal import interface
+from wet_eha_thermal.estimator.core import Estimate
 from wet_eha_thermal.estimator.limits import CurrentLimits
 from wet_eha_thermal.estimator.session import EstimatorSession, SessionStatus
 from wet_eha_thermal.model.quantity_table import LIMITED
@@ -87,18 +88,7 @@ def estimate_status(est: EstimatorSession, st: SessionStatus, node: NodeCounters
     if st.model_error is not None:
         level = ERROR
         message = f'model step failed, republishing the last estimate: {st.model_error}'
-    sigma = max(latest.uncertainty_K.values()) if latest.uncertainty_K else None
-    values += [('stamp [s]', f'{latest.stamp_s:.3f}'), ('step', latest.step)]
-    values += [(f'{n} [degC]', fmt(latest.temperatures_C.get(n))) for n in interface.ESTIMATES]
-    values.append(('uncertainty [K, 1 sigma]', fmt(sigma)))
-    values.append(('margin_current [A RMS]', fmt(latest.margin_current_A, '.1f')))
-    for q in LIMITED:
-        ttl = latest.time_to_limit_s
-        text = 'pending' if q not in ttl else (
-            'beyond horizon' if ttl[q] is None else f'{ttl[q]:.0f}')
-        values.append((f'time_to_limit {q} [s]', text))
-        values.append((f'limit {q} [degC]', fmt(latest.limits_C.get(q), '.1f')))
-    values.append(('forecast started at [s]', fmt(latest.forecast_stamp_s, '.3f')))
+    values += latest_values(latest)
     values += limit_values(st.limits)
     if node.latency_ms:
         lat = np.percentile(node.latency_ms, [50, 99])
@@ -113,27 +103,48 @@ def estimate_status(est: EstimatorSession, st: SessionStatus, node: NodeCounters
                            f'{t_meas:.2f} (estimate {name} '
                            f'{latest.temperatures_C[name] - t_meas:+.2f} K)'))
     values += correction_values(est)
+    return Status('estimate', level, message, values + counter_values(st, node))
+
+
+def latest_values(latest: Estimate) -> List[Tuple[str, object]]:
+    """Return the key-values of the latest estimate: temperatures, margin, times to limit."""
+    sigma = max(latest.uncertainty_K.values()) if latest.uncertainty_K else None
+    values = [('stamp [s]', f'{latest.stamp_s:.3f}'), ('step', latest.step)]
+    values += [(f'{n} [degC]', fmt(latest.temperatures_C.get(n))) for n in interface.ESTIMATES]
+    values.append(('uncertainty [K, 1 sigma]', fmt(sigma)))
+    values.append(('margin_current [A RMS]', fmt(latest.margin_current_A, '.1f')))
+    for q in LIMITED:
+        ttl = latest.time_to_limit_s
+        text = 'pending' if q not in ttl else (
+            'beyond horizon' if ttl[q] is None else f'{ttl[q]:.0f}')
+        values.append((f'time_to_limit {q} [s]', text))
+        values.append((f'limit {q} [degC]', fmt(latest.limits_C.get(q), '.1f')))
+    values.append(('forecast started at [s]', fmt(latest.forecast_stamp_s, '.3f')))
+    return values
+
+
+def counter_values(st: SessionStatus, node: NodeCounters) -> List[Tuple[str, object]]:
+    """Return the key-values of the session's and the node's counters: gaps, jumps, errors."""
     gaps = st.gaps
     gap_text = f'{gaps.count}, longest {gaps.longest_s:.1f} s, total {gaps.total_s:.1f} s'
     if gaps.open_since_s is not None:
         gap_text = f'every input silent since {gaps.open_since_s:.3f} s; ' + gap_text
     jump = st.last_clock_jump
-    values += [('alerts', alerts),
-               ('data gaps (every input silent)', gap_text),
-               ('held blocks (silences crossed)', st.held_blocks),
-               ('clock jumps', st.clock_jumps if jump is None else
-                f'{st.clock_jumps} (last from {jump[0]:.3f} s to {jump[1]:.3f} s)'),
-               ('inputs on fallback', ', '.join(stale) or 'none'),
-               ('estimates published', node.published),
-               ('model errors', st.model_errors),
-               ('forecast and limit failures', st.outlook_failures),
-               ('limit ticks behind (fallback)', st.limit_ticks_behind),
-               ('forecasts skipped (one under way)', st.forecasts_skipped),
-               ('background errors', st.background_errors),
-               ('callback errors', sum(node.callback_errors.values())),
-               ('samples before the clock', node.waiting_for_clock),
-               ('foxglove view', node.view)]
-    return Status('estimate', level, message, values)
+    return [('alerts', st.alert_message),
+            ('data gaps (every input silent)', gap_text),
+            ('held blocks (silences crossed)', st.held_blocks),
+            ('clock jumps', st.clock_jumps if jump is None else
+             f'{st.clock_jumps} (last from {jump[0]:.3f} s to {jump[1]:.3f} s)'),
+            ('inputs on fallback', ', '.join(st.stale) or 'none'),
+            ('estimates published', node.published),
+            ('model errors', st.model_errors),
+            ('forecast and limit failures', st.outlook_failures),
+            ('limit ticks behind (fallback)', st.limit_ticks_behind),
+            ('forecasts skipped (one under way)', st.forecasts_skipped),
+            ('background errors', st.background_errors),
+            ('callback errors', sum(node.callback_errors.values())),
+            ('samples before the clock', node.waiting_for_clock),
+            ('foxglove view', node.view)]
 
 
 def limit_values(limits: Optional[CurrentLimits]) -> List[Tuple[str, object]]:

@@ -95,12 +95,7 @@ def run(opts: LiveOptions, out: TextIO = sys.stdout, err: TextIO = sys.stderr,
     opts, record_path = _check_outputs(opts, err)
     if opts is None:
         return 2
-    # here, once: the rig and the estimator then load numba's cache in about a second each,
-    # instead of both compiling at once (minutes on a busy machine) after an install
-    print('loading the compiled model (after an install or a change of the model code it '
-          'compiles once, in a minute or two) ...', file=out, flush=True)
-    print(f'model ready in {compile_estimator(load_config(opts.config)):.1f} s', file=out,
-          flush=True)
+    _load_model(opts, out)
     log_dir = Path(tempfile.mkdtemp(prefix='wet-eha-live-'))
     stop = {'why': None}
 
@@ -117,13 +112,7 @@ def run(opts: LiveOptions, out: TextIO = sys.stdout, err: TextIO = sys.stderr,
     try:
         os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'   # for this process's node
         context, domain = open_domain(domain)
-        print(f'Live digital twin: {duty_text(opts)} on the simulated rig for '
-              f'{opts.duration_s:g} s (Ctrl-C stops it earlier), ROS domain {domain}'
-              + ("; closed loop: the rig's drive honours the estimator's current limit"
-                 if opts.closed_loop else ''),
-              file=out, flush=True)
-        if opts.foxglove is not None:
-            print('\n'.join(foxglove_lines(*opts.foxglove)), file=out, flush=True)
+        _announce(opts, domain, out)
         node = monitor_node(context, state)
         children = start_children(opts, domain, state.hardware_id, record_path, log_dir)
         executor = SingleThreadedExecutor(context=context)
@@ -148,6 +137,27 @@ def run(opts: LiveOptions, out: TextIO = sys.stdout, err: TextIO = sys.stderr,
         print(f'(logs of the children kept in {log_dir})', file=err)
     err.flush()
     return 0 if ok else 1
+
+
+def _load_model(opts: LiveOptions, out: TextIO) -> None:
+    """Compile the model's kernels, or load them from numba's cache, saying so."""
+    # here, once: the rig and the estimator then load numba's cache in about a second each,
+    # instead of both compiling at once (minutes on a busy machine) after an install
+    print('loading the compiled model (after an install or a change of the model code it '
+          'compiles once, in a minute or two) ...', file=out, flush=True)
+    print(f'model ready in {compile_estimator(load_config(opts.config)):.1f} s', file=out,
+          flush=True)
+
+
+def _announce(opts: LiveOptions, domain: int, out: TextIO) -> None:
+    """Print what runs, for how long, on which domain, and where the Foxglove view is."""
+    print(f'Live digital twin: {duty_text(opts)} on the simulated rig for '
+          f'{opts.duration_s:g} s (Ctrl-C stops it earlier), ROS domain {domain}'
+          + ("; closed loop: the rig's drive honours the estimator's current limit"
+             if opts.closed_loop else ''),
+          file=out, flush=True)
+    if opts.foxglove is not None:
+        print('\n'.join(foxglove_lines(*opts.foxglove)), file=out, flush=True)
 
 
 def _check_outputs(opts: LiveOptions,

@@ -423,6 +423,49 @@ def _describe(info: BagInfo) -> str:
             f'{(info.end_time_ns - info.start_time_ns) * 1e-9:.3f} s')
 
 
+def _open(opts: argparse.Namespace) -> Optional[BagInfo]:
+    """Return the bag to play, having said what it holds; None (said why) when it cannot play."""
+    try:
+        info = open_bag(opts.bag)
+    except BagError as exc:
+        print(f'{PROG}: error: {exc}', file=sys.stderr)
+        return None
+    if info.message_count == 0:
+        print(f'{PROG}: error: {info.path}: no message to play', file=sys.stderr)
+        return None
+    if info.truncated:
+        print(f'{PROG}: warning: the bag is cut ({info.problem}); playing what precedes '
+              f'the cut: {_describe(info)}', file=sys.stderr)
+    elif not opts.quiet:
+        print(f'{PROG}: {_describe(info)}', file=sys.stderr)
+    return info
+
+
+def _play(node: PlayerNode, opts: argparse.Namespace, stop: List[int]) -> None:
+    """Play until the bag's end, a signal (in ``stop``) or rclpy's shutdown."""
+    if opts.wait_subscribers:
+        if not opts.quiet:
+            print(f'{PROG}: waiting for a subscriber on every topic', file=sys.stderr)
+        while not (stop or node.subscribed()) and rclpy.ok():
+            time.sleep(WAIT_POLL_S)
+        node.start_after(time.monotonic(), opts.delay)
+    progress = _Progress(sys.stderr, opts.quiet)
+    wake_s = node.step(time.monotonic())
+    while wake_s is not None and not stop and rclpy.ok():
+        now_s = time.monotonic()
+        if wake_s > now_s:
+            time.sleep(min(wake_s - now_s, MAX_SLEEP_S))
+            now_s = time.monotonic()
+        if now_s >= wake_s:
+            wake_s = node.step(now_s)
+        progress.update(node, now_s)
+    node.close_bag()
+    if wake_s is None and not node.wait_for_acks():
+        print(f'{PROG}: warning: not every reliable subscriber acknowledged the last '
+              'messages', file=sys.stderr)
+    progress.finish(node, 'stopped' if wake_s is not None else 'done')
+
+
 def main(argv: Optional[List[str]] = None) -> int:
     """Play a bag until its end (exit 0), Ctrl-C or SIGTERM; 2 for a bad bag or option."""
     ours, ros_args = split_ros_args(sys.argv[1:] if argv is None else argv)
@@ -430,19 +473,9 @@ def main(argv: Optional[List[str]] = None) -> int:
     if opts.loop_offset and not opts.loop:
         print(f'{PROG}: error: --loop-offset needs --loop', file=sys.stderr)
         return 2
-    try:
-        info = open_bag(opts.bag)
-    except BagError as exc:
-        print(f'{PROG}: error: {exc}', file=sys.stderr)
+    info = _open(opts)
+    if info is None:
         return 2
-    if info.message_count == 0:
-        print(f'{PROG}: error: {info.path}: no message to play', file=sys.stderr)
-        return 2
-    if info.truncated:
-        print(f'{PROG}: warning: the bag is cut ({info.problem}); playing what precedes '
-              f'the cut: {_describe(info)}', file=sys.stderr)
-    elif not opts.quiet:
-        print(f'{PROG}: {_describe(info)}', file=sys.stderr)
 
     stop: List[int] = []
 
@@ -464,27 +497,7 @@ def main(argv: Optional[List[str]] = None) -> int:
         if not node.outputs:
             print(f'{PROG}: error: no topic of the bag can be published', file=sys.stderr)
             return 2
-        if opts.wait_subscribers:
-            if not opts.quiet:
-                print(f'{PROG}: waiting for a subscriber on every topic', file=sys.stderr)
-            while not (stop or node.subscribed()) and rclpy.ok():
-                time.sleep(WAIT_POLL_S)
-            node.start_after(time.monotonic(), opts.delay)
-        progress = _Progress(sys.stderr, opts.quiet)
-        wake_s = node.step(time.monotonic())
-        while wake_s is not None and not stop and rclpy.ok():
-            now_s = time.monotonic()
-            if wake_s > now_s:
-                time.sleep(min(wake_s - now_s, MAX_SLEEP_S))
-                now_s = time.monotonic()
-            if now_s >= wake_s:
-                wake_s = node.step(now_s)
-            progress.update(node, now_s)
-        node.close_bag()
-        if wake_s is None and not node.wait_for_acks():
-            print(f'{PROG}: warning: not every reliable subscriber acknowledged the last '
-                  'messages', file=sys.stderr)
-        progress.finish(node, 'stopped' if wake_s is not None else 'done')
+        _play(node, opts, stop)
         return 0
     finally:
         if node is not None:

@@ -31,7 +31,8 @@ estimator's current limits as a real drive would, numbers at fixed places
 carries at most the binding one where the duty asks for more (the load yields:
 :meth:`~wet_eha_thermal.model.kinetics.KineticModel.sample_limited`); the
 truth model heats with what the drive carried. Its watchdog, as a drive's
-should be: a limit whose stamp (the sample time it belongs to) is older than
+should be (:class:`~wet_eha_thermal.offline.simulated_rig.DriveLimit`): a
+limit whose stamp (the sample time it belongs to) is older than
 ``limit_watchdog_s`` by the rig's clock, or none yet, gives way to
 ``limit_fallback_A``; a limit whose status code is not OK (the estimator's
 fallback) is applied, never above ``limit_fallback_A``. The limit is taken
@@ -72,7 +73,7 @@ import json
 import math
 import sys
 import time
-from typing import Dict, List, Optional, Tuple
+from typing import Dict, List, Optional
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 import numpy as np
@@ -84,13 +85,13 @@ from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64, Float64MultiArray, String
 from wet_eha_thermal.config import ConfigError, load_config
 from wet_eha_thermal.interface import (AMBIENT_TOPIC, DIAGNOSTICS_TOPIC, DRIVE_LIMITS_TOPIC,
-                                       DriveLimits, INPUT_TOPICS, LimitStatus, MEASURED_PREFIX,
-                                       NodeReport, prefixed, PRESSURE_INPUTS,
-                                       READY_TOPIC, RIG_NODE, status_name, THERMOCOUPLES)
-from wet_eha_thermal.model.kinetics import DutyError, load_duty_csv, stage_duty, STAGES
+                                       INPUT_TOPICS, MEASURED_PREFIX, NodeReport, prefixed,
+                                       PRESSURE_INPUTS, READY_TOPIC, RIG_NODE, status_name,
+                                       THERMOCOUPLES)
+from wet_eha_thermal.model.duty import DutyError, load_duty_csv, stage_duty, STAGES
 from wet_eha_thermal.model.uncertainty import as_built
-from wet_eha_thermal.offline.simulated_rig import (AMBIENT_SIGMA_K, NOISE_SIGMA, SimulatedRig,
-                                                   THERMOCOUPLE_SIGMA_K)
+from wet_eha_thermal.offline.simulated_rig import (AMBIENT_SIGMA_K, DriveLimit, NOISE_SIGMA,
+                                                   SimulatedRig, THERMOCOUPLE_SIGMA_K)
 from wet_eha_thermal.ros.runtime import (declare_parameters, descriptor, prepare_model_step,
                                          run_node, shared_parameters)
 from wet_eha_thermal.ros.topics import input_qos, latched_qos, publish_inputs, time_msg
@@ -124,62 +125,6 @@ class _Ring:
     def percentiles(self, qs) -> List[float]:
         v = self.values()
         return [float(x) for x in np.percentile(v, qs)] if v.size else [math.nan] * len(qs)
-
-
-class DriveLimit:
-    """
-    The current limit the simulated drive applies: the estimator's, or its own fallback.
-
-    :meth:`take` keeps the binding limit of the last limits message (the
-    ``data`` of a Float64MultiArray, :class:`~wet_eha_thermal.interface.DriveLimits`).
-    :meth:`applied` says what the drive carries at most now: that limit
-    while its stamp is at most ``watchdog_s`` old, else (or before any)
-    ``fallback_A``; one whose status code is not OK is applied up to
-    ``fallback_A`` only.
-    """
-
-    def __init__(self, watchdog_s: float, fallback_A: float) -> None:
-        self.watchdog_s = watchdog_s
-        self.fallback_A = fallback_A
-        self.value_A: Optional[float] = None        # the last message's binding limit
-        self.stamp_ns = 0
-        self.status = LimitStatus.OK                # the last message's status code
-        self.received = 0
-        self.rejected = 0
-        self.missed = 0                             # gaps in the sequence
-        self.sequence = 0
-
-    def take(self, msg: Float64MultiArray) -> None:
-        """
-        Take one limits message; a malformed one is counted and left to the watchdog.
-
-        Malformed: not the layout (version, count), or a limit NaN or negative
-        (+inf is no limit within that horizon).
-        """
-        try:
-            limits = DriveLimits.from_data(msg.data)
-        except ValueError:
-            self.rejected += 1
-            return
-        self.received += 1
-        if limits.sequence > self.sequence + 1 and self.sequence:
-            self.missed += limits.sequence - self.sequence - 1
-        self.sequence = limits.sequence
-        self.value_A = limits.binding_A
-        self.stamp_ns = limits.stamp_ns
-        self.status = limits.status
-
-    def applied(self, now_ns: int) -> Tuple[float, str]:
-        """Return the limit to carry at ``now_ns`` (the rig's clock, ns) and whose it is."""
-        if self.value_A is None:
-            return self.fallback_A, 'fallback: no limit yet'
-        age_s = (now_ns - self.stamp_ns) * 1e-9
-        if age_s > self.watchdog_s:
-            return self.fallback_A, f'fallback: the last limit is {age_s:.1f} s old'
-        if self.status != LimitStatus.OK:
-            return min(self.value_A, self.fallback_A), \
-                f'estimator fallback: {self.status.name.lower()}'
-        return self.value_A, 'estimator'
 
 
 class SimRigNode(Node):
@@ -219,7 +164,19 @@ class SimRigNode(Node):
         self.start_timeout_s = p['start_timeout_s']
         self.ready_nodes: Dict[str, dict] = {}      # node name -> its ready message
         self.started_after_s: Optional[float] = None
-        # publishers
+        self._make_publishers(p)
+        if p['honour_limit']:
+            self._follow_limits(p)
+        self._reset_schedule()
+        self.create_timer(self.period_s, self._tick)
+        self.create_timer(1.0, self._publish_ambient)
+        self.create_timer(1.0 / p['thermocouple_rate_Hz'], self._publish_thermocouples)
+        self.create_timer(1.0, self._publish_diagnostics)
+        self.get_logger().info(self._start_text(p, duty.name if p['duty_file'] else
+                                                f'stage {p["stage"]}'))
+
+    def _make_publishers(self, p: Dict[str, object]) -> None:
+        """Make the publishers of the inputs, ambient, thermocouples, diagnostics and readiness."""
         prefix = p['topic_prefix']
         # a second of samples: a reliable reader that stalls catches up instead of losing them
         q = input_qos(p['qos'], depth=max(10, int(round(1.0 / self.period_s))))
@@ -242,13 +199,19 @@ class SimRigNode(Node):
         self.ready_topic = prefixed(READY_TOPIC, prefix)
         self.ready_pub = self.create_publisher(String, self.ready_topic, latched_qos())
         self.create_subscription(String, self.ready_topic, self._on_ready, latched_qos())
-        if p['honour_limit']:
-            # by default the conservative value the estimator falls back to: one number
-            self.drive = DriveLimit(p['limit_watchdog_s'], p['limit_fallback_A']
-                                    or self.cfg.estimator.limits.fallback_current_A)
-            # best effort: the watchdog, not the transport, deals with a lost limit
-            self.create_subscription(Float64MultiArray, prefixed(DRIVE_LIMITS_TOPIC, prefix),
-                                     self.drive.take, qos_profile_sensor_data)
+
+    def _follow_limits(self, p: Dict[str, object]) -> None:
+        """Make the drive honour the current limits the estimator publishes."""
+        # by default the conservative value the estimator falls back to: one number
+        self.drive = DriveLimit(p['limit_watchdog_s'], p['limit_fallback_A']
+                                or self.cfg.estimator.limits.fallback_current_A)
+        # best effort: the watchdog, not the transport, deals with a lost limit
+        self.create_subscription(Float64MultiArray,
+                                 prefixed(DRIVE_LIMITS_TOPIC, p['topic_prefix']),
+                                 lambda msg: self.drive.take(msg.data), qos_profile_sensor_data)
+
+    def _reset_schedule(self) -> None:
+        """Set the schedule before the first sample and the publishing statistics to zero."""
         # schedule: sample k (1, 2, ...) has duty time k * period and is due at t0 + k * period
         self.t0_ns: Optional[int] = None
         self.last_now_ns = 0
@@ -268,15 +231,14 @@ class SimRigNode(Node):
         self.started_wall = time.monotonic()
         self.started_cpu = time.process_time()
         self._diag_mark = (self.started_wall, self.started_cpu)
-        self.create_timer(self.period_s, self._tick)
-        self.create_timer(1.0, self._publish_ambient)
-        self.create_timer(1.0 / p['thermocouple_rate_Hz'], self._publish_thermocouples)
-        self.create_timer(1.0, self._publish_diagnostics)
-        what = duty.name if p['duty_file'] else f'stage {p["stage"]}'
-        self.get_logger().info(
+
+    def _start_text(self, p: Dict[str, object], what: str) -> str:
+        """Return the log line that says what the rig runs, how, and against which truth."""
+        return (
             f'rig: {what} at {1.0 / self.period_s:g} Hz ({self.n_block} samples per '
             f'{self.rig.block_s * 1e3:g} ms block), noise {"on" if self.noise else "off"}, '
-            f'ambient {p["ambient_C"]:g} degC, qos {p["qos"]}, topics under {prefix}; '
+            f'ambient {p["ambient_C"]:g} degC, qos {p["qos"]}, topics under '
+            f'{p["topic_prefix"]}; '
             + (f'the truth is a rig as built (draw {self.as_built_seed} of the configured '
                'uncertainty)' if self.truth_cfg is not self.cfg else
                'the truth is the configuration itself')

@@ -69,6 +69,43 @@ def write_limits_csv(result: ReplayResult, path: Path) -> Path:
     return path
 
 
+def _node_topics(outlook: bool) -> List[tuple]:
+    """Return (topic, type, offered QoS) of the live node's publishers (limits: ``outlook``)."""
+    from ... import messages
+    from ...bag.writer import offered_qos
+    latched = offered_qos(durability='transient_local', depth=1)
+    topics = [(t, interface.TEMPERATURE, offered_qos(depth=10)) for t in messages.ESTIMATE_TOPICS]
+    topics += [(interface.STATE_TOPIC, interface.FLOAT64_ARRAY, offered_qos(depth=10)),
+               (interface.STATE_NAMES_TOPIC, interface.STRING, latched),
+               (interface.ALERT_TOPIC, interface.STRING, latched),
+               (interface.DRIVE_ALERTS_TOPIC, interface.FLOAT64_ARRAY, latched)]
+    if outlook:
+        # the live node's publishers: reliable, volatile, 10 deep
+        topics += [(interface.CURRENT_LIMITS_TOPIC, interface.JOINT_STATE, offered_qos(depth=10)),
+                   (interface.CURRENT_LIMIT_TOPIC, interface.FLOAT64, offered_qos(depth=10)),
+                   (interface.DRIVE_LIMITS_TOPIC, interface.FLOAT64_ARRAY,
+                    offered_qos(depth=10))]
+    return topics
+
+
+def _alerts_and_limits(result: ReplayResult) -> List[tuple]:
+    """
+    Return the alert and limits messages as (stamp s, 0 alert or 1 limits, message), in order.
+
+    They go out behind the estimates of their stamp; a summary before the
+    first estimate (stamp -inf) goes out with it.
+    """
+    from ... import messages
+    return sorted([(-math.inf if s is None else s, 0, m)
+                   for seq, (s, a) in enumerate(result.alerts, start=1)
+                   for m in messages.alert_messages(
+                       a, seq, None if s is None else int(round(s * 1e9)))]
+                  + [(lim.stamp_s, 1, m)
+                     for seq, lim in enumerate(result.current_limits, start=1)
+                     for m in messages.limits(lim) + [messages.drive_limits(lim, seq)]],
+                  key=lambda x: (x[0], x[1]))
+
+
 def write_mcap(result: ReplayResult, path: Path) -> Path:
     """
     Write what the live estimator node publishes for these estimates, with the config.
@@ -86,7 +123,7 @@ def write_mcap(result: ReplayResult, path: Path) -> Path:
     the /left actuator compares topic for topic with its live recording.
     """
     from ... import messages
-    from ...bag.writer import BagWriter, offered_qos
+    from ...bag.writer import BagWriter
 
     def under(topic: str) -> str:
         return interface.prefixed(topic, result.plan.prefix)
@@ -95,34 +132,13 @@ def write_mcap(result: ReplayResult, path: Path) -> Path:
     metadata = {interface.CONFIG_METADATA: {interface.CONFIG_METADATA_KEY: cfg_yaml,
                                             'source': result.plan.config_source}}
     stamps_ns = np.round(result.stamp_s * 1e9).astype(np.int64).tolist()
-    latched = offered_qos(durability='transient_local', depth=1)
-    topics = [(t, interface.TEMPERATURE, offered_qos(depth=10)) for t in messages.ESTIMATE_TOPICS]
-    topics += [(interface.STATE_TOPIC, interface.FLOAT64_ARRAY, offered_qos(depth=10)),
-               (interface.STATE_NAMES_TOPIC, interface.STRING, latched),
-               (interface.ALERT_TOPIC, interface.STRING, latched),
-               (interface.DRIVE_ALERTS_TOPIC, interface.FLOAT64_ARRAY, latched)]
-    if result.outlook:
-        # the live node's publishers: reliable, volatile, 10 deep
-        topics += [(interface.CURRENT_LIMITS_TOPIC, interface.JOINT_STATE, offered_qos(depth=10)),
-                   (interface.CURRENT_LIMIT_TOPIC, interface.FLOAT64, offered_qos(depth=10)),
-                   (interface.DRIVE_LIMITS_TOPIC, interface.FLOAT64_ARRAY,
-                    offered_qos(depth=10))]
-    # the alerts and limits in time order behind the estimates (a summary before the first
-    # estimate goes out with it)
-    later = sorted([(-math.inf if s is None else s, 0, m)
-                    for seq, (s, a) in enumerate(result.alerts, start=1)
-                    for m in messages.alert_messages(
-                        a, seq, None if s is None else int(round(s * 1e9)))]
-                   + [(lim.stamp_s, 1, m)
-                      for seq, lim in enumerate(result.current_limits, start=1)
-                      for m in messages.limits(lim) + [messages.drive_limits(lim, seq)]],
-                   key=lambda x: (x[0], x[1]))
+    later = _alerts_and_limits(result)
     build = messages.EstimateMessages(label=messages.state_label(
         under(interface.STATE_NAMES_TOPIC)))
     temps = [result.temperatures_C[n].tolist() for n in interface.ESTIMATES]
     sigma = [result.uncertainty_K[n].tolist() for n in interface.ESTIMATES]
     with atomic(path) as tmp, BagWriter(tmp, metadata=metadata, flush_interval_s=3600.0) as w:
-        for topic, type_name, qos in topics:
+        for topic, type_name, qos in _node_topics(result.outlook):
             w.add_topic(under(topic), type_name, qos)
         w.write(under(interface.STATE_NAMES_TOPIC), messages.state_names(result.state_names),
                 stamps_ns[0])

@@ -200,6 +200,106 @@ def _match_pressure_inputs(cfg: Config, wanted, source: str, info: BagInfo, topi
     return cfg, sensor_inputs(cfg), f'{source}, with pressure_inputs: {mode} (what the bag holds)'
 
 
+class _Topics:
+    """
+    Where each name is read in one bag: mapped (default type), or as the inputs file says.
+
+    ``mapping`` maps names (``current_A``, ``measured/frame``, ``ambient``, ...)
+    to topics of the default types; ``spec`` is the inputs file; the /eha
+    topics of both are moved to ``prefix``.
+    """
+
+    def __init__(self, info: BagInfo, spec: inputs_file.Inputs, inputs_source: str,
+                 mapping: Mapping[str, str], prefix: str) -> None:
+        self.info = info
+        self.spec = spec
+        self.inputs_source = inputs_source
+        self.mapping = dict(mapping)
+        self.prefix = prefix
+        self.default = inputs_file.Inputs()
+        known = set(INPUTS) | {'dp_Pa', 'ambient'} | {f'measured/{tc}' for tc in
+                                                      interface.THERMOCOUPLES}
+        unknown = sorted(set(self.mapping) - known)
+        if unknown:
+            raise ReplayError(f'cannot map {unknown[0]!r}: the names are '
+                              f'{", ".join(sorted(known))}')
+
+    @staticmethod
+    def channel(name: str) -> str:
+        """Return the inputs file's channel of a mapping's name."""
+        return inputs_file.thermocouple_channel(name[len('measured/'):]) \
+            if name.startswith('measured/') else name
+
+    def signal(self, name: str) -> inputs_file.InputSignal:
+        """Return where ``name`` is read: mapped (default type), or as the inputs say."""
+        sig = self.spec.signal(self.channel(name))
+        if name in self.mapping:
+            return dataclasses.replace(self.default.signal(self.channel(name)),
+                                       topic=self.mapping[name])
+        # an actuator in a namespace: its /eha topics were recorded under its prefix
+        return dataclasses.replace(sig, topic=interface.prefixed(sig.topic, self.prefix))
+
+    def found(self, name: str) -> Optional[str]:
+        """Return the topic of ``name`` when the bag holds it, checked for its type."""
+        sig = self.signal(name)
+        held = self.info.topics.get(sig.topic)
+        if held is None:
+            return None
+        if held.type_name != sig.message_type:
+            raise ReplayError(f'{self.info.path}: topic {sig.topic} ({name}) holds '
+                              f'{held.type_name}; expected {sig.message_type} '
+                              f'({self.inputs_source})')
+        return sig.topic
+
+    def inputs(self, wanted: Sequence[str]) -> tuple:
+        """Return the topic of each input of ``wanted`` the bag holds, and those it lacks."""
+        found, missing = {}, []
+        for name in wanted:
+            topic = self.found(name)
+            if topic is None:
+                missing.append(name)
+            else:
+                found[name] = topic
+        if not found:
+            listing = ', '.join(f'{t} ({i.type_name})'
+                                for t, i in sorted(self.info.topics.items()))
+            raise ReplayError(
+                f'{self.info.path}: no topic of the mapping is in the bag (looked for '
+                f'{", ".join(self.signal(n).topic for n in wanted)}; inputs file: '
+                f'{self.inputs_source}); the bag has: {listing or "no topics"}. Map them with '
+                '--map name=/topic, or give the inputs file with --inputs.')
+        return found, missing
+
+    def temperature(self, name: str) -> Optional[str]:
+        """Return the topic of a thermocouple or the ambient; None: not in the bag, or not one."""
+        try:
+            return self.found(name)
+        except ReplayError:
+            return None                    # not a temperature: compared with nothing
+
+    def decoders(self, used: Sequence[str]) -> Dict[str, InputsDecoder]:
+        """
+        Return the decoder of each topic the inputs file declares otherwise than the defaults.
+
+        Those topics are decoded as the node decodes them; ReplayError when one
+        is also a default-typed topic of ``used``.
+        """
+        spec, default, channel = self.spec, self.default, self.channel
+        configured = [channel(n) for n in used if n not in self.mapping
+                      and spec.signal(channel(n)) != default.signal(channel(n))]
+        try:
+            decoded = {dec.topic: InputsDecoder(dec)
+                       for dec in inputs_file.decoders(spec, configured)}
+        except ConfigError as exc:
+            raise ReplayError(str(exc)) from exc
+        both = sorted(set(decoded) & {self.signal(n).topic for n in used
+                                      if channel(n) not in configured})
+        if both:
+            raise ReplayError(f'{self.info.path}: topic {both[0]} is declared both as the inputs '
+                              'file says and with the default type: map one of them elsewhere')
+        return decoded
+
+
 def plan_replay(path: os.PathLike, config_path: Optional[os.PathLike] = None,
                 mapping: Optional[Mapping[str, str]] = None,
                 config: Optional[tuple] = None,
@@ -221,81 +321,15 @@ def plan_replay(path: os.PathLike, config_path: Optional[os.PathLike] = None,
     cfg, source, text = config if config is not None else choose_config(info, config_path)
     spec, inputs_source = choose_inputs(info, inputs)
     prefix = recorded_prefix(info)
-    default = inputs_file.Inputs()
-    mapping = dict(mapping or {})
-    known = set(INPUTS) | {'dp_Pa', 'ambient'} | {f'measured/{tc}' for tc in
-                                                  interface.THERMOCOUPLES}
-    unknown = sorted(set(mapping) - known)
-    if unknown:
-        raise ReplayError(f'cannot map {unknown[0]!r}: the names are '
-                          f'{", ".join(sorted(known))}')
-
-    def channel(name: str) -> str:         # a mapping's name -> the inputs file's channel
-        return inputs_file.thermocouple_channel(name[len('measured/'):]) \
-            if name.startswith('measured/') else name
-
-    def signal(name: str) -> inputs_file.InputSignal:
-        """Return where ``name`` is read: mapped (default type), or as the inputs say."""
-        sig = spec.signal(channel(name))
-        if name in mapping:
-            return dataclasses.replace(default.signal(channel(name)), topic=mapping[name])
-        # an actuator in a namespace: its /eha topics were recorded under its prefix
-        return dataclasses.replace(sig, topic=interface.prefixed(sig.topic, prefix))
-
-    def found(name: str) -> Optional[str]:
-        """Return the topic of ``name`` when the bag holds it, checked for its type."""
-        sig = signal(name)
-        held = info.topics.get(sig.topic)
-        if held is None:
-            return None
-        if held.type_name != sig.message_type:
-            raise ReplayError(f'{info.path}: topic {sig.topic} ({name}) holds {held.type_name}; '
-                              f'expected {sig.message_type} ({inputs_source})')
-        return sig.topic
-
-    wanted = sensor_inputs(cfg)
-    cfg, wanted, source = _match_pressure_inputs(cfg, wanted, source, info,
-                                                 lambda n: signal(n).topic)
-    inputs_found, missing = {}, []
-    for name in wanted:
-        topic = found(name)
-        if topic is None:
-            missing.append(name)
-        else:
-            inputs_found[name] = topic
-    if not inputs_found:
-        listing = ', '.join(f'{t} ({i.type_name})' for t, i in sorted(info.topics.items()))
-        raise ReplayError(
-            f'{info.path}: no topic of the mapping is in the bag (looked for '
-            f'{", ".join(signal(n).topic for n in wanted)}; inputs file: {inputs_source}); '
-            f'the bag has: {listing or "no topics"}. Map them with --map name=/topic, or give '
-            'the inputs file with --inputs.')
-    thermocouples = {}
-    for tc in interface.THERMOCOUPLES:
-        try:
-            topic = found(f'measured/{tc}')
-        except ReplayError:
-            topic = None                    # not a temperature: compared with nothing
-        if topic is not None:
-            thermocouples[tc] = topic
-    try:
-        ambient = found('ambient')
-    except ReplayError:
-        ambient = None
-    # what the inputs file declares otherwise than the defaults: decoded as the node does
-    used = [*inputs_found, *(['ambient'] if ambient else []),
-            *(f'measured/{tc}' for tc in thermocouples)]
-    configured = [channel(n) for n in used if n not in mapping
-                  and spec.signal(channel(n)) != default.signal(channel(n))]
-    try:
-        decoded = {dec.topic: InputsDecoder(dec)
-                   for dec in inputs_file.decoders(spec, configured)}
-    except ConfigError as exc:
-        raise ReplayError(str(exc)) from exc
-    both = sorted(set(decoded) & {signal(n).topic for n in used if channel(n) not in configured})
-    if both:
-        raise ReplayError(f'{info.path}: topic {both[0]} is declared both as the inputs file '
-                          'says and with the default type: map one of them elsewhere')
+    topics = _Topics(info, spec, inputs_source, mapping or {}, prefix)
+    cfg, wanted, source = _match_pressure_inputs(cfg, sensor_inputs(cfg), source, info,
+                                                 lambda n: topics.signal(n).topic)
+    inputs_found, missing = topics.inputs(wanted)
+    thermocouples = {tc: topic for tc in interface.THERMOCOUPLES
+                     if (topic := topics.temperature(f'measured/{tc}')) is not None}
+    ambient = topics.temperature('ambient')
+    decoded = topics.decoders([*inputs_found, *(['ambient'] if ambient else []),
+                               *(f'measured/{tc}' for tc in thermocouples)])
     return ReplayPlan(cfg=cfg, config_source=source, config_yaml=text, inputs=inputs_found,
                       missing=missing, thermocouples=thermocouples, ambient=ambient, info=info,
                       decoded=decoded, inputs_source=inputs_source, prefix=prefix)

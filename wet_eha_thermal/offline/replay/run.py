@@ -29,7 +29,7 @@ from ... import interface
 from ...bag.reader import iter_column_blocks
 from ...estimator.core import Estimate
 from ...estimator.limits import CurrentLimits
-from ...estimator.session import EstimatorSession, Output
+from ...estimator.session import EstimatorSession, Output, Samples
 
 #: Estimates written to the outputs (degC), in column order.
 OUTPUT_ESTIMATES = interface.ESTIMATES
@@ -150,6 +150,97 @@ def _outlook_row(e: Estimate, limited: Sequence[str]) -> List[float]:
         math.nan if v is None else v for v in (e.forecast_stamp_s, e.margin_current_A)]
 
 
+class _KeptOutputs:
+    """
+    What the session publishes, kept at the output rate.
+
+    The CSV's rows, each output's uncertainty and the state of every
+    ``every``-th step; every alert event and summary and every tick's limits.
+    """
+
+    def __init__(self, every: int, limited: Sequence[str], outlook: bool) -> None:
+        self.every = every
+        self.limited = list(limited)
+        self.outlook = outlook
+        self.rows: List[np.ndarray] = []
+        self.sigmas: List[List[float]] = []
+        self.states: List[np.ndarray] = []
+        self.events: List[tuple] = []
+        self.alerts: List[Tuple[Optional[float], dict]] = []
+        self.current_limits: List[CurrentLimits] = []
+        self.tick_current = _TickCurrent()
+
+    def __call__(self, out: Output) -> None:
+        """Keep what ``out`` holds (the session's ``publish`` callback)."""
+        # inline, a tick's limits are done within the step that made it: they come out
+        # with its estimate
+        ticks = {lim.stamp_s: lim for lim in out.limits}
+        self.current_limits.extend(ticks.values())
+        if out.alerts is not None:
+            self.alerts.append((out.estimates[-1].stamp_s if out.estimates else None,
+                                out.alerts))
+        for e in out.estimates:
+            for ev in e.alert_events:
+                self.events.append((e.stamp_s, ev.message))
+            if self.outlook:
+                self.tick_current.add(e, e.stamp_s in ticks)
+            if e.step % self.every == 0:
+                self.rows.append(np.array(
+                    [e.stamp_s] + [e.temperatures_C[n] for n in OUTPUT_ESTIMATES]
+                    + [max(e.uncertainty_K.values()), e.alert_level, len(e.stale)]
+                    + (_outlook_row(e, self.limited) if self.outlook else [])))
+                self.sigmas.append([e.uncertainty_K[n] for n in OUTPUT_ESTIMATES])
+                self.states.append(e.state_K)
+
+    def fields(self, step_s: float) -> dict:
+        """Return the :class:`ReplayResult` fields of what was kept (at least one row)."""
+        table = np.vstack(self.rows)
+        n = len(OUTPUT_ESTIMATES)
+        ahead = table[:, 4 + n:]          # the outlook's columns (none when it is off)
+        outlook = self.outlook
+        held_s, current_A = self.tick_current.in_force(step_s)
+        return {
+            'stamp_s': table[:, 0],
+            'temperatures_C': {name: table[:, 1 + k] for k, name in enumerate(OUTPUT_ESTIMATES)},
+            'sigma_K': table[:, 1 + n], 'alert_level': table[:, 2 + n].astype(int),
+            'stale_inputs': table[:, 3 + n].astype(int), 'alert_events': self.events,
+            'time_to_limit_s': {q: ahead[:, k] for k, q in enumerate(self.limited) if outlook},
+            'forecast_stamp_s': ahead[:, -2] if outlook else np.zeros(0),
+            'margin_current_A': ahead[:, -1] if outlook else np.zeros(0),
+            'current_limits': self.current_limits, 'limits_held_s': held_s,
+            'limits_current_A': current_A,
+            'uncertainty_K': {name: np.array([s[k] for s in self.sigmas])
+                              for k, name in enumerate(OUTPUT_ESTIMATES)},
+            'state_K': np.vstack(self.states), 'alerts': self.alerts}
+
+
+class _BagSeries:
+    """What the bag's samples show besides the model's run: thermocouples, inputs for plots."""
+
+    def __init__(self, plan: ReplayPlan, plot_interval_s: float) -> None:
+        self.first_s: Optional[float] = None
+        self.measured = {tc: ([], []) for tc in plan.thermocouples}
+        self.inputs = {name: _Decimator(plot_interval_s) for name in plan.inputs}
+
+    def add(self, samples: Samples) -> None:
+        """Add a routed block's thermocouple readings and inputs."""
+        if samples.first_s is not None:
+            self.first_s = samples.first_s if self.first_s is None else min(self.first_s,
+                                                                            samples.first_s)
+        for name, (t, v) in samples.inputs.items():
+            self.inputs[name].add(t, v)
+        for tc, (t, v, _) in samples.thermocouples.items():
+            self.measured[tc][0].append(t)
+            self.measured[tc][1].append(v)
+
+    def fields(self) -> dict:
+        """Return the :class:`ReplayResult` fields ``measured`` and ``inputs``."""
+        return {'measured': {tc: (np.concatenate(t) if t else np.zeros(0),
+                                  np.concatenate(v) if v else np.zeros(0))
+                             for tc, (t, v) in self.measured.items()},
+                'inputs': {name: d.arrays() for name, d in self.inputs.items()}}
+
+
 def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
            on_progress: Optional[Callable[[float, float, float], None]] = None,
            plot_interval_s: float = 0.1, prefetch: bool = True,
@@ -170,92 +261,38 @@ def replay(plan: ReplayPlan, output_rate_Hz: float = 10.0,
     session = session if session is not None else EstimatorSession(
         plan.cfg, outlook='inline' if outlook else 'off')
     outlook = session.outlook_mode != 'off'       # a caller's session has its own
-    limited = list(session.limits_C)
-    current_limits: List[CurrentLimits] = []
-    tick_current = _TickCurrent()
     step_s = plan.cfg.estimator.step_s
     every = max(1, int(round(1.0 / (output_rate_Hz * step_s))))
-    rows: List[np.ndarray] = []
-    sigmas: List[List[float]] = []
-    states: List[np.ndarray] = []
-    events: List[tuple] = []
-    alerts: List[Tuple[Optional[float], dict]] = []
-    measured = {tc: ([], []) for tc in plan.thermocouples}
-    inputs_plot = {name: _Decimator(plot_interval_s) for name in plan.inputs}
+    kept = _KeptOutputs(every, session.limits_C, outlook)
+    series = _BagSeries(plan, plot_interval_s)
     t_wall = time.perf_counter()
-    first_s: Optional[float] = None
     size = max(os.path.getsize(plan.info.path), 1)
     done_bytes = [0]
     # the next block is read and decoded on the other core while the model steps
     blocks = iter_column_blocks(plan.info.path, plan.specs, prefetch=prefetch,
                                 on_progress=lambda done, total: done_bytes.__setitem__(0, done))
-
-    def collect(out: Output) -> None:
-        # inline, a tick's limits are done within the step that made it: they come out
-        # with its estimate
-        ticks = {lim.stamp_s: lim for lim in out.limits}
-        current_limits.extend(ticks.values())
-        if out.alerts is not None:
-            alerts.append((out.estimates[-1].stamp_s if out.estimates else None, out.alerts))
-        for e in out.estimates:
-            for ev in e.alert_events:
-                events.append((e.stamp_s, ev.message))
-            if outlook:
-                tick_current.add(e, e.stamp_s in ticks)
-            if e.step % every == 0:
-                rows.append(np.array(
-                    [e.stamp_s] + [e.temperatures_C[n] for n in OUTPUT_ESTIMATES]
-                    + [max(e.uncertainty_K.values()), e.alert_level, len(e.stale)]
-                    + (_outlook_row(e, limited) if outlook else [])))
-                sigmas.append([e.uncertainty_K[n] for n in OUTPUT_ESTIMATES])
-                states.append(e.state_K)
-
-    session.publish = collect
+    session.publish = kept
     session.announce()            # the summary a node publishes first
     for block in blocks:
         samples = plan.route(block)
-        if samples.first_s is not None:
-            first_s = samples.first_s if first_s is None else min(first_s, samples.first_s)
-        for name, (t, v) in samples.inputs.items():
-            inputs_plot[name].add(t, v)
-        for tc, (t, v, _) in samples.thermocouples.items():
-            measured[tc][0].append(t)
-            measured[tc][1].append(v)
+        series.add(samples)
         session.feed(samples)
         if on_progress is not None:
-            wall = time.perf_counter() - t_wall
+            first_s = series.first_s
             t_model = (session.t_model - first_s) if session.t_model is not None and first_s \
                 else 0.0
-            on_progress(done_bytes[0] / size, t_model, wall)
+            on_progress(done_bytes[0] / size, t_model, time.perf_counter() - t_wall)
     wall = time.perf_counter() - t_wall
-    if not rows:
+    if not kept.rows:
         raise ReplayError(f'{plan.info.path}: not one model step could be made: the bag holds '
                           f'{blocks.message_count} messages of the mapped topics')
-    table = np.vstack(rows)
-    n = len(OUTPUT_ESTIMATES)
-    ahead = table[:, 4 + n:]          # the outlook's columns (none when it is off)
-    held_s, current_A = tick_current.in_force(step_s)
     status = session.status()
     return ReplayResult(
-        plan=plan, stamp_s=table[:, 0],
-        temperatures_C={name: table[:, 1 + k] for k, name in enumerate(OUTPUT_ESTIMATES)},
-        sigma_K=table[:, 1 + n], alert_level=table[:, 2 + n].astype(int),
-        stale_inputs=table[:, 3 + n].astype(int),
-        measured={tc: (np.concatenate(t) if t else np.zeros(0),
-                       np.concatenate(v) if v else np.zeros(0))
-                  for tc, (t, v) in measured.items()},
-        inputs={name: d.arrays() for name, d in inputs_plot.items()},
-        alert_events=events, messages=blocks.message_count, steps=status.steps,
+        plan=plan, **kept.fields(step_s), **series.fields(),
+        messages=blocks.message_count, steps=status.steps,
         sample_time_s=status.steps * step_s, wall_s=wall, truncated=blocks.truncated,
         problem=blocks.problem,
         health={name: dict(vars(h)) for name, h in session.health.items()},
         implausible=session.implausible_counts, correction=session.correction_summary(),
         limits_C=session.limits_C, outlook=outlook,
-        time_to_limit_s={q: ahead[:, k] for k, q in enumerate(limited) if outlook},
-        forecast_stamp_s=ahead[:, -2] if outlook else np.zeros(0),
-        margin_current_A=ahead[:, -1] if outlook else np.zeros(0),
-        current_limits=current_limits, limits_held_s=held_s, limits_current_A=current_A,
-        uncertainty_K={name: np.array([s[k] for s in sigmas])
-                       for k, name in enumerate(OUTPUT_ESTIMATES)},
-        state_K=np.vstack(states), state_names=tuple(session.model.quantities.state_names),
-        alerts=alerts)
+        state_names=tuple(session.model.quantities.state_names))
