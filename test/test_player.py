@@ -122,7 +122,7 @@ class Probe:
         self.estimator = None
         if estimator:
             self.estimator = EstimatorNode(context=context, parameter_overrides=[
-                Parameter('use_sim_time', value=True)])
+                Parameter('use_sim_time', value=True), Parameter('whatif', value=False)])
             self.executor.add_node(self.estimator)
             self.node.create_subscription(
                 Temperature, f'{interface.ESTIMATE_PREFIX}/winding_hotspot',
