@@ -430,9 +430,14 @@ def test_use_sim_time_stamps_follow_clock(context):
 def test_params_file_and_ranges(context):
     params = ROOT / 'config' / 'estimator.params.yaml'
     node = EstimatorNode(context=context, cli_args=[
-        '--ros-args', '--params-file', str(params), '-p', 'publish_rate_Hz:=20'])
+        '--ros-args', '--params-file', str(params), '-p', 'publish_rate_Hz:=20',
+        '-p', 'whatif:=false'])
     try:
         assert node.get_parameter('publish_rate_Hz').value == 20.0
+        # no what-if worker, and no what-if topics
+        assert node.runner.whatif is None
+        assert not [e.topic_name for e in [*node.publishers, *node.subscriptions]
+                    if 'whatif' in e.topic_name]
         assert node.get_parameter('qos').value == 'sensor_data'
         assert node.get_parameter('executor').value == 'events'
         assert node.runner.publish_timer.timer_period_ns == 50_000_000
@@ -757,7 +762,7 @@ def test_a_replay_writes_what_the_node_published_for_the_same_samples(
             replayed[channel.topic].append(message.data)
 
     node = EstimatorNode(context=context, parameter_overrides=[
-        Parameter('config_file', value=str(cfg_file))])
+        Parameter('config_file', value=str(cfg_file)), Parameter('whatif', value=False)])
     try:
         published = defaultdict(list)
         for topic, pub in node.runner.pubs.items():

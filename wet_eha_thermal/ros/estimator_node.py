@@ -76,6 +76,10 @@ PARAMETERS = {
     'foxglove_address': ('', descriptor(
         'Foxglove WebSocket server of the live view (wet_eha_thermal/live_view.py), HOST:PORT, '
         "e.g. 127.0.0.1:8765 (port 0: any free one); '' = no server")),
+    'whatif': (True, descriptor(
+        'serve what-ifs (a worker process and its fork server: about 210 MB and 1-2 s of CPU '
+        'at start, docs/live.md); false: neither they nor the whatif topics, for a rig PC '
+        'that runs several actuators')),
     'foxglove_inputs_rate_Hz': (20.0, descriptor(
         'rate of the inputs, input health and thermocouples in the Foxglove view (averaged '
         'over windows of sample time)', 1.0, 50.0, read_only=False)),

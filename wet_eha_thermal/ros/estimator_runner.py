@@ -148,8 +148,9 @@ class EstimatorRunner:
         self._advertise()
         if self._view_at is not None:
             self.view.start(self._view_at, p, self._ranges, self.prefix)
-        self.whatif = WhatIfService(node, self.session, self._topic, self.view.view,
-                                    self._failed)
+        if p['whatif']:
+            self.whatif = WhatIfService(node, self.session, self._topic, self.view.view,
+                                        self._failed)
         self.publish_timer = node.create_timer(1.0 / p['publish_rate_Hz'], self._on_tick)
         self.diag_timer = node.create_timer(1.0 / p['diagnostics_rate_Hz'],
                                             self._on_diagnostics)
@@ -185,7 +186,8 @@ class EstimatorRunner:
         self.pubs = {}
         self.view.close()
         self.view = EstimatorView(node, self.session, self._topic, self._failed)
-        self.whatif.close()
+        if self.whatif is not None:
+            self.whatif.close()
         self.whatif, self._made = None, None
 
     def close(self) -> None:

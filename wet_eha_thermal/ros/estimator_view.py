@@ -60,7 +60,8 @@ class EstimatorView:
                                  prefix=prefix, parameters={**parameters, **alerts, **limits},
                                  settable=settable,
                                  whatif_request_topic=self._topic(
-                                     interface.WHATIF_REQUEST_TOPIC))
+                                     interface.WHATIF_REQUEST_TOPIC)
+                                 if parameters['whatif'] else None)
         except RuntimeError as exc:
             self.error = f'{host}:{port}: {exc}'
             self.node.get_logger().error(f'Foxglove view not started on {self.error}; '
