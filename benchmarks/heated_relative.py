@@ -5,7 +5,7 @@ Run: OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/heated_relative.py [--re
 
 On a cold start the limits take each quantity's sigma per K of rise from the
 uncertainty's copies heated once at the continuous rating over the longest
-horizon (:meth:`~wet_eha_thermal.estimator.uncertainty.Propagation.heat`, in
+horizon (:class:`~wet_eha_thermal.estimator.uncertainty.Heating`, in
 ``HEATING_STEPS`` equal exact steps). Here the copies of the reference rig,
 started at ambient, are heated that way on held duties from idle to a loaded
 pump, with ``HEATING_STEPS`` steps and with ``--reference`` steps; printed,
@@ -19,7 +19,7 @@ import time
 from wet_eha_thermal.config import load_config
 from wet_eha_thermal.estimator.core import Estimator
 from wet_eha_thermal.estimator.limits import HeldDuty
-from wet_eha_thermal.estimator.uncertainty import HEATING_STEPS
+from wet_eha_thermal.estimator.uncertainty import Heating, HEATING_STEPS
 
 #: held duties: speed (rad/s), port A (Pa); port B and the accumulator at 1 MPa
 DUTIES = {'idle': (0.0, 1e6), '800 rad/s, 3 MPa': (800.0, 3e6),
@@ -41,9 +41,11 @@ def main() -> None:
     for label, (speed, p_a) in DUTIES.items():
         held = HeldDuty(speed, p_a, 1e6, 1e6, 0.0)
         t0 = time.process_time()
-        few = prop.heat(held, ambient_K)
+        few = prop.per_rise(*Heating(prop.models, prop.names, held, ambient_K, est.cfg,
+                                     0.0).result())
         cpu_s = time.process_time() - t0
-        many = prop.heat(held, ambient_K, steps=args.reference)
+        many = prop.per_rise(*Heating(prop.models, prop.names, held, ambient_K, est.cfg, 0.0,
+                                      steps=args.reference).result())
         worst = max(abs(few[q] / many[q] - 1.0) for q in many)
         shown = ', '.join(f'{q} {few[q]:.4f} ({many[q]:.4f})' for q in LIMITED)
         print(f'{label}: {HEATING_STEPS} steps ({args.reference}): {shown}; '

@@ -161,16 +161,19 @@ class Outlook:
     # ---------------------------------------------------------------- ticks
     def tick(self, steps_before: int, steps_after: int, stamp_s: float, ambient_K: float,
              now_C: Dict[str, float], sigma_K: Dict[str, float], stale: Sequence[str],
-             relative: Optional[Callable[[HeldDuty, float], Dict[str, float]]] = None) -> None:
+             relative: Optional[Callable[[HeldDuty, float, float],
+                                         Optional[Dict[str, float]]]] = None) -> None:
         """
         Start the work of a tick if the step from ``steps_before`` to ``steps_after`` made one.
 
         ``stamp_s`` the step's end (sample time), ``now_C`` and ``sigma_K``
         its estimate and 1-sigma uncertainty, ``stale`` its stale inputs,
         ``relative`` gives each quantity's 1 sigma per K of rise for the
-        held duty and the ambient, where the propagated uncertainty knows it
-        (:meth:`~.uncertainty.Propagation.relative`, :func:`~.limits.ceiling_K`);
-        None: the constant sigma.
+        held duty, the ambient and the stamp, where the propagated uncertainty
+        knows it, or None while it works it out (the limits are then the
+        fallback, and the first forecast waits):
+        :meth:`~.uncertainty.Propagation.relative`, :func:`~.limits.ceiling_K`.
+        ``relative`` None: the constant sigma.
         Call it after the model's step and its correction: the tick's state
         is the model's as it stands.
         """
@@ -179,11 +182,13 @@ class Outlook:
             return
         tick = steps_after // p
         held = self.held_duty()
-        why = self._distrust(sigma_K, stale)     # (code, detail) of a fallback, or None
-        forecast_tick = tick % self.forecast_ticks == 0 or not self._forecast_tick_numbers
+        per_rise = relative(held, ambient_K, stamp_s) if relative is not None else {}
+        why = self._distrust(sigma_K, stale, per_rise)   # (code, detail) of a fallback, or None
+        # the first forecast waits for the sigma per K of rise its margin needs
+        forecast_tick = per_rise is not None and (tick % self.forecast_ticks == 0
+                                                  or not self._forecast_tick_numbers)
         # the state saved only for work that reads it (1 ms inside the estimator's step)
         saved = snapshot.save(self.model) if forecast_tick or not why else b''
-        per_rise = relative(held, ambient_K) if relative is not None and saved else {}
         if forecast_tick:
             # at every forecast tick and at the first tick of the run
             self._forecast_tick_numbers.append(tick)
@@ -215,11 +220,14 @@ class Outlook:
         if self.inline:
             self.run(math.inf)
 
-    def _distrust(self, sigma_K: Dict[str, float],
-                  stale: Sequence[str]) -> Optional[Tuple[LimitStatus, str]]:
+    def _distrust(self, sigma_K: Dict[str, float], stale: Sequence[str],
+                  per_rise: Optional[Dict[str, float]]) -> Optional[Tuple[LimitStatus, str]]:
         """Return why a tick's limits cannot be trusted, (code, detail); None if they can."""
         if stale:
             return LimitStatus.STALE_INPUTS, ', '.join(stale)
+        if per_rise is None:
+            return LimitStatus.UNCERTAIN, ('the sigma at the horizons is being worked out '
+                                           '(the uncertainty copies heated on a cold start)')
         worst = max(self.limits_C, key=lambda q: sigma_K.get(q, 0.0))
         if sigma_K.get(worst, 0.0) > self.lim.max_sigma_K:
             return (LimitStatus.UNCERTAIN,

@@ -33,8 +33,8 @@ The limits carry the sigma to their horizons as a figure per K of rise
 it cools. Before that, on a cold start, the copies give no figure (they all
 sit at ambient), yet the limits ask what ten minutes at a high current would
 do: the copies are then heated once, from where they stand, at the
-continuous rating on the held duty for the longest horizon, and their figure
-stands until their own.
+continuous rating on the held duty for the longest horizon, on a thread of
+their own, and their figures stand until the copies' own.
 
 With the live correction on, the filter (:mod:`.correction`) takes the
 parameter part as process noise: at each period, the covariance of the
@@ -42,6 +42,7 @@ change of the parameter sensitivities over it (:attr:`Propagation.growth`).
 """
 
 import math
+import threading
 import time
 from typing import Dict, List, Optional
 
@@ -56,12 +57,15 @@ from ..model.uncertainty import parameter_perturbations, structural_perturbation
 SAMPLE_S = 0.02
 #: a quantity's sigma per K of rise is taken once it has risen this much above ambient (K)
 MIN_RISE_K = 5.0
-#: the cold start's heating (:meth:`Propagation.heat`): the horizon in this many equal
+#: the cold start's heating (:class:`Heating`): the horizon in this many equal
 #: exact steps. On the reference rig, against 60 steps: within 2 % idle and 4 % at 800 rad/s
 #: and 3 MPa; at 1000 rad/s and 10 MPa, where the oil thins and the pump's heat grows over
 #: the horizon faster than the steps' coefficients follow, about 35 % under (benchmarks/
 #: heated_relative.py)
 HEATING_STEPS = 4
+#: sample time (s) from the heating's start to the first tick that takes its figures: the
+#: limits are the fallback meanwhile; a heating not ended by then is waited for
+HEATING_WAIT_S = 2.0
 
 
 class Propagation:
@@ -105,6 +109,9 @@ class Propagation:
         self.periods = 0
         self._known: Dict[str, float] = {}   # each quantity's last sigma per K of rise
         self._heated: Optional[Dict[str, float]] = None   # the cold start's figures
+        self._heating: Optional[Heating] = None
+        #: sample time (s) from a heating's start to the first tick that takes its figures
+        self.heating_wait_s = HEATING_WAIT_S
         self.work_s = 0.0                     # CPU time spent stepping copies (s)
 
     @property
@@ -120,7 +127,7 @@ class Propagation:
         self._job = None
         self._pending = False
         self._last_s = float(first.t_s[-1])
-        self._known, self._heated = {}, None
+        self._known, self._heated, self._heating = {}, None, None
 
     def record(self, since_start_s: float, block: SampleBlock, steps_before: int,
                steps_after: int, ambient_K: float) -> bool:
@@ -257,42 +264,77 @@ class Propagation:
         """Return each quantity's 1 sigma (K) at the last period's end, in ``names`` order."""
         return np.sqrt(self.variance_K2)
 
-    def relative(self, held, ambient_K: float) -> Dict[str, float]:
+    def relative(self, held, ambient_K: float, stamp_s: float) -> Optional[Dict[str, float]]:
         """
-        Return each quantity's 1 sigma per K of rise, for the limits' horizons.
+        Return each quantity's 1 sigma per K of rise for the limits' horizons; None: pending.
 
         The copies' figure from the last period at whose end the quantity
         stood ``MIN_RISE_K`` above ambient (the unperturbed copy's rise then).
-        Until the copies have given one for every quantity, the figures of a
-        cold start fill in: the copies heated once from where they stand at
-        the motor's continuous rating for the longest limits horizon, on
-        ``held`` (:class:`~.limits.HeldDuty`) at ``ambient_K``
-        (:meth:`heat`).
+        Until the copies have given one for every quantity, those of a cold
+        start fill in: the first call (a tick at ``stamp_s``, sample time)
+        starts heating the copies on ``held`` (:class:`~.limits.HeldDuty`) at
+        ``ambient_K`` on a thread of its own (:class:`Heating`); the calls of
+        the next ``heating_wait_s`` of sample time return None, and the first
+        after that waits for the heating if it has not ended. The figures so
+        depend on the samples alone, and a live node's steps go on meanwhile.
         """
         if self._heated is None and len(self._known) < len(self.names):
-            self._heated = self.heat(held, ambient_K)
+            if self._heating is None:
+                self.finish()            # the copies in step with each other
+                self._heating = Heating(self.models, self.names, held, ambient_K,
+                                        self._cfgs[0], stamp_s)
+            if stamp_s < self._heating.stamp_s + self.heating_wait_s:
+                return None
+            self._heated, self._heating = self.per_rise(*self._heating.result()), None
         return {**(self._heated or {}), **self._known}
 
-    def heat(self, held, ambient_K: float, steps: int = HEATING_STEPS) -> Dict[str, float]:
-        """
-        Return the sigmas per K of rise of the copies heated at the continuous rating.
-
-        Each copy is copied (:mod:`~..model.snapshot`) and stepped on the held
-        duty at ``motor.max_continuous_current_A`` over the longest horizon of
-        ``estimator.limits`` in ``steps`` equal exact steps; the copies
-        themselves do not move. 31 copies of the reference rig: about half a
-        second, once in a run.
-        """
-        self.finish()            # the copies in step with each other
-        current_A = self._cfgs[0].motor.max_continuous_current_A
-        horizon_s = max(self._cfgs[0].estimator.limits.horizons_s)
-        dt = horizon_s / steps
-        y = np.empty_like(self._y)
-        for k, m in enumerate(self.models):
-            c = snapshot.copy(snapshot.save(m))
-            c.hold_from(held.block(c.time_s, current_A))
-            for _ in range(steps):
-                c.step(held.block(c.time_s + dt, current_A), ambient_K, max_substep_s=dt)
-            out = c.outputs()
-            y[k] = [out[n] for n in self.names]
+    def per_rise(self, y: np.ndarray, ambient_K: float) -> Dict[str, float]:
+        """Return the sigma per K of rise the copies' outputs ``y`` (K, a row each) give."""
         return self._per_rise(*self._variance(y, ambient_K))
+
+
+class Heating:
+    """
+    The uncertainty's copies heated once at the continuous rating, on a thread of their own.
+
+    Each copy is saved (:mod:`~..model.snapshot`) on the caller's thread,
+    then, on the heating's, loaded and stepped on the held duty at
+    ``motor.max_continuous_current_A`` over the longest horizon of
+    ``estimator.limits`` in ``steps`` equal exact steps: the copies
+    themselves do not move. The reference rig's 31 copies: about 80 ms on the
+    caller's thread, then half a second of CPU on the heating's.
+    """
+
+    def __init__(self, models: List[EHAModel], names: List[str], held, ambient_K: float,
+                 cfg: Config, stamp_s: float, steps: int = HEATING_STEPS) -> None:
+        self.stamp_s = stamp_s
+        saved = [snapshot.save(m) for m in models]
+        self._out: List[object] = []
+        self._thread = threading.Thread(
+            target=self._run, name='uncertainty heating', daemon=True,
+            args=(saved, names, held, ambient_K, cfg, steps))
+        self._thread.start()
+
+    def _run(self, saved, names, held, ambient_K, cfg, steps) -> None:
+        try:
+            current_A = cfg.motor.max_continuous_current_A
+            dt = max(cfg.estimator.limits.horizons_s) / steps
+            y = np.empty((len(saved), len(names)))
+            for k, snap in enumerate(saved):
+                c = snapshot.copy(snap)
+                c.hold_from(held.block(c.time_s, current_A))
+                for _ in range(steps):
+                    c.step(held.block(c.time_s + dt, current_A), ambient_K, max_substep_s=dt)
+                out = c.outputs()
+                y[k] = [out[n] for n in names]
+            self._out.append((y, ambient_K))
+        except BaseException as exc:  # noqa: B902 - handed to result()
+            self._out.append(exc)
+
+    def result(self):
+        """Wait for the heating; return the copies' outputs (K) and the ambient (K)."""
+        self._thread.join()
+        out = self._out[0]
+        if isinstance(out, BaseException):
+            raise out
+        return out
