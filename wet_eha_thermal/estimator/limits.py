@@ -78,8 +78,10 @@ def horizon_name(horizon_s: float) -> str:
 def step_statistics(block: SampleBlock) -> np.ndarray:
     """Return a step's mean squared speed, squared high-side pressure, low side, accumulator."""
     high = np.maximum(block.p_a_Pa, block.p_b_Pa)
-    return np.array([np.mean(block.speed_rad_s ** 2), np.mean(high ** 2),
-                     np.mean(np.minimum(block.p_a_Pa, block.p_b_Pa)), np.mean(block.p_acc_Pa)])
+    n = high.size
+    # sums over the count: np.mean's arithmetic without its overhead on a step's samples
+    return np.array([(block.speed_rad_s ** 2).sum() / n, (high ** 2).sum() / n,
+                     np.minimum(block.p_a_Pa, block.p_b_Pa).sum() / n, block.p_acc_Pa.sum() / n])
 
 
 @dataclass(frozen=True)

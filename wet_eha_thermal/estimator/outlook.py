@@ -139,9 +139,10 @@ class Outlook:
         else:
             self.window.extend(itertools.repeat(block, n))
         # the limits' held duty: each step's statistics in a ring, averaged at a tick
-        rows = (self._stat_next + np.arange(n)) % self._stats.shape[0]
+        size = self._stats.shape[0]
+        rows = (self._stat_next + np.arange(n)) % size if n > 1 else self._stat_next
         self._stats[rows] = step_statistics(block)
-        self._stat_next = int(rows[-1] + 1) % self._stats.shape[0]
+        self._stat_next = (self._stat_next + n) % size
         self._stat_count = min(self._stat_count + n, self._stats.shape[0])
 
     def held_duty(self) -> HeldDuty:

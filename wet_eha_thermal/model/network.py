@@ -396,7 +396,9 @@ class ThermalNetwork:
         m = d.size
         if a.size:
             order, half, entries, places = self._band
-            if not np.isfinite(K).all():
+            # K is made of the conductances and advection rates: finite when they are
+            if not (np.isfinite(self.conductance).all()
+                    and np.isfinite(self.advection_rate).all()):
                 raise NetworkError('algebraic nodes cannot be eliminated: a coefficient is '
                                    'not finite')
             band = np.zeros((3 * half + 1, a.size))
