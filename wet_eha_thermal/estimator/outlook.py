@@ -29,8 +29,8 @@ from typing import Deque, Dict, Generator, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from .limits import (ceiling_K, current_limits, CurrentLimits, fallback_limits, HeldDuty,
-                     limit_steps, probing, RATING, step_statistics)
+from .limits import (ceiling_K, ceilings_K, current_limits, CurrentLimits, fallback_limits,
+                     HeldDuty, limit_steps, Linearised, probing, RATING, step_statistics)
 from ..config import Config
 from ..interface import INPUTS, LimitStatus
 from ..model import snapshot
@@ -125,6 +125,8 @@ class Outlook:
         self._probing = probing(model, list(limits_C))
         #: where the limits' searches start: the last answers (:func:`~.limits.limit_steps`)
         self._guesses: Dict[Tuple[float, int], float] = {}
+        #: the last tick linearised, whose linearisations the ticks close to it take
+        self._linearised: Optional[Linearised] = None
 
     @property
     def busy(self) -> bool:
@@ -200,10 +202,15 @@ class Outlook:
             else:
                 self._finish(fallback)
             return
-        steps = limit_steps(saved, self.model.state, self._probing, held, ambient_K, sigma_K,
-                            self.limits_C, self.lim.k_sigma, self.lim.horizons_s,
-                            self.lim.period_s, self.cfg.motor.peak_current_A, relative,
-                            self._guesses)
+        x0 = self.model.state
+        kept = self._linearised
+        if kept is None or not kept.fits(x0, held, ambient_K):
+            # decided here, in sample order: a live node and a replay take the same ticks'
+            kept = self._linearised = Linearised(saved, x0, held, ambient_K, ceilings_K(
+                self.limits_C, sigma_K, self.lim.k_sigma, relative, ambient_K))
+        steps = limit_steps(saved, x0, self._probing, held, ambient_K, sigma_K, self.limits_C,
+                            self.lim.k_sigma, self.lim.horizons_s, self.lim.period_s,
+                            self.cfg.motor.peak_current_A, relative, self._guesses, kept)
         delay = int(round(MARGIN_DELAY_S / self.lim.period_s))
         margin_tick = max((f for f in self._forecast_tick_numbers if f <= tick - delay),
                           default=None)
