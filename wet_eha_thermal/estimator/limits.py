@@ -464,6 +464,14 @@ class Linearised:
     terms: Optional[tuple] = None       # :func:`linearise` at x0
     mids: Dict[float, tuple] = field(default_factory=dict)   # by horizon: (state K, terms)
 
+    @classmethod
+    def for_tick(cls, kept: Optional['Linearised'], saved: bytes, x0: np.ndarray,
+                 held: HeldDuty, ambient_K: float, ceilings: Dict[str, float]) -> 'Linearised':
+        """Return ``kept`` if it :meth:`fits` this tick, else this tick's own."""
+        if kept is not None and kept.fits(x0, held, ambient_K):
+            return kept
+        return cls(saved, x0, held, ambient_K, ceilings)
+
     def fits(self, x0: np.ndarray, held: HeldDuty, ambient_K: float) -> bool:
         """Tell whether a tick at state ``x0`` (K) may take these linearisations."""
         return (ambient_K == self.ambient_K and held.close_to(self.held)

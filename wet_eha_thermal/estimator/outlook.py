@@ -203,11 +203,10 @@ class Outlook:
                 self._finish(fallback)
             return
         x0 = self.model.state
-        kept = self._linearised
-        if kept is None or not kept.fits(x0, held, ambient_K):
-            # decided here, in sample order: a live node and a replay take the same ticks'
-            kept = self._linearised = Linearised(saved, x0, held, ambient_K, ceilings_K(
-                self.limits_C, sigma_K, self.lim.k_sigma, relative, ambient_K))
+        # decided here, in sample order: a live node and a replay take the same ticks'
+        kept = self._linearised = Linearised.for_tick(
+            self._linearised, saved, x0, held, ambient_K,
+            ceilings_K(self.limits_C, sigma_K, self.lim.k_sigma, relative, ambient_K))
         steps = limit_steps(saved, x0, self._probing, held, ambient_K, sigma_K, self.limits_C,
                             self.lim.k_sigma, self.lim.horizons_s, self.lim.period_s,
                             self.cfg.motor.peak_current_A, relative, self._guesses, kept)
