@@ -602,22 +602,21 @@ class ThermalNetwork:
 
 
 def _by_rows(M: np.ndarray) -> tuple:
-    """Return ``M``'s nonzeros by row: (each row's first in the lists, columns, values)."""
+    """Return ``M``'s nonzeros in row order: (rows, columns, values)."""
     rows, cols = np.nonzero(M)
-    return np.searchsorted(rows, np.arange(M.shape[0] + 1)), cols, M[rows, cols]
+    return rows, cols, M[rows, cols]
 
 
 @jit
-def sparse_product(M, v):
-    """Return ``M @ v`` for ``M`` given by :func:`_by_rows`."""
-    starts, cols, values = M
-    out = np.empty(starts.size - 1)
-    for r in range(out.size):
-        s = 0.0
-        for k in range(starts[r], starts[r + 1]):
-            s += values[k] * v[cols[k]]
-        out[r] = s
-    return out
+def sparse_product(M, v, n):
+    """
+    Return ``M @ v`` (``n`` rows) for ``M`` given by :func:`_by_rows`.
+
+    Each row's products summed in column order; numpy style, so that it is
+    fast without numba too.
+    """
+    rows, cols, values = M
+    return np.bincount(rows, values * v[cols], n)
 
 
 @jit
@@ -629,7 +628,8 @@ def full_temperatures(dynamic, algebraic, out_x, out_w, x, w):
     capacity; an algebraic node's temperature is ``out_x x + out_w w`` (the
     maps by rows, :func:`_by_rows`).
     """
-    return _scatter_temperatures(dynamic, algebraic, out_x, x, sparse_product(out_w, w))
+    return _scatter_temperatures(dynamic, algebraic, out_x, x,
+                                 sparse_product(out_w, w, algebraic.size))
 
 
 @jit
@@ -638,7 +638,7 @@ def _scatter_temperatures(dynamic, algebraic, out_x, x, from_inputs):
     T = np.empty(dynamic.size + algebraic.size)
     T[dynamic] = x
     if algebraic.size:
-        T[algebraic] = sparse_product(out_x, x) + from_inputs
+        T[algebraic] = sparse_product(out_x, x, algebraic.size) + from_inputs
     return T
 
 
@@ -657,7 +657,7 @@ def zoh_step(Ad, Bd, Mx, Mw, out_x, out_w, dynamic, algebraic, x, w):
     """
     x_new = Ad @ x + Bd @ w
     x_mean = Mx @ x + Mw @ w
-    from_inputs = sparse_product(out_w, w)   # the algebraic nodes' share of the inputs, once
+    from_inputs = sparse_product(out_w, w, algebraic.size)   # the inputs' share, once
     return (x_new, _scatter_temperatures(dynamic, algebraic, out_x, x_new, from_inputs),
             _scatter_temperatures(dynamic, algebraic, out_x, x_mean, from_inputs))
 
