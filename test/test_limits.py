@@ -8,6 +8,7 @@ import pickle
 import numpy as np
 import pytest
 from wet_eha_thermal.config import load_config
+from wet_eha_thermal.estimator import limits as limits_module
 from wet_eha_thermal.estimator.core import Estimator, INPUTS
 from wet_eha_thermal.estimator.limits import (ceiling_K, limit_steps, LimitProblem, linearise,
                                               probing, RATING, TOL_A2)
@@ -215,6 +216,45 @@ def test_limits_are_bit_for_bit_the_same_at_once_and_in_background_slices(inline
     assert all((lim.status == 'ok') == (lim.stamp_s >= 0.5 + HEATING_WAIT_S) for lim in inline)
     stamps = [lim.stamp_s for lim in inline]
     assert stamps == sorted(stamps)
+
+
+def warm_ticks(seconds, warm_s=40.0):
+    """Return the limits of ``seconds`` of the duty at once, after ``warm_s`` without them."""
+    est = Estimator(load_config(overrides=LOW_LIMITS), outlook='inline')
+    est.outlook_mode = 'off'          # (the warm-up's ticks cost time and test nothing)
+    t = feed(est, 0.0, warm_s)
+    est.outlook_mode = 'inline'
+    out = []
+    while t < warm_s + seconds:
+        t = feed(est, t, 1.0)
+        out += est._outlook.take_limits()
+    return out
+
+
+def test_ticks_near_a_linearised_one_take_its_linearisations_within_a_cell_of_the_grid(
+        monkeypatch):
+    made = []
+
+    def counted(*args, **kwargs):
+        made.append(args[1] is None)        # at the tick's state, or half-way
+        return linearise(*args, **kwargs)
+
+    monkeypatch.setattr(limits_module, 'linearise', counted)
+    reused = warm_ticks(12.0)
+    kept = made.count(True)
+    made.clear()
+    # the reference: every tick linearised at its own state
+    monkeypatch.setattr(limits_module, 'REUSE_TOL_K', -1.0)
+    fresh = warm_ticks(12.0)
+    # the winding warms slowly: about every other tick takes the last one's
+    assert made.count(True) == len(fresh) and 0 < kept < 0.75 * len(fresh)
+    assert all(max(lim.limits_A) < 45.0 for lim in fresh)       # every horizon binds
+    for a, b in zip(reused, fresh):
+        # each answer is the middle of its cell of I^2 (2 TOL_A2 wide) around its root: a
+        # reused linearisation moves the root by less than a cell
+        assert a.binds == b.binds and a.stamp_s == b.stamp_s
+        assert max(abs(x * x - y * y) for x, y in zip(a.limits_A, b.limits_A)) \
+            <= 2 * TOL_A2 + 1e-9
 
 
 def test_limits_taken_sample_by_sample_with_a_small_budget_are_the_same_as_at_once(inline):

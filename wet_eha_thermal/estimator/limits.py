@@ -44,7 +44,7 @@ figure (a quantity less than a few K above ambient, or the constant
 uncertainty) the tick's sigma stands.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import math
 from typing import Dict, Generator, List, NamedTuple, Optional, Sequence, Tuple
 
@@ -68,6 +68,11 @@ FALLBACK = 'fallback'
 RELINEARISE_AFTER_S = 120.0
 #: I^2 tolerance of the search (A^2): 0.04 A at 25 A, a tenth of the model's own spread
 TOL_A2 = 2.0
+#: a tick whose every state is within this (K) of a linearised tick's, on the same held duty
+#: and ambient, takes that tick's linearisations: a fifth of the model's own threshold (its
+#: airgap oil's 0.5 K) within which it steps on held coefficients; the limits then stay
+#: within a cell of the search's grid of linearising every tick (test/test_limits.py)
+REUSE_TOL_K = 0.1
 
 
 def horizon_name(horizon_s: float) -> str:
@@ -78,8 +83,10 @@ def horizon_name(horizon_s: float) -> str:
 def step_statistics(block: SampleBlock) -> np.ndarray:
     """Return a step's mean squared speed, squared high-side pressure, low side, accumulator."""
     high = np.maximum(block.p_a_Pa, block.p_b_Pa)
-    return np.array([np.mean(block.speed_rad_s ** 2), np.mean(high ** 2),
-                     np.mean(np.minimum(block.p_a_Pa, block.p_b_Pa)), np.mean(block.p_acc_Pa)])
+    n = high.size
+    # sums over the count: np.mean's arithmetic without its overhead on a step's samples
+    return np.array([(block.speed_rad_s ** 2).sum() / n, (high ** 2).sum() / n,
+                     np.minimum(block.p_a_Pa, block.p_b_Pa).sum() / n, block.p_acc_Pa.sum() / n])
 
 
 @dataclass(frozen=True)
@@ -105,6 +112,19 @@ class HeldDuty:
         speed_sq, high_sq, low, acc = rows.mean(axis=0)
         return cls(speed_rad_s=math.sqrt(speed_sq), p_a_Pa=math.sqrt(high_sq), p_b_Pa=low,
                    p_acc_Pa=acc, position_m=position_m)
+
+    def close_to(self, other: 'HeldDuty') -> bool:
+        """
+        Tell whether ``other`` is this duty within the model's own refresh thresholds.
+
+        1 % of the speed, 0.1 MPa of each pressure (the case pressure's), and
+        1 mm of the position: the coefficients a probe would take barely move.
+        """
+        return (abs(self.speed_rad_s - other.speed_rad_s) <= 0.01 * max(other.speed_rad_s, 5.0)
+                and abs(self.p_a_Pa - other.p_a_Pa) <= 1e5
+                and abs(self.p_b_Pa - other.p_b_Pa) <= 1e5
+                and abs(self.p_acc_Pa - other.p_acc_Pa) <= 1e5
+                and abs(self.position_m - other.position_m) <= 1e-3)
 
     def block(self, t_s: float, current_A: float) -> SampleBlock:
         """Return one held sample at ``t_s`` (model time) with ``current_A``."""
@@ -425,6 +445,70 @@ def probing(model: EHAModel, limited: Sequence[str]) -> Probing:
                    tuple(name for name in limited if q.outputs[name].kind == PEAK))
 
 
+@dataclass(eq=False)
+class Linearised:
+    """
+    A tick's linearisations, for it and the ticks after it whose state stays close (:meth:`fits`).
+
+    ``saved``, ``x0`` (K), ``held``, ``ambient_K``, ``ceilings`` (K): the tick's
+    (:func:`limit_steps`). Each is computed when a tick first needs it, from
+    this tick's saved model alone: a live node that gave the tick up and a
+    replay that worked it reuse the same bits.
+    """
+
+    saved: bytes
+    x0: np.ndarray
+    held: HeldDuty
+    ambient_K: float
+    ceilings: Dict[str, float]
+    terms: Optional[tuple] = None       # :func:`linearise` at x0
+    mids: Dict[float, tuple] = field(default_factory=dict)   # by horizon: (state K, terms)
+
+    @classmethod
+    def for_tick(cls, kept: Optional['Linearised'], saved: bytes, x0: np.ndarray,
+                 held: HeldDuty, ambient_K: float, ceilings: Dict[str, float]) -> 'Linearised':
+        """Return ``kept`` if it :meth:`fits` this tick, else this tick's own."""
+        if kept is not None and kept.fits(x0, held, ambient_K):
+            return kept
+        return cls(saved, x0, held, ambient_K, ceilings)
+
+    def fits(self, x0: np.ndarray, held: HeldDuty, ambient_K: float) -> bool:
+        """Tell whether a tick at state ``x0`` (K) may take these linearisations."""
+        return (ambient_K == self.ambient_K and held.close_to(self.held)
+                and float(np.max(np.abs(x0 - self.x0))) <= REUSE_TOL_K)
+
+    def linearise(self, shift_K: Optional[np.ndarray], dt_s: float, peak_A: float,
+                  setup: 'Probing') -> tuple:
+        """Return :func:`linearise` of this tick's model moved by ``shift_K``."""
+        return linearise(self.saved, shift_K, self.held, dt_s, self.ambient_K, peak_A,
+                         setup.layout, setup.alpha_copper, setup.peaks)
+
+    def first(self, dt_s: float, peak_A: float, setup: 'Probing') -> tuple:
+        """Return the linearisation at this tick's state."""
+        if self.terms is None:
+            self.terms = self.linearise(None, dt_s, peak_A, setup)
+        return self.terms
+
+    def mid(self, horizon_s: float, steps: int, dt_s: float, peak_A: float, setup: 'Probing',
+            guess_A: Optional[float]) -> tuple:
+        """Return (state, terms) half-way along this tick's own first solution over a horizon."""
+        if horizon_s not in self.mids:
+            own = LimitProblem(*self.first(dt_s, peak_A, setup), self.x0, setup.rows,
+                               self.ceilings)
+            amps, _ = own.solve(lambda s: own.horizon_excess(s, steps), peak_A, guess_A)
+            x_mid = own.trajectory(amps ** 2, steps // 2)[:, -1]
+            self.mids[horizon_s] = (x_mid, self.linearise(x_mid - self.x0, dt_s, peak_A, setup))
+        return self.mids[horizon_s]
+
+
+def ceilings_K(limits_C: Dict[str, float], sigma_K: Dict[str, float], k_sigma: float,
+               relative: Optional[Dict[str, float]], ambient_K: float) -> Dict[str, float]:
+    """Return :func:`ceiling_K` of each limited quantity."""
+    relative = relative or {}
+    return {name: ceiling_K(lim, sigma_K[name], k_sigma, relative.get(name), ambient_K)
+            for name, lim in limits_C.items()}
+
+
 def ceiling_K(limit_C: float, sigma_K: float, k_sigma: float, relative: Optional[float],
               ambient_K: float) -> float:
     """
@@ -445,7 +529,8 @@ def limit_steps(saved: bytes, x0: np.ndarray, setup: Probing, held: HeldDuty,
                 ambient_K: float, sigma_K: Dict[str, float], limits_C: Dict[str, float],
                 k_sigma: float, horizons_s: Sequence[float], dt_s: float, peak_A: float,
                 relative: Optional[Dict[str, float]] = None,
-                guesses: Optional[Dict[Tuple[float, int], float]] = None
+                guesses: Optional[Dict[Tuple[float, int], float]] = None,
+                kept: Optional[Linearised] = None
                 ) -> Generator[None, None, List[Tuple[float, str]]]:
     """
     Compute a tick's limit for each horizon from the pickled model ``saved``, in slices.
@@ -463,20 +548,17 @@ def limit_steps(saved: bytes, x0: np.ndarray, setup: Probing, held: HeldDuty,
     leakage heat, move far from the tick's. ``guesses``: where each search
     starts, by (horizon, 0 for the first solution or 1 for the second),
     updated with this tick's answers (an outlook keeps it from tick to tick:
-    the answers do not depend on it, :meth:`LimitProblem.solve`).
+    the answers do not depend on it, :meth:`LimitProblem.solve`). ``kept``: the
+    :class:`Linearised` of the tick to take the linearisations of (this one's,
+    or an earlier tick's that :meth:`~Linearised.fits` it; None: this one's).
+    A tick that takes an earlier tick's takes its half-way linearisation too
+    while its own half-way state is within ``REUSE_TOL_K`` of that tick's.
     """
-    relative = relative or {}
-    ceiling = {name: ceiling_K(lim, sigma_K[name], k_sigma, relative.get(name), ambient_K)
-               for name, lim in limits_C.items()}
-
-    def problem_at(shift_K: Optional[np.ndarray]) -> LimitProblem:
-        """Return the problem linearised at the state moved by ``shift_K`` (None: as it is)."""
-        return LimitProblem(*linearise(saved, shift_K, held, dt_s, ambient_K, peak_A,
-                                       setup.layout, setup.alpha_copper, setup.peaks),
-                            x0, setup.rows, ceiling)
-
+    ceiling = ceilings_K(limits_C, sigma_K, k_sigma, relative, ambient_K)
+    lin = kept if kept is not None else Linearised(saved, x0, held, ambient_K, ceiling)
+    fit = (dt_s, peak_A, setup)
     guesses = {} if guesses is None else guesses
-    problem = problem_at(None)
+    problem = LimitProblem(*lin.first(*fit), x0, setup.rows, ceiling)
     out = []
     for h in horizons_s:
         yield
@@ -486,7 +568,17 @@ def limit_steps(saved: bytes, x0: np.ndarray, setup: Probing, held: HeldDuty,
         guesses[(h, 0)] = amps
         if h > RELINEARISE_AFTER_S:
             yield
-            again = problem_at(problem.trajectory(amps ** 2, steps // 2)[:, -1] - x0)
+            x_mid = problem.trajectory(amps ** 2, steps // 2)[:, -1]
+            if lin.saved is saved:            # this tick's own: x_mid is its half-way state
+                if h not in lin.mids:
+                    lin.mids[h] = (x_mid, lin.linearise(x_mid - x0, *fit))
+                terms = lin.mids[h][1]
+            else:
+                at, terms = lin.mid(h, steps, *fit, amps)
+                if float(np.max(np.abs(x_mid - at))) > REUSE_TOL_K:
+                    terms = linearise(saved, x_mid - x0, held, dt_s, ambient_K, peak_A,
+                                      setup.layout, setup.alpha_copper, setup.peaks)
+            again = LimitProblem(*terms, x0, setup.rows, ceiling)
             amps, binds = again.solve(lambda s, n=steps: again.horizon_excess(s, n), peak_A,
                                       guesses.get((h, 1), amps))
             guesses[(h, 1)] = amps

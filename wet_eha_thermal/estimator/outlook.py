@@ -29,8 +29,8 @@ from typing import Callable, Deque, Dict, Generator, List, Optional, Sequence, T
 
 import numpy as np
 
-from .limits import (ceiling_K, current_limits, CurrentLimits, fallback_limits, HeldDuty,
-                     limit_steps, probing, RATING, step_statistics)
+from .limits import (ceiling_K, ceilings_K, current_limits, CurrentLimits, fallback_limits,
+                     HeldDuty, limit_steps, Linearised, probing, RATING, step_statistics)
 from ..config import Config
 from ..interface import INPUTS, LimitStatus
 from ..model import snapshot
@@ -125,6 +125,8 @@ class Outlook:
         self._probing = probing(model, list(limits_C))
         #: where the limits' searches start: the last answers (:func:`~.limits.limit_steps`)
         self._guesses: Dict[Tuple[float, int], float] = {}
+        #: the last tick linearised, whose linearisations the ticks close to it take
+        self._linearised: Optional[Linearised] = None
 
     @property
     def busy(self) -> bool:
@@ -139,9 +141,10 @@ class Outlook:
         else:
             self.window.extend(itertools.repeat(block, n))
         # the limits' held duty: each step's statistics in a ring, averaged at a tick
-        rows = (self._stat_next + np.arange(n)) % self._stats.shape[0]
+        size = self._stats.shape[0]
+        rows = (self._stat_next + np.arange(n)) % size if n > 1 else self._stat_next
         self._stats[rows] = step_statistics(block)
-        self._stat_next = int(rows[-1] + 1) % self._stats.shape[0]
+        self._stat_next = (self._stat_next + n) % size
         self._stat_count = min(self._stat_count + n, self._stats.shape[0])
 
     def held_duty(self) -> HeldDuty:
@@ -207,10 +210,14 @@ class Outlook:
             else:
                 self._finish(fallback)
             return
-        steps = limit_steps(saved, self.model.state, self._probing, held, ambient_K, sigma_K,
-                            self.limits_C, self.lim.k_sigma, self.lim.horizons_s,
-                            self.lim.period_s, self.cfg.motor.peak_current_A, per_rise,
-                            self._guesses)
+        x0 = self.model.state
+        # decided here, in sample order: a live node and a replay take the same ticks'
+        kept = self._linearised = Linearised.for_tick(
+            self._linearised, saved, x0, held, ambient_K,
+            ceilings_K(self.limits_C, sigma_K, self.lim.k_sigma, per_rise, ambient_K))
+        steps = limit_steps(saved, x0, self._probing, held, ambient_K, sigma_K, self.limits_C,
+                            self.lim.k_sigma, self.lim.horizons_s, self.lim.period_s,
+                            self.cfg.motor.peak_current_A, per_rise, self._guesses, kept)
         delay = int(round(MARGIN_DELAY_S / self.lim.period_s))
         margin_tick = max((f for f in self._forecast_tick_numbers if f <= tick - delay),
                           default=None)

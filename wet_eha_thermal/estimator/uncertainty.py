@@ -41,6 +41,7 @@ parameter part as process noise: at each period, the covariance of the
 change of the parameter sensitivities over it (:attr:`Propagation.growth`).
 """
 
+import functools
 import math
 import threading
 import time
@@ -66,6 +67,22 @@ HEATING_STEPS = 4
 #: sample time (s) from the heating's start to the first tick that takes its figures: the
 #: limits are the fallback meanwhile; a heating not ended by then is waited for
 HEATING_WAIT_S = 2.0
+
+
+@functools.lru_cache(maxsize=64)
+def _groups(n: int, groups: int) -> tuple:
+    """
+    Return ``n`` samples in ``groups`` nearly equal groups: (starts, ends, counts, n - ends).
+
+    The same few splits every step (a 20 ms step's grid in one group): kept
+    rather than made again, read only.
+    """
+    ends = np.linspace(0, n, groups + 1).round().astype(int)[1:]
+    starts = np.concatenate([[0], ends[:-1]])
+    out = starts, ends, (ends - starts).astype(float), n - ends
+    for a in out:
+        a.flags.writeable = False
+    return out
 
 
 class Propagation:
@@ -147,18 +164,17 @@ class Propagation:
         # the grid's samples, in groups of about SAMPLE_S: a bidirectional duty's speed and
         # pressures alternate within a long step, and their means would cancel the pump's heat
         per = max(1, int(round(SAMPLE_S * n / span))) if span > 0.0 else n
-        groups = max(1, n // per)
-        ends = np.linspace(0, n, groups + 1).round().astype(int)[1:]
-        starts = np.concatenate([[0], ends[:-1]])
-        count = (ends - starts).astype(float)
+        starts, ends, count, left = _groups(n, max(1, n // per))
 
         def means(x):
             return np.add.reduceat(x, starts) / count
 
-        rows = np.column_stack((
-            self._last_s - span * (n - ends) / n, np.sqrt(means(block.current_A ** 2)),
-            means(block.speed_rad_s), means(block.p_a_Pa), means(block.p_b_Pa),
-            means(block.p_acc_Pa), block.position_m[ends - 1]))
+        rows = np.empty((ends.size, 7))
+        rows[:, 0] = self._last_s - span * left / n
+        rows[:, 1] = np.sqrt(means(block.current_A ** 2))
+        for j, x in enumerate((block.speed_rad_s, block.p_a_Pa, block.p_b_Pa, block.p_acc_Pa)):
+            rows[:, 2 + j] = means(x)
+        rows[:, 6] = block.position_m[ends - 1]
         held = steps_after - steps_before > 1
         if held and self._held and self._held[-1] \
                 and np.array_equal(self._samples[-1][0, 1:], rows[0, 1:]):
