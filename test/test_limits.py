@@ -407,6 +407,7 @@ def test_a_cold_start_limit_holds_with_the_sigma_its_horizon_will_have():
     assert binds in est.limits_C and amps > est.cfg.motor.max_continuous_current_A
     excess, per_K = horizon_excess(est, 600.0, amps, 10)
     assert max(excess.values()) < 3.0, (binds, amps, excess)
-    taken = est.propagation.relative(est._outlook.held_duty(), est.ambient_K, est.t_model)
+    taken = est.propagation.relative(est._outlook.held_duty(), est.ambient_K, est.t_model,
+                                     est.limits_C)
     assert set(per_K) <= set(taken), taken
     assert all(abs(taken[q] / per_K[q] - 1.0) < 0.1 for q in per_K), (taken, per_K)

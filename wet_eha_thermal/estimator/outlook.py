@@ -164,16 +164,15 @@ class Outlook:
     # ---------------------------------------------------------------- ticks
     def tick(self, steps_before: int, steps_after: int, stamp_s: float, ambient_K: float,
              now_C: Dict[str, float], sigma_K: Dict[str, float], stale: Sequence[str],
-             relative: Optional[Callable[[HeldDuty, float, float],
-                                         Optional[Dict[str, float]]]] = None) -> None:
+             relative: Optional[Callable[..., Optional[Dict[str, float]]]] = None) -> None:
         """
         Start the work of a tick if the step from ``steps_before`` to ``steps_after`` made one.
 
         ``stamp_s`` the step's end (sample time), ``now_C`` and ``sigma_K``
         its estimate and 1-sigma uncertainty, ``stale`` its stale inputs,
         ``relative`` gives each quantity's 1 sigma per K of rise for the
-        held duty, the ambient and the stamp, where the propagated uncertainty
-        knows it, or None while it works it out (the limits are then the
+        held duty, the ambient, the stamp and the limited quantities, where
+        the propagated uncertainty knows it, or None while it works it out (the limits are then the
         fallback, and the first forecast waits):
         :meth:`~.uncertainty.Propagation.relative`, :func:`~.limits.ceiling_K`.
         ``relative`` None: the constant sigma.
@@ -185,7 +184,7 @@ class Outlook:
             return
         tick = steps_after // p
         held = self.held_duty()
-        per_rise = relative(held, ambient_K, stamp_s) if relative is not None else {}
+        per_rise = relative(held, ambient_K, stamp_s, self.limits_C) if relative else {}
         why = self._distrust(sigma_K, stale, per_rise)   # (code, detail) of a fallback, or None
         # the first forecast waits for the sigma per K of rise its margin needs
         forecast_tick = per_rise is not None and (tick % self.forecast_ticks == 0

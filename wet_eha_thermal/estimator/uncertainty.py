@@ -45,7 +45,7 @@ import functools
 import math
 import threading
 import time
-from typing import Dict, List, Optional
+from typing import Dict, Iterable, List, Optional
 
 import numpy as np
 
@@ -280,21 +280,23 @@ class Propagation:
         """Return each quantity's 1 sigma (K) at the last period's end, in ``names`` order."""
         return np.sqrt(self.variance_K2)
 
-    def relative(self, held, ambient_K: float, stamp_s: float) -> Optional[Dict[str, float]]:
+    def relative(self, held, ambient_K: float, stamp_s: float,
+                 needed: Iterable[str]) -> Optional[Dict[str, float]]:
         """
         Return each quantity's 1 sigma per K of rise for the limits' horizons; None: pending.
 
         The copies' figure from the last period at whose end the quantity
         stood ``MIN_RISE_K`` above ambient (the unperturbed copy's rise then).
-        Until the copies have given one for every quantity, those of a cold
-        start fill in: the first call (a tick at ``stamp_s``, sample time)
+        Until the copies have given one for every quantity of ``needed`` (the
+        limited ones), those of a cold start fill in: the first such call (a
+        tick at ``stamp_s``, sample time)
         starts heating the copies on ``held`` (:class:`~.limits.HeldDuty`) at
         ``ambient_K`` on a thread of its own (:class:`Heating`); the calls of
         the next ``heating_wait_s`` of sample time return None, and the first
         after that waits for the heating if it has not ended. The figures so
         depend on the samples alone, and a live node's steps go on meanwhile.
         """
-        if self._heated is None and len(self._known) < len(self.names):
+        if self._heated is None and any(q not in self._known for q in needed):
             if self._heating is None:
                 self.finish()            # the copies in step with each other
                 self._heating = Heating(self.models, self.names, held, ambient_K,
