@@ -201,13 +201,7 @@ class Outlook:
             self._margin_jobs.append((tick, self._margin_steps(
                 saved, held.speed_rad_s, ambient_K, target)))
         if why:
-            # behind the ticks still worked on, so that the stamps go out in order
-            fallback = fallback_limits(stamp_s, self.lim.horizons_s,
-                                       self.lim.fallback_current_A, *why)
-            if self._jobs:
-                self._jobs.append(_LimitJob(stamp_s, None, None, ready=fallback))
-            else:
-                self._finish(fallback)
+            self._fall_back(stamp_s, *why)
             return
         x0 = self.model.state
         # decided here, in sample order: a live node and a replay take the same ticks'
@@ -225,6 +219,16 @@ class Outlook:
             self._give_up(self._jobs.popleft())
         if self.inline:
             self.run(math.inf)
+
+    def _fall_back(self, stamp_s: float, code: LimitStatus, detail: str) -> None:
+        """Publish a tick's limits as the fallback, behind the ticks still worked on."""
+        # behind them, so that the stamps go out in order
+        fallback = fallback_limits(stamp_s, self.lim.horizons_s, self.lim.fallback_current_A,
+                                   code, detail)
+        if self._jobs:
+            self._jobs.append(_LimitJob(stamp_s, None, None, ready=fallback))
+        else:
+            self._finish(fallback)
 
     def _distrust(self, sigma_K: Dict[str, float], stale: Sequence[str],
                   per_rise: Optional[Dict[str, float]]) -> Optional[Tuple[LimitStatus, str]]:
