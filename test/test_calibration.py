@@ -74,7 +74,7 @@ def test_recovers_the_truth_within_10_percent(run):
               f'95 % interval {p.ci95[0]:.4g} .. {p.ci95[1]:.4g}, step shift '
               f'{p.step_shift:+.3g}')
         assert p.identifiable
-        # the required tolerance; measured +2.4 % (gap) and -1.8 % (seal). What remains is
+        # the required tolerance; measured +2.3 % (gap) and -1.8 % (seal). What remains is
         # the fit step's own error (1 s is half of stage 2's period: up to 0.4 K on the oil)
         # and the sensor noise; without the fitted start offset the seal came out 5 % low
         assert abs(p.value - truth[key]) < 0.10 * truth[key]

@@ -299,7 +299,7 @@ def _least_squares(problem: FitProblem, theta: np.ndarray, free: List[int],
     """Return ``theta`` with the ``free`` parameters fitted (trust region, within bounds)."""
     from scipy.optimize import least_squares
 
-    problem.free = free
+    problem.free, problem.last = free, None
     params = problem.params
     u_start = np.array([(theta[j] - params[j].low) / params[j].span for j in free])
     problem.say(f'fitting {", ".join(params[j].key for j in free)}')
