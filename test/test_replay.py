@@ -202,13 +202,18 @@ def test_limits_csv_and_mcap_topics_hold_every_tick(result, tmp_path):
     assert np.array_equal(rows['current_rms_A'], result.limits_current_A, equal_nan=True)
     # the current under each tick's limits: RMS of a positive, moving signal
     assert np.all(result.limits_current_A[:-1] > 0.0)
-    # and the estimates' columns: the forecast from the first computed tick on, the margin
+    # and the estimates' columns: the forecast from the first tick on, the margin from the
+    # first computed one
     table = np.genfromtxt(rp.write_csv(result, tmp_path / 'estimates.csv'), delimiter=',',
                           names=True)
+    forecast = table['stamp_s'] >= lims[0].stamp_s - 1e-6
     ticked = table['stamp_s'] >= first_ok.stamp_s - 1e-6
     assert ticked.any() and not ticked.all()
-    for column in ('margin_current_A', 'forecast_stamp_s', 'time_to_limit_winding_hotspot_s'):
-        assert np.all(np.isnan(table[column][~ticked])), column
+    assert np.all(np.isnan(table['margin_current_A'][~ticked]))
+    assert not np.isnan(table['margin_current_A'][ticked]).any()
+    for column in ('forecast_stamp_s', 'time_to_limit_winding_hotspot_s'):
+        assert np.all(np.isnan(table[column][~forecast])), column
+        assert not np.isnan(table[column][forecast]).any(), column
     assert np.allclose(table['margin_current_A'], result.margin_current_A, atol=1e-3,
                        equal_nan=True)
     assert np.all(table['margin_current_A'][ticked] > 0.0)

@@ -114,6 +114,8 @@ class Outlook:
         self._margins: Dict[int, Tuple[float, str]] = {}
         self._margin_jobs: Deque[Tuple[int, Generator]] = deque()
         self._forecast_tick_numbers: Deque[int] = deque(maxlen=8)
+        self._margin_tick_numbers: Deque[int] = deque(maxlen=8)
+        self._margin_owed = False       # a forecast tick's margin not started yet
         #: the latest limits (any tick's, fallback or not); those not yet taken
         self.limits: Optional[CurrentLimits] = None
         self._new: List[CurrentLimits] = []
@@ -173,7 +175,7 @@ class Outlook:
         ``relative`` gives each quantity's 1 sigma per K of rise for the
         held duty, the ambient, the stamp and the limited quantities, where
         the propagated uncertainty knows it, or None while it works it out (the limits are then the
-        fallback, and the first forecast waits):
+        fallback, and the margin waits):
         :meth:`~.uncertainty.Propagation.relative`, :func:`~.limits.ceiling_K`.
         ``relative`` None: the constant sigma.
         Call it after the model's step and its correction: the tick's state
@@ -186,20 +188,21 @@ class Outlook:
         held = self.held_duty()
         per_rise = relative(held, ambient_K, stamp_s, self.limits_C) if relative else {}
         why = self._distrust(sigma_K, stale, per_rise)   # (code, detail) of a fallback, or None
-        # the first forecast waits for the sigma per K of rise its margin needs
-        forecast_tick = per_rise is not None and (tick % self.forecast_ticks == 0
-                                                  or not self._forecast_tick_numbers)
+        # at every forecast tick and at the first tick of the run
+        forecast_tick = tick % self.forecast_ticks == 0 or not self._forecast_tick_numbers
+        # a margin with each forecast, or the first tick after one that knew no sigma per K
+        # of rise to set its target with
+        self._margin_owed |= forecast_tick
+        start_margin = self._margin_owed and per_rise is not None
         # the state saved only for work that reads it (1 ms inside the estimator's step)
-        saved = snapshot.save(self.model) if forecast_tick or not why else b''
+        saved = snapshot.save(self.model) if forecast_tick or start_margin or not why else b''
         if forecast_tick:
-            # at every forecast tick and at the first tick of the run
             self._forecast_tick_numbers.append(tick)
             self._start_forecast(saved, stamp_s, ambient_K, now_C)
-            target = ceiling_K(self.limits_C['winding_hotspot'], sigma_K['winding_hotspot'],
-                               self.lim.k_sigma, per_rise.get('winding_hotspot'),
-                               ambient_K)
-            self._margin_jobs.append((tick, self._margin_steps(
-                saved, held.speed_rad_s, ambient_K, target)))
+        if start_margin:
+            self._start_margin(tick, saved, held.speed_rad_s, ambient_K, ceiling_K(
+                self.limits_C['winding_hotspot'], sigma_K['winding_hotspot'],
+                self.lim.k_sigma, per_rise.get('winding_hotspot'), ambient_K))
         if why:
             self._fall_back(stamp_s, *why)
             return
@@ -212,7 +215,7 @@ class Outlook:
                             self.lim.k_sigma, self.lim.horizons_s, self.lim.period_s,
                             self.cfg.motor.peak_current_A, per_rise, self._guesses, kept)
         delay = int(round(MARGIN_DELAY_S / self.lim.period_s))
-        margin_tick = max((f for f in self._forecast_tick_numbers if f <= tick - delay),
+        margin_tick = max((f for f in self._margin_tick_numbers if f <= tick - delay),
                           default=None)
         self._jobs.append(_LimitJob(stamp_s, steps, margin_tick))
         while len(self._jobs) > MAX_LIMIT_JOBS:
@@ -316,6 +319,14 @@ class Outlook:
                                          self.lim.fallback_current_A, LimitStatus.FAILED,
                                          'the limits could not be computed'))
 
+    def _start_margin(self, tick: int, saved: bytes, speed_rad_s: float, ambient_K: float,
+                      target_K: float) -> None:
+        """Queue the margin (the continuous limit) of ``tick``, to the hot spot at ``target_K``."""
+        self._margin_owed = False
+        self._margin_tick_numbers.append(tick)
+        self._margin_jobs.append(
+            (tick, self._margin_steps(saved, speed_rad_s, ambient_K, target_K)))
+
     def _margin_step(self) -> None:
         """Do a slice of the oldest margin job; a failure leaves that tick's margin unknown."""
         tick, steps = self._margin_jobs[0]
@@ -330,7 +341,7 @@ class Outlook:
             self.failures += 1
             self._margin_jobs.popleft()
             self._margins[tick] = (math.nan, 'failed')
-        while len(self._margins) > self._forecast_tick_numbers.maxlen:
+        while len(self._margins) > self._margin_tick_numbers.maxlen:
             self._margins.pop(min(self._margins))
 
     def _completed(self, job: _LimitJob) -> CurrentLimits:
