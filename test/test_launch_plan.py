@@ -48,7 +48,8 @@ def test_the_launch_file_compiles_and_its_defaults_plan_the_one_eha_actuator():
                          'honour_limit': False}
     assert _own(est) == {'use_sim_time': False}
     assert est.foxglove_port is None and 'foxglove_address' not in _own(est)
-    assert _own(rec) == {'use_sim_time': False, 'params_file': SHIPPED_PARAMS, 'output': ''}
+    assert _own(rec) == {'use_sim_time': False, 'params_file': SHIPPED_PARAMS, 'output': '',
+                         'wait_for_estimator': True}
     assert rec.arguments == ['--executor', 'events']
 
 

@@ -242,6 +242,35 @@ def test_records_every_field_qos_and_config(context, tmp_path):
     assert not bag.truncated and 'rosbag2' in bag.metadata
 
 
+def test_waiting_for_the_estimator_it_is_ready_once_the_estimates_are_matched(
+        context, tmp_path):
+    # live sets wait_for_estimator: the rig's duty waits for the recorder's ready, so the
+    # estimates (volatile) are recorded from the duty's start however slow the discovery
+    probe = rclpy.create_node('recorder_ready_probe', context=context)
+    node = RecorderNode(context=context, parameter_overrides=[
+        Parameter('output', value=str(tmp_path / 'run')),
+        Parameter('wait_for_estimator', value=True)])
+    executor = EventsExecutor(context=context)
+    executor.add_node(node)
+    executor.add_node(probe)
+    try:
+        sensor = probe.create_publisher(Float64, interface.INPUT_TOPICS['current_A'],
+                                        topics.input_qos('reliable', 10))
+        assert _spin(executor, 10.0, until=lambda: sensor.get_subscription_count() > 0)
+        node.readiness.check()
+        assert not node.readiness.ready           # an input heard, no estimator yet
+        estimates = [probe.create_publisher(Temperature, f'{interface.ESTIMATE_PREFIX}/{name}',
+                                            QoSProfile(depth=10))
+                     for name in interface.ESTIMATES]
+        assert _spin(executor, 10.0, until=lambda: node.readiness.ready)
+        assert all(p.get_subscription_count() > 0 for p in estimates)
+    finally:
+        node.close()
+        executor.shutdown()
+        node.destroy_node()
+        probe.destroy_node()
+
+
 def test_a_ros2_control_rig_is_recorded_and_replays_by_its_inputs_file(context, tmp_path):
     """The example rig's joint_state_broadcasters, recorded; the bag replays with no option."""
     # the node test's player of the shipped example (config/ros2_control_rig.inputs.yaml)

@@ -258,7 +258,8 @@ def plan(actuators: Sequence[Actuator], share_dir: str, *, sim_rigs: bool = True
         if record:
             output = _record_output(record_output, a.namespace) if len(actuators) > 1 \
                 else record_output
-            rec = {**common, 'params_file': params, 'output': output}
+            # ready once it hears the estimator too: its estimates recorded from the first
+            rec = {**common, 'params_file': params, 'output': output, 'wait_for_estimator': True}
             if a.inputs_file:       # its topics recorded, the file stored for replay
                 rec['inputs_file'] = a.inputs_file
             # the events executor always: the single-threaded one loses messages

@@ -92,6 +92,7 @@ def child_commands(opts: LiveOptions, hardware_id: str,
     # its own depth, not the file's 100: a 20 ms stall of the recorder would lose samples
     rec += ['-p', 'qos:=reliable', '-p', f'qos_depth:={RECORDER_DEPTH}',
             '-p', f'hardware_id:={hardware_id}', '-p', f'output:={record_path}',
+            '-p', 'wait_for_estimator:=true',
             '-p', f'split_bytes:={int(opts.max_bag_size_B)}',
             '-p', f'split_duration_s:={float(opts.max_bag_duration_s)!r}']
     if opts.config is not None:

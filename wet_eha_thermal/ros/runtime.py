@@ -71,13 +71,16 @@ class Readiness:
     every one whose topic has a publisher in the graph (at least one). The
     simulated rig starts its duty only after the nodes it waits for said so
     (``wait_for``), so that no sample is published before anyone listens.
-    ``extra``: more keys of the ready message (what the node serves, say).
+    ``extra``: more keys of the ready message (what the node serves, say);
+    ``also``: subscriptions that must have matched a publisher in any case.
     """
 
     def __init__(self, node: Node, topic: str, subscriptions: Sequence,
-                 hardware_id: str, require_all: bool, extra: Optional[dict] = None) -> None:
+                 hardware_id: str, require_all: bool, extra: Optional[dict] = None,
+                 also: Sequence = ()) -> None:
         self.node = node
         self.subscriptions = list(subscriptions)
+        self.also = list(also)
         self.require_all = require_all
         self.hardware_id = hardware_id
         self.extra = dict(extra or {})
@@ -93,8 +96,9 @@ class Readiness:
             return True
         subs = self.subscriptions if self.require_all else [
             s for s in self.subscriptions if self.node.count_publishers(s.topic_name) > 0]
-        if not subs or any(s.get_publisher_count() == 0 for s in subs):
+        if not subs or any(s.get_publisher_count() == 0 for s in subs + self.also):
             return False
+        subs += self.also
         self.ready = True
         self._timer.cancel()
         self.publisher.publish(String(data=json.dumps({
