@@ -289,12 +289,12 @@ class Propagation:
         stood ``MIN_RISE_K`` above ambient (the unperturbed copy's rise then).
         Until the copies have given one for every quantity of ``needed`` (the
         limited ones), those of a cold start fill in: the first such call (a
-        tick at ``stamp_s``, sample time)
-        starts heating the copies on ``held`` (:class:`~.limits.HeldDuty`) at
-        ``ambient_K`` on a thread of its own (:class:`Heating`); the calls of
-        the next ``heating_wait_s`` of sample time return None, and the first
-        after that waits for the heating if it has not ended. The figures so
-        depend on the samples alone, and a live node's steps go on meanwhile.
+        tick at ``stamp_s``, sample time) starts heating the copies on
+        ``held`` (:class:`~.limits.HeldDuty`) at ``ambient_K`` on a thread of
+        its own (:class:`Heating`); the calls of the next ``heating_wait_s``
+        of sample time return None, and the first after that waits for the
+        heating if it has not ended. The figures so depend on the samples
+        alone, and a live node's steps go on meanwhile.
         """
         if self._heated is None and any(q not in self._known for q in needed):
             if self._heating is None:

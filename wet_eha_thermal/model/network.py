@@ -30,6 +30,7 @@ which makes step-averaged heat flows (and so energy balances) exact as well.
 from collections import OrderedDict
 from dataclasses import dataclass
 from functools import lru_cache
+import threading
 from typing import Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
@@ -65,6 +66,9 @@ class Discretisation:
 #: computing them again (about 8 ms of reduction and exponential). Values are only read.
 _MEMO: 'OrderedDict[tuple, list]' = OrderedDict()
 _MEMO_SIZE = 2
+#: the cold start's heating steps copies on a thread of its own (estimator/uncertainty.py):
+#: an entry looked up on one thread must not be evicted by the other before it is moved
+_MEMO_LOCK = threading.Lock()
 
 
 class ThermalNetwork:
@@ -448,13 +452,14 @@ class ThermalNetwork:
         inputs, so the same matrices to the bit.
         """
         key = (id(self._scatter_reduced),) + tuple(c.tobytes() for c in coefficients)
-        entry = _MEMO.get(key)
-        if entry is None or entry[0] is not self._scatter_reduced:
-            entry = _MEMO[key] = [self._scatter_reduced, None, {}]
-            while len(_MEMO) > _MEMO_SIZE:
-                _MEMO.popitem(last=False)
-        else:
-            _MEMO.move_to_end(key)
+        with _MEMO_LOCK:
+            entry = _MEMO.get(key)
+            if entry is None or entry[0] is not self._scatter_reduced:
+                entry = _MEMO[key] = [self._scatter_reduced, None, {}]
+                while len(_MEMO) > _MEMO_SIZE:
+                    _MEMO.popitem(last=False)
+            else:
+                _MEMO.move_to_end(key)
         return entry
 
     def state_space(self) -> Tuple[np.ndarray, np.ndarray]:
