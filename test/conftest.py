@@ -24,15 +24,12 @@ ROS_GRAPH_MODULES = ('test_estimator_node.py', 'test_live.py', 'test_player.py',
 
 
 ROS_GRAPH = 'ros graph'
-# The costliest scopes (by their tests' summed durations in full runs of 2026-11-28), sent
-# out before the rest: each worker takes the next scope when it is nearly done with its own,
-# so the many small modules even the two workers out at the end (xdist's own order, most tests
-# first, sent test_warmup, one test of 24-33 s, out last, alone on one worker). The ROS graph's
-# timed nodes go first, with one process at a time beside them: the modules that fork two more
-# (the calibration's pool, the campaigns' Dask workers) come after about the ROS graph's time
-# (beside the calibration's pool, a what-if's 0.5 s bound on the estimates' gaps failed once).
-HEAVIEST_FIRST = (ROS_GRAPH, 'test_uncertainty.py', 'test_replay.py', 'test_correction.py',
-                  'test_calibration.py', 'test_campaign.py', 'test_estimator_time.py',
+# The costliest scopes, costliest first (by their tests' summed durations in full runs of
+# 2026-11-28): each worker takes the next scope when it is nearly done with its own, so these
+# go out first and the many small modules even the two workers out at the end. xdist's own
+# order (most tests first) sent test_warmup (one test, 24-33 s) out last, alone on one worker.
+HEAVIEST_FIRST = (ROS_GRAPH, 'test_calibration.py', 'test_uncertainty.py', 'test_replay.py',
+                  'test_campaign.py', 'test_correction.py', 'test_estimator_time.py',
                   'test_closed_loop.py', 'test_estimator_core.py', 'test_whatif.py',
                   'test_bag_dir.py', 'test_limits.py', 'test_eha.py', 'test_motor.py',
                   'test_flake8.py', 'test_energy_audit.py', 'test_compiled.py', 'test_warmup.py')
