@@ -23,18 +23,6 @@ ROS_GRAPH_MODULES = ('test_estimator_node.py', 'test_live.py', 'test_player.py',
                      'test_managed_estimator.py')
 
 
-ROS_GRAPH = 'ros graph'
-# The costliest scopes, costliest first (by their tests' summed durations in full runs of
-# 2026-11-28): each worker takes the next scope when it is nearly done with its own, so these
-# go out first and the many small modules even the two workers out at the end. xdist's own
-# order (most tests first) sent test_warmup (one test, 24-33 s) out last, alone on one worker.
-HEAVIEST_FIRST = (ROS_GRAPH, 'test_calibration.py', 'test_uncertainty.py', 'test_replay.py',
-                  'test_campaign.py', 'test_correction.py', 'test_estimator_time.py',
-                  'test_closed_loop.py', 'test_estimator_core.py', 'test_whatif.py',
-                  'test_bag_dir.py', 'test_limits.py', 'test_eha.py', 'test_motor.py',
-                  'test_flake8.py', 'test_energy_audit.py', 'test_compiled.py', 'test_warmup.py')
-
-
 class ModuleScopes:
     """pytest-xdist's scheduler hook, registered only when xdist runs (``-p no:xdist`` works)."""
 
@@ -46,18 +34,7 @@ class ModuleScopes:
         class ModuleScheduling(LoadScopeScheduling):
             def _split_scope(self, nodeid):
                 module = nodeid.split('::', 1)[0]
-                return ROS_GRAPH if Path(module).name in ROS_GRAPH_MODULES else module
-
-            def _assign_work_unit(self, node):
-                # the queue is complete at the first assignment: the heaviest scopes first
-                if not getattr(self, 'ordered', False):
-                    rank = {name: k for k, name in enumerate(HEAVIEST_FIRST)}
-                    order = sorted(self.workqueue, key=lambda scope: rank.get(
-                        scope if scope == ROS_GRAPH else Path(scope).name, len(rank)))
-                    self.workqueue = type(self.workqueue)(
-                        (scope, self.workqueue[scope]) for scope in order)
-                    self.ordered = True
-                super()._assign_work_unit(node)
+                return 'ros graph' if Path(module).name in ROS_GRAPH_MODULES else module
 
         return ModuleScheduling(config, log)
 
