@@ -30,6 +30,7 @@ which makes step-averaged heat flows (and so energy balances) exact as well.
 from collections import OrderedDict
 from dataclasses import dataclass
 from functools import lru_cache
+import os
 import threading
 from typing import Dict, List, Optional, Sequence, Tuple, Union
 
@@ -69,6 +70,8 @@ _MEMO_SIZE = 2
 #: the cold start's heating steps copies on a thread of its own (estimator/uncertainty.py):
 #: an entry looked up on one thread must not be evicted by the other before it is moved
 _MEMO_LOCK = threading.Lock()
+# a child forked while the heating thread held it would wait on it for ever
+os.register_at_fork(after_in_child=lambda: globals().update(_MEMO_LOCK=threading.Lock()))
 
 
 class ThermalNetwork:
