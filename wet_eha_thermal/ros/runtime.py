@@ -96,16 +96,17 @@ class Readiness:
             return True
         subs = self.subscriptions if self.require_all else [
             s for s in self.subscriptions if self.node.count_publishers(s.topic_name) > 0]
-        if not subs or any(s.get_publisher_count() == 0 for s in subs + self.also):
+        needed = subs + self.also
+        if not subs or any(s.get_publisher_count() == 0 for s in needed):
             return False
-        subs += self.also
         self.ready = True
         self._timer.cancel()
         self.publisher.publish(String(data=json.dumps({
             **self.extra, 'node': self.node.get_name(), 'ready': True,
             'hardware_id': self.hardware_id,
-            'matched_topics': sorted(s.topic_name for s in subs)})))
-        self.node.get_logger().info(f'ready: {len(subs)} input topics matched')
+            'matched_topics': sorted(s.topic_name for s in needed)})))
+        self.node.get_logger().info(f'ready: {len(subs)} input topics matched'
+                                    + (f', and {len(self.also)} more' if self.also else ''))
         return True
 
 
