@@ -575,9 +575,9 @@ def limit_steps(saved: bytes, x0: np.ndarray, setup: Probing, held: HeldDuty,
                 terms = lin.mids[h][1]
             else:
                 at, terms = lin.mid(h, steps, *fit, amps)
-                if float(np.max(np.abs(x_mid - at))) > REUSE_TOL_K:
-                    terms = linearise(saved, x_mid - x0, held, dt_s, ambient_K, peak_A,
-                                      setup.layout, setup.alpha_copper, setup.peaks)
+                if float(np.max(np.abs(x_mid - at))) > REUSE_TOL_K:   # this tick's own, then
+                    terms = Linearised(saved, x0, held, ambient_K, ceiling).linearise(
+                        x_mid - x0, *fit)
             again = LimitProblem(*terms, x0, setup.rows, ceiling)
             amps, binds = again.solve(lambda s, n=steps: again.horizon_excess(s, n), peak_A,
                                       guesses.get((h, 1), amps))
