@@ -8,15 +8,16 @@ import pickle
 import numpy as np
 import pytest
 from wet_eha_thermal.config import load_config
-from wet_eha_thermal.estimator import limits as limits_module
+from wet_eha_thermal.estimator import limits as limits_module, uncertainty
 from wet_eha_thermal.estimator.core import Estimator, INPUTS
 from wet_eha_thermal.estimator.limits import (ceiling_K, limit_steps, LimitProblem, linearise,
                                               probing, RATING, TOL_A2)
 from wet_eha_thermal.estimator.outlook import MARGIN_DELAY_S
 from wet_eha_thermal.estimator.session import EstimatorSession
-from wet_eha_thermal.estimator.uncertainty import HEATING_WAIT_S
+from wet_eha_thermal.estimator.uncertainty import HEATING_WAIT_PER_STEP_S
 from wet_eha_thermal.interface import LimitStatus
 from wet_eha_thermal.model import snapshot
+from wet_eha_thermal.model.network import NetworkError
 from wet_eha_thermal.units import C_TO_K
 
 pytestmark = pytest.mark.slow     # measured: see docs/development.md#tests-and-ci
@@ -28,9 +29,15 @@ DUTY = {'current_A': 15.0, 'speed_rad_s': 800.0, 'p_a_Pa': 3e6, 'p_b_Pa': 1e6,
 #: at 80 degC over 600 s (the pump's heat alone takes it past 52 degC in 10 minutes)
 LOW_LIMITS = {'motor.winding.insulation_limit_C': 40.0, 'motor.rotor.magnet_limit_C': 120.0,
               'fluid.oil_limit_C': 120.0}
+#: the cold start's heating on DUTY takes 8 steps (its unperturbed copy's rise with 4 is 1.8 %
+#: off that with 8: benchmarks/heated_relative.py), so its figures are taken this long after
+#: the first tick (s of sample time; checked in test_a_cold_motor_is_limited_by_its_rating...)
+HEATING_WAIT_S = 8 * HEATING_WAIT_PER_STEP_S
 #: the figures of a cold start's heated copies are in by then (s): the first tick at 0.5 s,
 #: then HEATING_WAIT_S
 HEATED_S = 1.0 + HEATING_WAIT_S
+#: a run past the first margin (the continuous limit), MARGIN_DELAY_S after the figures (s)
+RUN_S = int(HEATED_S + MARGIN_DELAY_S) + 1
 
 
 def feed(est, t0, seconds, skip=(), rate_Hz=1000.0):
@@ -168,7 +175,7 @@ def test_a_cold_motor_is_limited_by_its_rating_over_short_horizons():
     # MARGIN_DELAY_S
     feed(est, 0.0, 0.5 + HEATING_WAIT_S + MARGIN_DELAY_S + 0.5)
     limits = est._outlook.limits
-    assert limits.status == 'ok'
+    assert limits.status == 'ok' and est.propagation.heated_after_s == HEATING_WAIT_S
     assert limits.limits_A[limits.names.index('10s')] == est.cfg.motor.peak_current_A
     assert limits.binds[limits.names.index('10s')] == RATING
     assert limits.binding_A == est.cfg.motor.peak_current_A
@@ -203,14 +210,14 @@ def collect(mode, seconds):
 
 @pytest.fixture(scope='module')
 def inline():
-    """Return the limits of 14 s of the duty worked out at once (past the first margin)."""
-    return collect('inline', 14.0)
+    """Return the limits of RUN_S of the duty worked out at once (past the first margin)."""
+    return collect('inline', RUN_S)
 
 
 def test_limits_are_bit_for_bit_the_same_at_once_and_in_background_slices(inline):
     # past the first margin, so the continuous limit (the margin job's) is compared too
-    background = collect('background', 14.0)
-    assert len(inline) == 27               # a tick each 0.5 s from the start at 1 ms
+    background = collect('background', RUN_S)
+    assert len(inline) == 2 * RUN_S - 1    # a tick each 0.5 s from the start at 1 ms
     assert inline[-1].binds[0] == 'winding_hotspot'   # (at 40 degC)
     assert inline == background            # every field, floats compared exactly
     assert all((lim.status == 'ok') == (lim.stamp_s >= 0.5 + HEATING_WAIT_S) for lim in inline)
@@ -264,7 +271,7 @@ def test_limits_taken_sample_by_sample_with_a_small_budget_are_the_same_as_at_on
     live = []
     session = EstimatorSession(load_config(overrides=LOW_LIMITS), outlook='background',
                                publish=lambda out: live.extend(out.limits), budget_s=0.004)
-    for k in range(1, 14001):
+    for k in range(1, int(RUN_S * 1000) + 1):
         t = k / 1000.0
         for ch in INPUTS:
             session.take(ch, t, DUTY[ch], now_s=t)
@@ -332,7 +339,8 @@ def test_stopping_gives_up_the_waiting_ticks_then_says_stopped():
     live = []
     session = EstimatorSession(cfg, outlook='background',
                                publish=lambda out: live.extend(out.limits), budget_s=0.0)
-    for k in range(1, 3001):           # no budget: every tick waits for the CPU
+    # no budget: every tick after the heating's waits for the CPU
+    for k in range(1, int(HEATED_S * 1000) + 1):
         t = k / 1000.0
         for ch in INPUTS:
             session.take(ch, t, DUTY[ch], now_s=t)
@@ -340,7 +348,7 @@ def test_stopping_gives_up_the_waiting_ticks_then_says_stopped():
     session.stop_limits('the estimator was deactivated')
     last = live[-1]
     assert last.frame_id == 'fallback: stopped: the estimator was deactivated'
-    assert last.code == LimitStatus.STOPPED and last.stamp_s == session.t_model > 2.9
+    assert last.code == LimitStatus.STOPPED and last.stamp_s == session.t_model > HEATED_S - 0.1
     assert max(last.limits_A) == cfg.estimator.limits.fallback_current_A
     given_up = live[n:-1]
     assert given_up and all(lim.code == LimitStatus.BEHIND for lim in given_up)
@@ -391,12 +399,13 @@ def test_a_cold_start_limit_holds_with_the_sigma_its_horizon_will_have():
     copies are stepped to the horizon at the limit (60 s steps): no limited quantity
     may end more than the 600 s linearisation's tolerance (3 K, as above) past its
     limit, and the sigma per K of rise the limits took from the heated copies must
-    be that of the horizon within 10 % (the heating's 4 % at this duty, at the
+    be that of the horizon within 10 % (the heating's 1 % at this duty, at the
     continuous rating rather than the limit's current). Measured at 7a4e4d1's
-    figures (none at a cold start): 37.5 A, the oil 2.5 K past, inside the
+    figures (none at a cold start), at 3 s: 37.5 A, the oil 2.5 K past, inside the
     tolerance only because the linearisation of the cold, viscous oil errs 16 K on
-    the safe side; with the heated copies 33.4 A, the oil 13.9 K under, and the
-    figures 0.078, 0.096, 0.089 against 0.081, 0.092, 0.094 at the horizon.
+    the safe side; with the heated copies (8 steps), at 4.5 s: 32.7 A, the oil
+    15.9 K under, and the figures 0.078, 0.096, 0.089 against 0.080, 0.091, 0.092
+    at the horizon.
     """
     est = Estimator(load_config(), outlook='inline')
     feed(est, 0.0, HEATED_S)
@@ -411,3 +420,18 @@ def test_a_cold_start_limit_holds_with_the_sigma_its_horizon_will_have():
                                      est.limits_C)
     assert set(per_K) <= set(taken), taken
     assert all(abs(taken[q] / per_K[q] - 1.0) < 0.1 for q in per_K), (taken, per_K)
+
+
+def test_a_failed_heating_leaves_the_limits_on_the_fallback_and_the_estimates_going(monkeypatch):
+    # a held duty that takes a copy's oil past the model's range within the horizon (the
+    # reference rig at 2000 rad/s and 25 MPa in 120 steps): a copy's step fails on the thread
+    def fail(*args, **kwargs):
+        raise NetworkError('advective capacity rate must be >= 0')
+
+    monkeypatch.setattr(uncertainty, '_heated', fail)
+    est = Estimator(load_config(), outlook='inline')
+    feed(est, 0.0, HEATED_S + 1.0)
+    limits = est._outlook.take_limits()
+    assert limits and all(lim.code == LimitStatus.UNCERTAIN for lim in limits)
+    assert est.propagation.heating_error.startswith('NetworkError: advective')
+    assert est.latest.stamp_s > HEATED_S + 0.9        # the estimates went on

@@ -58,15 +58,20 @@ from ..model.uncertainty import parameter_perturbations, structural_perturbation
 SAMPLE_S = 0.02
 #: a quantity's sigma per K of rise is taken once it has risen this much above ambient (K)
 MIN_RISE_K = 5.0
-#: the cold start's heating (:class:`Heating`): the horizon in this many equal
-#: exact steps. On the reference rig, against 60 steps: within 2 % idle and 4 % at 800 rad/s
-#: and 3 MPa; at 1000 rad/s and 10 MPa, where the oil thins and the pump's heat grows over
-#: the horizon faster than the steps' coefficients follow, about 35 % under (benchmarks/
-#: heated_relative.py)
+#: the cold start's heating (:class:`Heating`): the horizon in HEATING_STEPS equal exact
+#: steps, doubled (up to HEATING_MAX_STEPS) until the unperturbed copy's rise of every
+#: limited quantity agrees within HEATING_RISE_TOL with twice as many. A long step holds
+#: the oil's viscosity, and with it the pump's leakage and friction heat and the loop's
+#: flows, at the step's start: on a loaded pump 4 steps of 150 s put the sigma per K of
+#: rise 30 % (1000 rad/s, 10 MPa) to 67 % (500 rad/s, 15 MPa) under that of 120 steps
+#: (benchmarks/heated_relative.py)
 HEATING_STEPS = 4
-#: sample time (s) from the heating's start to the first tick that takes its figures: the
-#: limits are the fallback meanwhile; a heating not ended by then is waited for
-HEATING_WAIT_S = 2.0
+HEATING_MAX_STEPS = 64
+HEATING_RISE_TOL = 0.01
+#: sample time (s) per step of the heating from its start to the first tick that takes its
+#: figures (2 s for 4 steps; the step count is known a moment after the start): the limits
+#: are the fallback meanwhile; a heating not ended by then is waited for
+HEATING_WAIT_PER_STEP_S = 0.5
 
 
 @functools.lru_cache(maxsize=64)
@@ -127,8 +132,12 @@ class Propagation:
         self._known: Dict[str, float] = {}   # each quantity's last sigma per K of rise
         self._heated: Optional[Dict[str, float]] = None   # the cold start's figures
         self._heating: Optional[Heating] = None
-        #: sample time (s) from a heating's start to the first tick that takes its figures
-        self.heating_wait_s = HEATING_WAIT_S
+        #: sample time (s) per heating step from its start to the first tick that takes them
+        self.heating_wait_per_step_s = HEATING_WAIT_PER_STEP_S
+        #: sample time (s) from the last heating's start to the tick that took its figures
+        self.heated_after_s: Optional[float] = None
+        #: why the last heating gave no figures (None: it did, or none has ended)
+        self.heating_error: Optional[str] = None
         self.work_s = 0.0                     # CPU time spent stepping copies (s)
 
     @property
@@ -145,6 +154,7 @@ class Propagation:
         self._pending = False
         self._last_s = float(first.t_s[-1])
         self._known, self._heated, self._heating = {}, None, None
+        self.heated_after_s = self.heating_error = None
 
     def record(self, since_start_s: float, block: SampleBlock, steps_before: int,
                steps_after: int, ambient_K: float) -> bool:
@@ -291,19 +301,35 @@ class Propagation:
         limited ones), those of a cold start fill in: the first such call (a
         tick at ``stamp_s``, sample time) starts heating the copies on
         ``held`` (:class:`~.limits.HeldDuty`) at ``ambient_K`` on a thread of
-        its own (:class:`Heating`); the calls of the next ``heating_wait_s``
-        of sample time return None, and the first after that waits for the
-        heating if it has not ended. The figures so depend on the samples
-        alone, and a live node's steps go on meanwhile.
+        its own (:class:`Heating`); the calls of the next
+        ``heating_wait_per_step_s`` of sample time per step of the heating
+        return None, and the first after that waits for the heating if it has
+        not ended. The figures so depend on the samples alone, and a live
+        node's steps go on meanwhile. A heating that fails
+        (:attr:`heating_error`) gives None until the copies' own figures.
         """
         if self._heated is None and any(q not in self._known for q in needed):
+            if self.heating_error is not None:
+                return None
             if self._heating is None:
                 self.finish()            # the copies in step with each other
                 self._heating = Heating(self.models, self.names, held, ambient_K,
-                                        self._cfgs[0], stamp_s)
-            if stamp_s < self._heating.stamp_s + self.heating_wait_s:
+                                        self._cfgs[0], stamp_s, needed)
+            since_s = stamp_s - self._heating.stamp_s
+            # the step count is waited for only once the fewest steps' wait has passed
+            wait_s = self.heating_wait_per_step_s
+            if since_s < wait_s * HEATING_STEPS or since_s < wait_s * self._heating.steps():
                 return None
-            self._heated, self._heating = self.per_rise(*self._heating.result()), None
+            heating, self._heating = self._heating, None
+            try:
+                self._heated = self.per_rise(*heating.result())
+            except Exception as exc:  # noqa: B902 - any failure of a copy's step
+                # (a held duty that takes the oil past the model's range within the
+                # horizon): no figures, so the limits stay the fallback until the copies'
+                # own; the estimates go on
+                self.heating_error = f'{type(exc).__name__}: {exc}'
+                return None
+            self.heated_after_s = since_s
         return {**(self._heated or {}), **self._known}
 
     def per_rise(self, y: np.ndarray, ambient_K: float) -> Dict[str, float]:
@@ -318,36 +344,51 @@ class Heating:
     Each copy is saved (:mod:`~..model.snapshot`) on the caller's thread,
     then, on the heating's, loaded and stepped on the held duty at
     ``motor.max_continuous_current_A`` over the longest horizon of
-    ``estimator.limits`` in ``steps`` equal exact steps: the copies
-    themselves do not move. The reference rig's 31 copies: about 80 ms on the
-    caller's thread, then half a second of CPU on the heating's.
+    ``estimator.limits`` in equal exact steps: the copies themselves do not
+    move. How many steps: ``steps``, or (None) the fewest of HEATING_STEPS,
+    twice that... up to HEATING_MAX_STEPS with which the unperturbed copy's
+    rise of each quantity of ``needed`` (of those risen MIN_RISE_K) agrees
+    within HEATING_RISE_TOL with twice as many steps. The reference rig's 31
+    copies: about 80 ms on the caller's thread, then about 0.15 s of CPU per
+    step on the heating's.
     """
 
     def __init__(self, models: List[EHAModel], names: List[str], held, ambient_K: float,
-                 cfg: Config, stamp_s: float, steps: int = HEATING_STEPS) -> None:
+                 cfg: Config, stamp_s: float, needed: Iterable[str] = (),
+                 steps: Optional[int] = None) -> None:
         self.stamp_s = stamp_s
         saved = [snapshot.save(m) for m in models]
         self._out: List[object] = []
+        self._steps: List[int] = []
+        self._counted = threading.Event()
         self._thread = threading.Thread(
             target=self._run, name='uncertainty heating', daemon=True,
-            args=(saved, names, held, ambient_K, cfg, steps))
+            args=(saved, names, [names.index(q) for q in needed], held, ambient_K, cfg,
+                  steps))
         self._thread.start()
 
-    def _run(self, saved, names, held, ambient_K, cfg, steps) -> None:
+    def _run(self, saved, names, needed, held, ambient_K, cfg, steps) -> None:
         try:
-            current_A = cfg.motor.max_continuous_current_A
-            dt = max(cfg.estimator.limits.horizons_s) / steps
-            y = np.empty((len(saved), len(names)))
-            for k, snap in enumerate(saved):
-                c = snapshot.copy(snap)
-                c.hold_from(held.block(c.time_s, current_A))
-                for _ in range(steps):
-                    c.step(held.block(c.time_s + dt, current_A), ambient_K, max_substep_s=dt)
-                out = c.outputs()
-                y[k] = [out[n] for n in names]
+            heat = functools.partial(_heated, names=names, held=held, ambient_K=ambient_K,
+                                     current_A=cfg.motor.max_continuous_current_A,
+                                     horizon_s=max(cfg.estimator.limits.horizons_s))
+            if steps is None:
+                steps, first = _step_count(heat, saved[0], needed, ambient_K)
+            else:
+                first = heat(saved[0], steps)
+            self._steps.append(steps)
+            self._counted.set()
+            y = np.array([first] + [heat(snap, steps) for snap in saved[1:]])
             self._out.append((y, ambient_K))
         except BaseException as exc:  # noqa: B902 - handed to result()
             self._out.append(exc)
+        finally:
+            self._counted.set()
+
+    def steps(self) -> int:
+        """Wait for the step count; return it (0 if the heating failed before it was known)."""
+        self._counted.wait()
+        return self._steps[0] if self._steps else 0
 
     def result(self):
         """Wait for the heating; return the copies' outputs (K) and the ambient (K)."""
@@ -356,3 +397,28 @@ class Heating:
         if isinstance(out, BaseException):
             raise out
         return out
+
+
+def _heated(snap: bytes, steps: int, names: List[str], held, ambient_K: float,
+            current_A: float, horizon_s: float) -> np.ndarray:
+    """Return a saved copy's outputs (K, ``names``) after ``horizon_s`` in ``steps`` steps."""
+    dt = horizon_s / steps
+    c = snapshot.copy(snap)
+    c.hold_from(held.block(c.time_s, current_A))
+    for _ in range(steps):
+        c.step(held.block(c.time_s + dt, current_A), ambient_K, max_substep_s=dt)
+    out = c.outputs()
+    return np.array([out[n] for n in names])
+
+
+def _step_count(heat, snap: bytes, needed: List[int], ambient_K: float):
+    """Return the heating's step count (:class:`Heating`) and the copy's outputs with it."""
+    steps, y = HEATING_STEPS, heat(snap, HEATING_STEPS)
+    while steps < HEATING_MAX_STEPS:
+        finer = heat(snap, 2 * steps)
+        rise, finer_rise = y[needed] - ambient_K, finer[needed] - ambient_K
+        risen = finer_rise >= MIN_RISE_K        # (the others give no figure)
+        if np.all(np.abs(rise - finer_rise)[risen] <= HEATING_RISE_TOL * finer_rise[risen]):
+            break
+        steps, y = 2 * steps, finer
+    return steps, y

@@ -56,7 +56,7 @@ def compile_estimator(cfg: Config) -> float:
     if session._est.propagation is not None:
         # the first tick takes the cold start's heated figures at once: its limits are
         # computed within these few samples
-        session._est.propagation.heating_wait_s = 0.0
+        session._est.propagation.heating_wait_per_step_s = 0.0
     kin = KineticModel(cfg, get_oil(cfg.fluid.grade))
     t = np.arange(1, int(WARM_SECONDS * WARM_RATE_HZ) + 1) / WARM_RATE_HZ
     samples = kin.sample(stage_duty(cfg, 6), t, ThermalFeedback.uniform())
