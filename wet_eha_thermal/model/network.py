@@ -611,12 +611,12 @@ class ThermalNetwork:
 
 def _by_rows(M: np.ndarray) -> tuple:
     """Return ``M``'s nonzeros in row order: (rows, columns, values), each C-contiguous."""
-    rows, cols = np.nonzero(M)
-    # np.nonzero's index arrays are strided views; a model that arrives pickled (a snapshot
-    # in another process, the what-if worker) has contiguous ones, and the step's kernels
-    # would compile a second signature for each layout
-    rows, cols = np.ascontiguousarray(rows), np.ascontiguousarray(cols)
-    return rows, cols, M[rows, cols]
+    # np.nonzero's index arrays are strided views, and a pickled model's or an empty map's
+    # contiguous: the step's kernels compiled a second signature for the other layout.
+    # The flat indices of a C-ordered M are in row order, as np.nonzero's
+    flat = np.flatnonzero(M)
+    rows, cols = np.divmod(flat, M.shape[1])
+    return rows, cols, M.ravel()[flat]
 
 
 @jit
