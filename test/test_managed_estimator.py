@@ -43,11 +43,16 @@ VALUES = {'current_A': 20.0, 'speed_rad_s': 800.0, 'p_a_Pa': 1.0e6, 'p_b_Pa': 1.
 
 
 class Operator(NodeAndProbe):
-    """The managed estimator and a client that drives its lifecycle, feeds it and listens."""
+    """
+    The managed estimator and a client that drives its lifecycle, feeds it and listens.
+
+    The node starts no what-if worker (``whatif`` false): nothing here asks it one, and
+    its warm-up (1.5 s of a core) would run beside the transitions these tests time.
+    """
 
     def __init__(self, context):
         super().__init__(context, ManagedEstimatorNode(context=context, parameter_overrides=[
-            Parameter('diagnostics_rate_Hz', value=5.0)]),
+            Parameter('diagnostics_rate_Hz', value=5.0), Parameter('whatif', value=False)]),
             rclpy.create_node('lifecycle_operator', context=context))
         p = self.probe
         self.change = p.create_client(ChangeState, f'/{NODE_NAME}/change_state')

@@ -610,9 +610,13 @@ class ThermalNetwork:
 
 
 def _by_rows(M: np.ndarray) -> tuple:
-    """Return ``M``'s nonzeros in row order: (rows, columns, values)."""
-    rows, cols = np.nonzero(M)
-    return rows, cols, M[rows, cols]
+    """Return ``M``'s nonzeros in row order: (rows, columns, values), each C-contiguous."""
+    # np.nonzero's index arrays are strided views, and a pickled model's or an empty map's
+    # contiguous: the step's kernels compiled a second signature for the other layout.
+    # The flat indices of a C-ordered M are in row order, as np.nonzero's
+    flat = np.flatnonzero(M)
+    rows, cols = np.divmod(flat, M.shape[1])
+    return rows, cols, M.ravel()[flat]
 
 
 @jit
