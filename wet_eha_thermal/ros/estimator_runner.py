@@ -82,8 +82,8 @@ PUBLISHED = messages.ESTIMATE_TOPICS + (
 #: The limits' topics: a stopping runner waits until their last message is acknowledged...
 LIMIT_TOPICS = (interface.CURRENT_LIMITS_TOPIC, interface.CURRENT_LIMIT_TOPIC,
                 interface.DRIVE_LIMITS_TOPIC)
-#: ... for at most this long (s)
-LAST_LIMITS_WAIT_S = 1.0
+#: ... for at most this long (s); a closing one as long for every output's last messages
+LAST_MESSAGES_WAIT_S = 1.0
 
 
 class EstimatorRunner:
@@ -179,8 +179,7 @@ class EstimatorRunner:
             for entity in set(getattr(node, kind)) - self._made[kind]:
                 destroy(entity)
         self.session.stop_limits(why)
-        for topic in LIMIT_TOPICS:        # reliable: the drive gets the last one
-            self.pubs[topic].wait_for_all_acked(Duration(seconds=LAST_LIMITS_WAIT_S))
+        self._wait_acked(LIMIT_TOPICS)        # reliable: the drive gets the last one
         for pub in set(node.publishers) - self._made['publishers']:
             node.destroy_publisher(pub)
         self.pubs = {}
@@ -191,7 +190,10 @@ class EstimatorRunner:
         self.whatif, self._made = None, None
 
     def close(self) -> None:
-        """Stop the Foxglove view and the what-if worker (the node is going)."""
+        """Let the last messages reach their readers; stop the view and the what-if worker."""
+        # the node is going: a reader that lags (a recorder on a busy machine) would lose the
+        # last ticks' messages of some topics and not of others with their writers
+        self._wait_acked(self.pubs)
         self.view.close()
         if self.whatif is not None:
             self.whatif.close()
@@ -251,6 +253,13 @@ class EstimatorRunner:
         self.diag_pub = self._publisher(interface.DIAGNOSTICS_TOPIC)
 
     # ------------------------------------------------------------- helpers
+    def _wait_acked(self, names) -> None:
+        """Wait until every reader acknowledged the messages sent on ``names`` (one deadline)."""
+        end = time.monotonic() + LAST_MESSAGES_WAIT_S
+        for name in names:
+            self.pubs[name].wait_for_all_acked(
+                Duration(seconds=max(end - time.monotonic(), 0.0)))
+
     def _publisher(self, topic: str):
         """Return a new publisher of one of the interface's topics, under the prefix."""
         cls, qos = topics.profile_of(topic)
