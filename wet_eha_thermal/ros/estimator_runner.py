@@ -75,10 +75,6 @@ from wet_eha_thermal.ros.runtime import FastClock, prepare_model_step, Readiness
 from wet_eha_thermal.ros.whatif_service import WhatIfService
 from wet_eha_thermal.units import C_TO_K
 
-#: The estimator's published topics (all but /eha/ready, which :class:`Readiness` owns)
-PUBLISHED = messages.ESTIMATE_TOPICS + (
-    interface.STATE_TOPIC, interface.ALERT_TOPIC, interface.CURRENT_LIMITS_TOPIC,
-    interface.CURRENT_LIMIT_TOPIC, interface.DRIVE_LIMITS_TOPIC, interface.DRIVE_ALERTS_TOPIC)
 #: The limits' topics: a stopping runner waits until their last message is acknowledged...
 LIMIT_TOPICS = (interface.CURRENT_LIMITS_TOPIC, interface.CURRENT_LIMIT_TOPIC,
                 interface.DRIVE_LIMITS_TOPIC)
@@ -246,7 +242,7 @@ class EstimatorRunner:
 
     def _advertise(self) -> None:
         """Create the publishers (types and QoS from topic_table); send the state's names."""
-        self.pubs = {topic: self._publisher(topic) for topic in PUBLISHED}
+        self.pubs = {topic: self._publisher(topic) for topic in interface.ESTIMATOR_OUTPUTS}
         # the name of each element of the state, once and latched: they do not change in a run
         self._publisher(interface.STATE_NAMES_TOPIC).publish(messages.state_names(
             self.session.model.quantities.state_names))
