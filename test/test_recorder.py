@@ -242,10 +242,11 @@ def test_records_every_field_qos_and_config(context, tmp_path):
     assert not bag.truncated and 'rosbag2' in bag.metadata
 
 
-def test_waiting_for_the_estimator_it_is_ready_once_the_estimates_are_matched(
+def test_waiting_for_the_estimator_it_is_ready_once_its_volatile_outputs_are_matched(
         context, tmp_path):
     # live sets wait_for_estimator: the rig's duty waits for the recorder's ready, so the
-    # estimates (volatile) are recorded from the duty's start however slow the discovery
+    # estimator's volatile outputs are recorded from the duty's start however slow the
+    # discovery, the state and the limits as well as the estimates (one count per tick)
     probe = rclpy.create_node('recorder_ready_probe', context=context)
     node = RecorderNode(context=context, parameter_overrides=[
         Parameter('output', value=str(tmp_path / 'run')),
@@ -253,17 +254,33 @@ def test_waiting_for_the_estimator_it_is_ready_once_the_estimates_are_matched(
     executor = EventsExecutor(context=context)
     executor.add_node(node)
     executor.add_node(probe)
+
+    def matched(topic):
+        subs = [s for s in node.subscriptions if s.topic_name == topic]
+        return subs and all(s.get_publisher_count() > 0 for s in subs)
+
+    def publisher(topic):
+        cls, qos = topics.profile_of(topic)
+        return probe.create_publisher(cls, topic, qos)
+
     try:
         sensor = probe.create_publisher(Float64, interface.INPUT_TOPICS['current_A'],
                                         topics.input_qos('reliable', 10))
         assert _spin(executor, 10.0, until=lambda: sensor.get_subscription_count() > 0)
         node.readiness.check()
         assert not node.readiness.ready           # an input heard, no estimator yet
-        estimates = [probe.create_publisher(Temperature, f'{interface.ESTIMATE_PREFIX}/{name}',
-                                            QoSProfile(depth=10))
-                     for name in interface.ESTIMATES]
+        outputs = interface.volatile_outputs()
+        assert set(interface.ESTIMATE_TOPICS) | {
+            interface.STATE_TOPIC, interface.CURRENT_LIMITS_TOPIC, interface.CURRENT_LIMIT_TOPIC,
+            interface.DRIVE_LIMITS_TOPIC} == set(outputs)
+        pubs = {t: publisher(t) for t in outputs if t != interface.STATE_TOPIC}
+        # every one matched but the state: not ready (its first ticks would be lost)
+        assert _spin(executor, 10.0, until=lambda: all(matched(t) for t in pubs))
+        node.readiness.check()
+        assert not node.readiness.ready
+        pubs[interface.STATE_TOPIC] = publisher(interface.STATE_TOPIC)
         assert _spin(executor, 10.0, until=lambda: node.readiness.ready)
-        assert all(p.get_subscription_count() > 0 for p in estimates)
+        assert all(p.get_subscription_count() > 0 for p in pubs.values())
     finally:
         node.close()
         executor.shutdown()

@@ -202,6 +202,13 @@ LIVE_SPLIT_BYTES = 2 ** 30
 ESTIMATES = ('winding_mean', 'winding_hotspot', 'end_winding_hotspot', 'frame', 'magnet',
              'airgap_oil_outlet', 'motor_oil_outlet', 'pump_case', 'pump_outlet', 'chamber_a',
              'chamber_b', 'accumulator', 'oil')
+#: the topic of each estimate, in the order of ESTIMATES
+ESTIMATE_TOPICS = tuple(f'{ESTIMATE_PREFIX}/{name}' for name in ESTIMATES)
+#: The estimator's outputs, the topics of its publishers (besides the state's names, the
+#: ready message and /diagnostics); :func:`volatile_outputs` are those a late subscriber misses
+ESTIMATOR_OUTPUTS = ESTIMATE_TOPICS + (
+    STATE_TOPIC, ALERT_TOPIC, CURRENT_LIMITS_TOPIC, CURRENT_LIMIT_TOPIC, DRIVE_LIMITS_TOPIC,
+    DRIVE_ALERTS_TOPIC)
 #: thermocouples of the reference rig (docs/model.md) and the estimate each one measures
 #: (an output of :mod:`wet_eha_thermal.model.quantities`)
 THERMOCOUPLES = {'winding': 'winding_mean', 'frame': 'frame', 'pump_inlet': 'pump_outlet',
@@ -222,8 +229,8 @@ def topic_table(prefix: str = PREFIX) -> Dict[str, Tuple[str, str]]:
     found[AMBIENT_TOPIC] = (TEMPERATURE, SENSOR)
     for tc in THERMOCOUPLES:
         found[f'{MEASURED_PREFIX}/{tc}'] = (TEMPERATURE, SENSOR)
-    for name in ESTIMATES:
-        found[f'{ESTIMATE_PREFIX}/{name}'] = (TEMPERATURE, OUTPUT)
+    for topic in ESTIMATE_TOPICS:
+        found[topic] = (TEMPERATURE, OUTPUT)
     found[STATE_TOPIC] = (FLOAT64_ARRAY, OUTPUT)
     found[STATE_NAMES_TOPIC] = (STRING, LATCHED)
     found[ALERT_TOPIC] = (STRING, LATCHED)
@@ -236,6 +243,22 @@ def topic_table(prefix: str = PREFIX) -> Dict[str, Tuple[str, str]]:
     found[ACK_TOPIC] = (STRING, OUTPUT)
     found[DIAGNOSTICS_TOPIC] = (DIAGNOSTIC_ARRAY, OUTPUT)
     return {prefixed(topic, prefix): spec for topic, spec in found.items()}
+
+
+def volatile_outputs(prefix: str = PREFIX) -> Tuple[str, ...]:
+    """
+    Return the estimator's volatile outputs under ``prefix`` (reliable, nothing kept).
+
+    A subscriber gets their messages only from the moment it has matched the
+    estimator's publisher: a recorder that must hold every tick of them
+    waits until it has matched them all.
+
+    >>> volatile_outputs('/left')[-1]
+    '/left/drive/limits'
+    """
+    table = topic_table(prefix)
+    return tuple(t for t in (prefixed(t, prefix) for t in ESTIMATOR_OUTPUTS)
+                 if table[t][1] == OUTPUT)
 
 
 def prefixed(topic: str, prefix: str) -> str:

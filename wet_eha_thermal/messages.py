@@ -37,9 +37,6 @@ from .estimator.alerts import Level
 from .estimator.limits import CurrentLimits
 from .estimator.session import Output
 
-#: the topic of each estimate, in the order of ``interface.ESTIMATES``
-ESTIMATE_TOPICS = tuple(f'{interface.ESTIMATE_PREFIX}/{name}' for name in interface.ESTIMATES)
-
 #: (topic, serialised message, stamp ns or None): one message to publish or log
 Message = Tuple[str, bytes, Optional[int]]
 
@@ -130,7 +127,7 @@ class EstimateMessages:
         """
         head = self._stamped.head(stamp_ns)
         out = [(topic, self._stamped.encode(head, float(t), float(s) ** 2), stamp_ns)
-               for topic, t, s in zip(ESTIMATE_TOPICS, temperatures_C, sigma_K)]
+               for topic, t, s in zip(interface.ESTIMATE_TOPICS, temperatures_C, sigma_K)]
         out.append((interface.STATE_TOPIC, cdr.encode_float64_array(self.label, state_K),
                     stamp_ns))
         return out

@@ -75,15 +75,11 @@ from wet_eha_thermal.ros.runtime import FastClock, prepare_model_step, Readiness
 from wet_eha_thermal.ros.whatif_service import WhatIfService
 from wet_eha_thermal.units import C_TO_K
 
-#: The estimator's published topics (all but /eha/ready, which :class:`Readiness` owns)
-PUBLISHED = messages.ESTIMATE_TOPICS + (
-    interface.STATE_TOPIC, interface.ALERT_TOPIC, interface.CURRENT_LIMITS_TOPIC,
-    interface.CURRENT_LIMIT_TOPIC, interface.DRIVE_LIMITS_TOPIC, interface.DRIVE_ALERTS_TOPIC)
 #: The limits' topics: a stopping runner waits until their last message is acknowledged...
 LIMIT_TOPICS = (interface.CURRENT_LIMITS_TOPIC, interface.CURRENT_LIMIT_TOPIC,
                 interface.DRIVE_LIMITS_TOPIC)
-#: ... for at most this long (s)
-LAST_LIMITS_WAIT_S = 1.0
+#: ... for at most this long (s); a closing one as long for every output's last messages
+LAST_MESSAGES_WAIT_S = 1.0
 
 
 class EstimatorRunner:
@@ -179,8 +175,7 @@ class EstimatorRunner:
             for entity in set(getattr(node, kind)) - self._made[kind]:
                 destroy(entity)
         self.session.stop_limits(why)
-        for topic in LIMIT_TOPICS:        # reliable: the drive gets the last one
-            self.pubs[topic].wait_for_all_acked(Duration(seconds=LAST_LIMITS_WAIT_S))
+        self._wait_acked(LIMIT_TOPICS)        # reliable: the drive gets the last one
         for pub in set(node.publishers) - self._made['publishers']:
             node.destroy_publisher(pub)
         self.pubs = {}
@@ -191,7 +186,10 @@ class EstimatorRunner:
         self.whatif, self._made = None, None
 
     def close(self) -> None:
-        """Stop the Foxglove view and the what-if worker (the node is going)."""
+        """Let the last messages reach their readers; stop the view and the what-if worker."""
+        # the node is going: a reader that lags (a recorder on a busy machine) would lose the
+        # last ticks' messages of some topics and not of others with their writers
+        self._wait_acked(self.pubs)
         self.view.close()
         if self.whatif is not None:
             self.whatif.close()
@@ -244,13 +242,20 @@ class EstimatorRunner:
 
     def _advertise(self) -> None:
         """Create the publishers (types and QoS from topic_table); send the state's names."""
-        self.pubs = {topic: self._publisher(topic) for topic in PUBLISHED}
+        self.pubs = {topic: self._publisher(topic) for topic in interface.ESTIMATOR_OUTPUTS}
         # the name of each element of the state, once and latched: they do not change in a run
         self._publisher(interface.STATE_NAMES_TOPIC).publish(messages.state_names(
             self.session.model.quantities.state_names))
         self.diag_pub = self._publisher(interface.DIAGNOSTICS_TOPIC)
 
     # ------------------------------------------------------------- helpers
+    def _wait_acked(self, names) -> None:
+        """Wait until every reader acknowledged the messages sent on ``names`` (one deadline)."""
+        end = time.monotonic() + LAST_MESSAGES_WAIT_S
+        for name in names:
+            self.pubs[name].wait_for_all_acked(
+                Duration(seconds=max(end - time.monotonic(), 0.0)))
+
     def _publisher(self, topic: str):
         """Return a new publisher of one of the interface's topics, under the prefix."""
         cls, qos = topics.profile_of(topic)

@@ -156,9 +156,9 @@ PARAMETERS = {
         "the estimator's inputs file (wet_eha_thermal/inputs.py): its topics are recorded "
         "and the file stored in the bag, for replay; '' = the /eha topics")),
     'wait_for_estimator': (False, descriptor(
-        "say ready only once the estimator's estimates are matched too (live sets it: a rig "
-        'that waits for the recorder then starts its duty with the estimates recorded from '
-        'the first)')),
+        "say ready only once the estimator's volatile outputs (estimates, state, limits) are "
+        'matched too (live sets it: a rig that waits for the recorder then starts its duty '
+        'with every tick of them recorded from the first)')),
 }
 
 
@@ -221,13 +221,13 @@ class RecorderNode(Node):
         self._reported: Optional[tuple] = None      # what the last report said, to see news
         self.started_s = time.monotonic()
         self.clock = FastClock(self)
-        input_subs, estimate_subs = self._subscribe_fixed(p['topic_prefix'], qos_of)
+        input_subs, output_subs = self._subscribe_fixed(p['topic_prefix'], qos_of)
         input_subs += self._subscribe_inputs(p['topic_prefix'], input_spec,
                                              qos_of[interface.SENSOR])
         extra = ['/' + t.lstrip('/') for t in p['extra_topics']]    # as rosbag2 names them
         self.extra_wanted = [t for t in extra if t not in self.types]
         self._start_reporting(p['topic_prefix'], input_subs,
-                              estimate_subs if p['wait_for_estimator'] else [])
+                              output_subs if p['wait_for_estimator'] else [])
         self.get_logger().info(
             f'recording {len(self.types)} topics under {p["topic_prefix"]} ({p["qos"]} QoS for '
             f'the sensors, depth {self.depth}) to {self.output}'
@@ -274,8 +274,9 @@ class RecorderNode(Node):
         Start the health and diagnostics, the ready handshake and the extra topics' search.
 
         ``also``: subscriptions the ready handshake waits for in any case (the
-        estimates, with ``wait_for_estimator``: their messages are volatile, and
-        those sent before the recorder had found the estimator would be lost).
+        estimator's volatile outputs, with ``wait_for_estimator``: the messages
+        of one sent before the recorder had found it would be lost, and that
+        topic's count would fall short of the others').
         """
         self.diag_pub = self.create_publisher(DiagnosticArray, interface.DIAGNOSTICS_TOPIC,
                                               QoSProfile(depth=10))
@@ -299,17 +300,17 @@ class RecorderNode(Node):
     # ------------------------------------------------------------ subscriptions
     def _subscribe_fixed(self, prefix: str, qos_of: Dict[str, QoSProfile]
                          ) -> Tuple[list, list]:
-        """Subscribe to every fixed topic under ``prefix``; return the inputs' and estimates'."""
+        """Subscribe to every fixed topic under ``prefix``; return the inputs' and outputs'."""
         inputs = {interface.prefixed(t, prefix) for t in interface.INPUT_TOPICS.values()}
-        estimates = interface.prefixed(interface.ESTIMATE_PREFIX, prefix) + '/'
-        input_subs, estimate_subs = [], []
+        outputs = set(interface.volatile_outputs(prefix))
+        input_subs, output_subs = [], []
         for topic, (type_name, kind) in recorded_topics(prefix).items():
             sub = self._subscribe(topic, type_name, qos_of[kind])
             if topic in inputs:
                 input_subs.append(sub)
-            elif topic.startswith(estimates):
-                estimate_subs.append(sub)
-        return input_subs, estimate_subs
+            elif topic in outputs:
+                output_subs.append(sub)
+        return input_subs, output_subs
 
     def _subscribe_inputs(self, prefix: str, spec: inputs.Inputs, qos: QoSProfile) -> list:
         """Subscribe to /joint_states and each topic of the inputs file not subscribed yet."""

@@ -71,10 +71,10 @@ def write_limits_csv(result: ReplayResult, path: Path) -> Path:
 
 def _node_topics(outlook: bool) -> List[tuple]:
     """Return (topic, type, offered QoS) of the live node's publishers (limits: ``outlook``)."""
-    from ... import messages
     from ...bag.writer import offered_qos
     latched = offered_qos(durability='transient_local', depth=1)
-    topics = [(t, interface.TEMPERATURE, offered_qos(depth=10)) for t in messages.ESTIMATE_TOPICS]
+    topics = [(t, interface.TEMPERATURE, offered_qos(depth=10))
+              for t in interface.ESTIMATE_TOPICS]
     topics += [(interface.STATE_TOPIC, interface.FLOAT64_ARRAY, offered_qos(depth=10)),
                (interface.STATE_NAMES_TOPIC, interface.STRING, latched),
                (interface.ALERT_TOPIC, interface.STRING, latched),
