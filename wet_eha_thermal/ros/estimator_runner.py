@@ -78,8 +78,13 @@ from wet_eha_thermal.units import C_TO_K
 #: The limits' topics: a stopping runner waits until their last message is acknowledged...
 LIMIT_TOPICS = (interface.CURRENT_LIMITS_TOPIC, interface.CURRENT_LIMIT_TOPIC,
                 interface.DRIVE_LIMITS_TOPIC)
-#: ... for at most this long (s); a closing one as long for every output's last messages
-LAST_MESSAGES_WAIT_S = 1.0
+#: ... for at most this long (s)
+LAST_LIMITS_WAIT_S = 1.0
+#: A closing runner waits as long (s) at most for every output's last messages: a reader on
+#: a busy machine is repaired on the writer's heartbeat (Fast DDS: every 3 s), and 1 s lost
+#: the last two ticks of the later topics in one live run of five beside a busy core (load
+#: 2); under live's 6 s from SIGINT to SIGTERM (live_children.SIGINT_WAIT_S)
+LAST_MESSAGES_WAIT_S = 4.0
 
 
 class EstimatorRunner:
@@ -175,7 +180,8 @@ class EstimatorRunner:
             for entity in set(getattr(node, kind)) - self._made[kind]:
                 destroy(entity)
         self.session.stop_limits(why)
-        self._wait_acked(LIMIT_TOPICS)        # reliable: the drive gets the last one
+        # reliable: the drive gets the last one
+        self._wait_acked(LIMIT_TOPICS, LAST_LIMITS_WAIT_S)
         for pub in set(node.publishers) - self._made['publishers']:
             node.destroy_publisher(pub)
         self.pubs = {}
@@ -189,7 +195,7 @@ class EstimatorRunner:
         """Let the last messages reach their readers; stop the view and the what-if worker."""
         # the node is going: a reader that lags (a recorder on a busy machine) would lose the
         # last ticks' messages of some topics and not of others with their writers
-        self._wait_acked(self.pubs)
+        self._wait_acked(self.pubs, LAST_MESSAGES_WAIT_S)
         self.view.close()
         if self.whatif is not None:
             self.whatif.close()
@@ -249,9 +255,9 @@ class EstimatorRunner:
         self.diag_pub = self._publisher(interface.DIAGNOSTICS_TOPIC)
 
     # ------------------------------------------------------------- helpers
-    def _wait_acked(self, names) -> None:
-        """Wait until every reader acknowledged the messages sent on ``names`` (one deadline)."""
-        end = time.monotonic() + LAST_MESSAGES_WAIT_S
+    def _wait_acked(self, names, wait_s: float) -> None:
+        """Wait until every reader acknowledged what ``names`` sent (``wait_s`` in all)."""
+        end = time.monotonic() + wait_s
         for name in names:
             self.pubs[name].wait_for_all_acked(
                 Duration(seconds=max(end - time.monotonic(), 0.0)))
