@@ -28,6 +28,7 @@ from rosbags.rosbag2 import Reader
 from rosbags.typesys import get_types_from_msg, get_typestore, Stores
 from sensor_msgs.msg import FluidPressure, Temperature
 from std_msgs.msg import Float64, String
+from wet_eha_thermal import processes
 from wet_eha_thermal.bag.reader import (BagError, iter_column_blocks, iter_raw, open_bag,
                                         read_columns, ROSBAG2_METADATA)
 from wet_eha_thermal.bag.writer import BagWriter, message_definition, offered_qos, qos_profiles
@@ -259,7 +260,14 @@ def blocks_and_state(blocks):
     return out, (blocks.message_count, blocks.truncated, blocks.problem)
 
 
-def test_prefetched_blocks_are_the_same_blocks(sample_bag, tmp_path):
+@pytest.fixture(params=['fork', 'fork server'])
+def start_method(request, monkeypatch):
+    """Prefetch from a forked child, or (as a caller that runs threads does) the fork server's."""
+    monkeypatch.setattr(processes, 'can_fork', lambda: request.param == 'fork')
+    return request.param
+
+
+def test_prefetched_blocks_are_the_same_blocks(sample_bag, tmp_path, start_method):
     path, _ = sample_bag
     whole = path.read_bytes()
     cut = tmp_path / 'cut.mcap'
@@ -287,7 +295,7 @@ def test_prefetched_blocks_are_the_same_blocks(sample_bag, tmp_path):
         list(iter_column_blocks(path, {'/p': TEMPERATURE}, prefetch=True))
 
 
-def test_stopping_early_ends_the_reading_process(sample_bag):
+def test_stopping_early_ends_the_reading_process(sample_bag, start_method):
     path, _ = sample_bag
     blocks = iter(iter_column_blocks(path, SPECS, max_block_s=0.05, prefetch=True))
     next(blocks)

@@ -16,11 +16,11 @@ held-out stage-4 winding.
 """
 
 import math
-import multiprocessing
 
 import numpy as np
 import pytest
 from wet_eha_thermal import calibration as cb
+from wet_eha_thermal import processes
 from wet_eha_thermal.bag.reader import iter_raw, open_bag
 from wet_eha_thermal.bag.writer import BagWriter
 from wet_eha_thermal.cli import main
@@ -59,7 +59,7 @@ def _rig_log(stage):
 @pytest.fixture(scope='module')
 def run():
     """Calibrate on stages 1-3, hold out 4-6; the magnets' glue is asked for too."""
-    with multiprocessing.get_context('fork').Pool(2) as pool:
+    with processes.child_context().Pool(2) as pool:
         logs = pool.map(_rig_log, [1, 2, 3, 4, 5, 6], chunksize=1)
     return cb.calibrate(logs[:3], nominal_config(), [GAP, SEAL, MAGNET_GLUE],
                         validate_logs=logs[3:], jobs=2)
@@ -146,6 +146,29 @@ def test_calibrated_yaml_loads_and_runs_in_the_estimator(run, tmp_path):
     assert f'| {MAGNET_GLUE} |' in report and '**no**' in report
     assert '## Held-out logs' in report and '![stage4](stage4.png)' in report
     assert (tmp_path / 'stage4.png').read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+
+
+@pytest.mark.parametrize('start', ['fork', 'fork server'])
+def test_worker_processes_give_the_inline_numbers(monkeypatch, start):
+    """A caller that runs threads (a notebook, a test worker) gets workers from the fork server."""
+    monkeypatch.setattr(processes, 'can_fork', lambda: start == 'fork')
+    cfg = nominal_config()
+    rig = SimulatedRig(cfg, stage_duty(cfg, 2), rate_Hz=50.0, block_s=0.2, seed=2)
+    log = cb.log_from_rig(rig, 30.0, cfg.calibration, name='short', thermocouple_rate_Hz=10.0)
+    nominal = [cfg.motor.stator.frame_contact_gap_m, 10.0]
+    sets = [nominal, [1.3 * nominal[0], 20.0]]
+    runs = []
+    for jobs in (1, 2):
+        evaluator = cb.Evaluator([log], [cb.run_config(cfg, log)], [GAP, SEAL], jobs=jobs)
+        try:
+            runs.append(evaluator.run(sets, [[0], [0]]))
+        finally:
+            evaluator.close()
+    inline, workers = runs
+    for a, b in zip(inline, workers):
+        assert np.array_equal(a[0][0], b[0][0]) and np.array_equal(a[0][1], b[0][1])
+    # the two sets differ: the comparison can fail
+    assert not np.array_equal(inline[0][0][1], inline[1][0][1])
 
 
 def test_screen_holds_weak_and_collinear_parameters():

@@ -11,7 +11,6 @@ counted from the end of that header.
 """
 
 from dataclasses import dataclass
-import multiprocessing
 import os
 from pathlib import Path
 import pickle
@@ -25,6 +24,7 @@ from .files import join_problems, scans, total_bytes
 from .records import (BagError, DATA_AT, LENGTH_AT, LOG_TIME_AT, MESSAGE_HEADER_BYTES, Scanner,
                       take, Unit)
 from ..interface import FLOAT64, FLUID_PRESSURE, TEMPERATURE
+from ..processes import child_context
 
 # Fields decoded by the speed path, per type. The two header types share one layout:
 # Header (stamp, frame_id), then two float64.
@@ -224,12 +224,13 @@ class ColumnBlocks:
     file missing, not MCAP or cut, by name), ``message_count`` how many
     messages were decoded.
 
-    With ``prefetch`` (where processes can fork) a child process reads and
-    decodes the next block while the caller works on this one: a replay's
-    model step and the reading then run on two cores. The pipe between them
-    holds about one block, so memory stays flat; the blocks, the attributes
-    and the errors are the same as without it, and ``on_progress`` is then
-    called once per block.
+    With ``prefetch`` a child process reads and decodes the next block while
+    the caller works on this one: a replay's model step and the reading then
+    run on two cores. The pipe between them holds about one block, so memory
+    stays flat; the blocks, the attributes and the errors are the same as
+    without it, and ``on_progress`` is then called once per block. The child
+    is forked, or comes from the fork server when the caller runs threads
+    (:mod:`~wet_eha_thermal.processes`): then ``specs`` must pickle.
     """
 
     def __init__(self, path: os.PathLike, specs: Mapping[str, Spec], *,
@@ -240,7 +241,7 @@ class ColumnBlocks:
         self.specs = _check_specs(specs)
         self.max_block_s = max_block_s
         self.on_progress = on_progress
-        self.prefetch = prefetch and 'fork' in multiprocessing.get_all_start_methods()
+        self.prefetch = prefetch
         self.message_count = 0
         self.truncated = False
         self.problem: Optional[str] = None
@@ -249,10 +250,10 @@ class ColumnBlocks:
         return self._prefetched() if self.prefetch else self._blocks()
 
     def _prefetched(self) -> Iterator[Dict[str, Columns]]:
-        ctx = multiprocessing.get_context('fork')
+        ctx = child_context(preload=[__name__])
         receive, send = ctx.Pipe(duplex=False)
-        child = ctx.Process(target=self._produce, args=(send,), daemon=True,
-                            name=f'read {self.path.name}')
+        child = ctx.Process(target=_produce, args=(self.path, self.specs, self.max_block_s, send),
+                            daemon=True, name=f'read {self.path.name}')
         child.start()
         send.close()
         try:
@@ -277,31 +278,6 @@ class ColumnBlocks:
             if child.is_alive():
                 child.kill()
                 child.join()
-
-    def _produce(self, send) -> None:
-        """Child process: send every block, then the end (or the error), each with the state."""
-        progress = [0, 0]
-        self.on_progress = lambda done, size: progress.__setitem__(slice(None), (done, size))
-
-        def state():
-            return self.message_count, self.truncated, self.problem, *progress
-
-        try:
-            for block in self._blocks():
-                send.send(('block', block, state()))
-            send.send(('end', None, state()))
-        except (BrokenPipeError, KeyboardInterrupt):
-            pass                      # the caller stopped listening
-        except Exception as exc:      # noqa: BLE001 - handed to the caller, who raises it
-            try:
-                try:
-                    send.send(('error', exc, state()))
-                except (TypeError, AttributeError, pickle.PicklingError):
-                    send.send(('error', BagError(f'{self.path}: {exc!r}'), state()))
-            except BrokenPipeError:
-                pass
-        finally:
-            send.close()
 
     def _blocks(self) -> Iterator[Dict[str, Columns]]:
         max_block_ns = self.max_block_s * 1e9
@@ -427,3 +403,31 @@ def read_columns(path: os.PathLike, specs: Mapping[str, str],
         done += scan.size
     return ColumnData({topic: b.columns() for topic, b in builders.items()},
                       message_count, bool(problems), join_problems(problems))
+
+
+def _produce(path: Path, specs: Mapping[str, Spec], max_block_s: float, send) -> None:
+    """Child process: send every block, then the end (or the error), each with the state."""
+    progress = [0, 0]
+    blocks = ColumnBlocks(path, specs, max_block_s=max_block_s,
+                          on_progress=lambda done, size: progress.__setitem__(slice(None),
+                                                                              (done, size)))
+
+    def state():
+        return blocks.message_count, blocks.truncated, blocks.problem, *progress
+
+    try:
+        for block in blocks._blocks():
+            send.send(('block', block, state()))
+        send.send(('end', None, state()))
+    except (BrokenPipeError, KeyboardInterrupt):
+        pass                      # the caller stopped listening
+    except Exception as exc:      # noqa: BLE001 - handed to the caller, who raises it
+        try:
+            try:
+                send.send(('error', exc, state()))
+            except (TypeError, AttributeError, pickle.PicklingError):
+                send.send(('error', BagError(f'{path}: {exc!r}'), state()))
+        except BrokenPipeError:
+            pass
+    finally:
+        send.close()

@@ -36,7 +36,7 @@ their difference is divided by the standard error of the readings' mean
 when it is 0). ``scipy.optimize.least_squares`` (trust region reflective,
 within the bounds, ``x_scale='jac'``) fits the parameters, scaled to [0, 1]
 over their bounds, with a forward-difference Jacobian whose columns, like the
-logs, are evaluated in parallel worker processes (``jobs``; fork, each worker
+logs, are evaluated in parallel worker processes (``jobs``; each worker
 holding the pre-averaged logs), or on the workers of a Dask ``client`` (a
 cluster; the logs are sent to each worker once). Either way the same numbers.
 

@@ -6,13 +6,12 @@ The evaluator: the model run on a log and compared with its thermocouples.
 through the thermocouples' lag; :func:`make_windows` and :func:`residuals`
 compare it with the readings over the residual windows, and
 :func:`channel_errors` states the errors in kelvin. :class:`Evaluator` runs
-parameter sets over logs inline, in forked processes or on a Dask client:
+parameter sets over logs inline, in worker processes or on a Dask client:
 the same numbers either way.
 """
 
 from dataclasses import dataclass, replace
 import math
-import multiprocessing
 import time
 from typing import Dict, List, Optional, Sequence, Tuple
 
@@ -22,6 +21,7 @@ from .logs import CalibrationError, CHANNELS, LogData
 from ..config import Calibration, Config, with_values
 from ..estimator.session import EstimatorSession
 from ..interface import THERMOCOUPLES
+from ..processes import child_context
 
 #: Length of the ambient segments (s): each gets the mean of its readings.
 AMBIENT_SEGMENT_S = 60.0
@@ -220,19 +220,26 @@ def evaluate_run(log: LogData, cfg: Config, keys: Sequence[str], task: tuple) ->
     return vi, li, t, y, time.perf_counter() - t0
 
 
+def _start_worker(state: dict) -> None:
+    """Keep the logs, configurations and keys a worker process is given at its start."""
+    _WORKER.update(state)
+
+
 def _evaluate(task: tuple) -> tuple:
-    """Run one task on the logs the forked workers inherited (or inline)."""
+    """Run one task on the logs the worker was given at its start (or inline)."""
     li = task[1]
     return evaluate_run(_WORKER['logs'][li], _WORKER['cfgs'][li], _WORKER['keys'], task)
 
 
 class Evaluator:
     """
-    Run parameter sets over logs: inline, in ``jobs`` forked processes, or on a Dask client.
+    Run parameter sets over logs: inline, in ``jobs`` worker processes, or on a Dask client.
 
-    With ``client`` (a ``distributed.Client``), the logs and their
-    configurations are sent to every worker once; each task then carries
-    only its parameter values.
+    The logs and their configurations reach every worker once, at its start
+    (forked workers inherit them; from the fork server, when the caller runs
+    threads, they are pickled): each task then carries only its parameter
+    values. With ``client`` (a ``distributed.Client``) they are scattered to
+    its workers.
     """
 
     def __init__(self, logs: Sequence[LogData], cfgs: Sequence[Config], keys: Sequence[str],
@@ -247,8 +254,9 @@ class Evaluator:
                            client.scatter(list(cfgs), broadcast=True))
             return
         _WORKER.update(logs=self.logs, cfgs=list(cfgs), keys=self.keys)
-        if jobs > 1 and 'fork' in multiprocessing.get_all_start_methods():
-            self.pool = multiprocessing.get_context('fork').Pool(jobs)
+        if jobs > 1:
+            self.pool = child_context(preload=[__name__]).Pool(
+                jobs, initializer=_start_worker, initargs=(dict(_WORKER),))
 
     def run(self, sets: Sequence[Sequence[float]], which: Sequence[Sequence[int]],
             extras: Optional[Sequence[dict]] = None) -> list:

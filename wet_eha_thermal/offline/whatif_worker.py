@@ -28,7 +28,6 @@ start method but fork, the worker imports the parent's main module (not as
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 import json
-import multiprocessing
 import os
 import pickle
 import time
@@ -38,6 +37,7 @@ from .whatif import error_answer, id_of, parse_request, RequestError, what_if
 from ..config import Config
 from ..model.eha import EHAModel
 from ..model.warmup import compile_model
+from ..processes import fork_server
 
 #: How much nicer than its parent the worker runs: the estimator's steps come first.
 WORKER_NICE = 10
@@ -106,9 +106,8 @@ class WhatIfWorker:
         """Start the worker (if it is not running) and load the model in it, in the background."""
         if self._pool is not None:
             return
-        ctx = multiprocessing.get_context('forkserver')
-        ctx.set_forkserver_preload([__name__])
-        self._pool = ProcessPoolExecutor(1, mp_context=ctx, initializer=_lower_priority)
+        self._pool = ProcessPoolExecutor(1, mp_context=fork_server(preload=[__name__]),
+                                         initializer=_lower_priority)
         # a request queues behind it in the one worker
         self._pool.submit(_warm_up, self.cfg, self.known)
 
