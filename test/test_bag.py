@@ -11,9 +11,11 @@ import os
 from pathlib import Path
 import shutil
 import struct
+import subprocess
 import sys
 import time
 
+from bag_blocks import assert_prefetched_blocks_are_the_same, SPECS
 from builtin_interfaces.msg import Time
 from child_process import kill_writer
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -39,7 +41,6 @@ import yaml
 STRING = 'std_msgs/msg/String'
 DIAGNOSTICS = 'diagnostic_msgs/msg/DiagnosticArray'
 T0_NS = 1_700_000_000_123_456_789
-SPECS = {'/f': FLOAT64, '/p': FLUID_PRESSURE, '/t': TEMPERATURE}
 # frame_id lengths with the NUL of 1 to 14 bytes: every alignment of the float64 after it
 FRAME_IDS = ['', 'a', 'ab', 'abc', 'port_a', 'x' * 13, 'tc_7']
 
@@ -254,48 +255,31 @@ def test_read_columns_matches_mcap_ros2(sample_bag, tmp_path):
         assert_columns_equal(read_columns(other, SPECS).topics, expected)
 
 
-def blocks_and_state(blocks):
-    """Return every block of ``blocks`` with the attributes seen after each, then at the end."""
-    out = [(block, (blocks.message_count, blocks.truncated, blocks.problem)) for block in blocks]
-    return out, (blocks.message_count, blocks.truncated, blocks.problem)
+@pytest.fixture
+def fork_server(monkeypatch):
+    """Take the reading process from the fork server, as a caller that runs threads does."""
+    monkeypatch.setattr(processes, 'can_fork', lambda: False)
 
 
-@pytest.fixture(params=['fork', 'fork server'])
-def start_method(request, monkeypatch):
-    """Prefetch from a forked child, or (as a caller that runs threads does) the fork server's."""
-    monkeypatch.setattr(processes, 'can_fork', lambda: request.param == 'fork')
-    return request.param
-
-
-def test_prefetched_blocks_are_the_same_blocks(sample_bag, tmp_path, start_method):
+def test_prefetched_blocks_are_the_same_blocks(sample_bag, tmp_path, fork_server):
     path, _ = sample_bag
-    whole = path.read_bytes()
-    cut = tmp_path / 'cut.mcap'
-    cut.write_bytes(whole[:int(len(whole) * 0.6)])
-    for source in (path, cut):
-        progress = []
-        direct, end = blocks_and_state(iter_column_blocks(source, SPECS, max_block_s=0.05))
-        fetched = iter_column_blocks(source, SPECS, max_block_s=0.05, prefetch=True,
-                                     on_progress=lambda done, size: progress.append(done))
-        assert fetched.prefetch
-        ahead, ahead_end = blocks_and_state(fetched)
-        assert len(direct) > 3 and len(ahead) == len(direct) and ahead_end == end
-        assert end[1] == (source == cut)
-        for (a, state_a), (b, state_b) in zip(direct, ahead):
-            assert state_a == state_b
-            for topic in SPECS:
-                assert np.array_equal(a[topic].log_time_ns, b[topic].log_time_ns)
-                for name, values in a[topic].values.items():
-                    assert np.array_equal(values, b[topic].values[name])
-        # once per block, then at the end: never backwards, up to the file's size at most
-        assert len(progress) == len(direct) + 1 and progress == sorted(progress)
-        assert 0 < progress[-1] <= source.stat().st_size
-    # an error in the reading process is raised in the caller, as without prefetching
-    with pytest.raises(BagError, match='expected sensor_msgs/msg/Temperature'):
-        list(iter_column_blocks(path, {'/p': TEMPERATURE}, prefetch=True))
+    assert_prefetched_blocks_are_the_same(path, tmp_path)
 
 
-def test_stopping_early_ends_the_reading_process(sample_bag, start_method):
+def test_forked_prefetched_blocks_are_the_same_blocks(sample_bag, tmp_path):
+    # what a command (one thread) gets: in a fresh process, not this one, whose ROS tests'
+    # objects a forked child would inherit (children forked so died in their GC)
+    script = ('import sys; from pathlib import Path; from wet_eha_thermal import processes; '
+              'import bag_blocks as t; '
+              'assert processes.child_context().get_start_method() == "fork", '
+              'processes.thread_count(); '
+              't.assert_prefetched_blocks_are_the_same(Path(sys.argv[1]), Path(sys.argv[2]))')
+    done = subprocess.run([sys.executable, '-c', script, str(sample_bag[0]), str(tmp_path)],
+                          cwd=Path(__file__).parent, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stdout + done.stderr
+
+
+def test_stopping_early_ends_the_reading_process(sample_bag, fork_server):
     path, _ = sample_bag
     blocks = iter(iter_column_blocks(path, SPECS, max_block_s=0.05, prefetch=True))
     next(blocks)

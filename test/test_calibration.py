@@ -16,6 +16,9 @@ held-out stage-4 winding.
 """
 
 import math
+from pathlib import Path
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -148,15 +151,13 @@ def test_calibrated_yaml_loads_and_runs_in_the_estimator(run, tmp_path):
     assert (tmp_path / 'stage4.png').read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
 
 
-@pytest.mark.parametrize('start', ['fork', 'fork server'])
-def test_worker_processes_give_the_inline_numbers(monkeypatch, start):
-    """A caller that runs threads (a notebook, a test worker) gets workers from the fork server."""
-    monkeypatch.setattr(processes, 'can_fork', lambda: start == 'fork')
+def assert_workers_give_the_inline_numbers():
+    """Run two parameter sets on a short log inline and in two workers: the same numbers."""
     cfg = nominal_config()
     rig = SimulatedRig(cfg, stage_duty(cfg, 2), rate_Hz=50.0, block_s=0.2, seed=2)
     log = cb.log_from_rig(rig, 30.0, cfg.calibration, name='short', thermocouple_rate_Hz=10.0)
-    nominal = [cfg.motor.stator.frame_contact_gap_m, 10.0]
-    sets = [nominal, [1.3 * nominal[0], 20.0]]
+    values = [cfg.motor.stator.frame_contact_gap_m, 10.0]
+    sets = [values, [1.3 * values[0], 20.0]]
     runs = []
     for jobs in (1, 2):
         evaluator = cb.Evaluator([log], [cb.run_config(cfg, log)], [GAP, SEAL], jobs=jobs)
@@ -169,6 +170,23 @@ def test_worker_processes_give_the_inline_numbers(monkeypatch, start):
         assert np.array_equal(a[0][0], b[0][0]) and np.array_equal(a[0][1], b[0][1])
     # the two sets differ: the comparison can fail
     assert not np.array_equal(inline[0][0][1], inline[1][0][1])
+
+
+def test_workers_from_the_fork_server_give_the_inline_numbers(monkeypatch):
+    # what a caller that runs threads (a notebook, a ROS node, this test process) gets
+    monkeypatch.setattr(processes, 'can_fork', lambda: False)
+    assert_workers_give_the_inline_numbers()
+
+
+def test_forked_workers_give_the_inline_numbers():
+    # what a command (one thread) gets: in a fresh process, not this one, whose ROS tests'
+    # objects a forked worker would inherit (workers forked so died in their GC)
+    script = ('from wet_eha_thermal import processes; import test_calibration as t; '
+              'assert processes.child_context().get_start_method() == "fork", '
+              'processes.thread_count(); t.assert_workers_give_the_inline_numbers()')
+    done = subprocess.run([sys.executable, '-c', script], cwd=Path(__file__).parent,
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stdout + done.stderr
 
 
 def test_screen_holds_weak_and_collinear_parameters():
