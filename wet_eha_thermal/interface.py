@@ -116,7 +116,7 @@ CURRENT_LIMITS_TOPIC = f'{PREFIX}/current_limits'
 CURRENT_LIMIT_TOPIC = f'{PREFIX}/current_limit'
 #: The same limits as numbers only, for a drive or a PLC bridge that parses no text: a
 #: std_msgs/Float64MultiArray of the layout :class:`DriveLimits` documents (reliable,
-#: depth 10), one message per limit tick
+#: depth 100), one message per limit tick
 DRIVE_LIMITS_TOPIC = f'{PREFIX}/drive/limits'
 #: The alerts' state as numbers only: a std_msgs/Float64MultiArray of the layout
 #: :class:`DriveAlerts` documents, latched (reliable, transient local) like ALERT_TOPIC and
