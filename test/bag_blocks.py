@@ -6,6 +6,8 @@ that runs threads never forks its reading process. A fresh process that
 imports only this module forks it, as a command does.
 """
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from wet_eha_thermal.bag.reader import BagError, iter_column_blocks
@@ -22,6 +24,7 @@ def blocks_and_state(blocks):
 
 def assert_prefetched_blocks_are_the_same(path, tmp_path):
     """Read ``path`` and a cut copy with and without prefetching: the same blocks and state."""
+    path, tmp_path = Path(path), Path(tmp_path)     # (strings from a fresh process)
     whole = path.read_bytes()
     cut = tmp_path / 'cut.mcap'
     cut.write_bytes(whole[:int(len(whole) * 0.6)])

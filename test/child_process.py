@@ -3,6 +3,7 @@
 import contextlib
 import json
 import os
+from pathlib import Path
 import signal
 import subprocess
 import sys
@@ -83,3 +84,22 @@ def kill_writer(target, messages: int, pressure: bool = False, **options):
     stamps += [int(line) for line in out.read().splitlines(keepends=True)
                if line.endswith('\n')]
     return len(stamps), stamps[-1]
+
+
+def in_a_fresh_process(module: str, function: str, *args: str, timeout_s: float = 600.0):
+    """
+    Call ``module.function(*args)`` (a test module's; string arguments) in a fresh interpreter.
+
+    What a command (one thread) gets, where the package forks its children: not
+    this test process, whose ROS tests' objects and DDS threads a forked child
+    would inherit (children forked so died in their GC). Asserts that the child
+    forks and that the call returns; the child's output is the failure's message.
+    """
+    script = ('import sys; from wet_eha_thermal import processes; '
+              f'import {module} as t; '
+              'assert processes.child_context().get_start_method() == "fork", '
+              'processes.thread_count(); '
+              f't.{function}(*sys.argv[1:])')
+    done = subprocess.run([sys.executable, '-c', script, *args], cwd=Path(__file__).parent,
+                          capture_output=True, text=True, timeout=timeout_s)
+    assert done.returncode == 0, done.stdout + done.stderr

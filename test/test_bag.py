@@ -11,13 +11,12 @@ import os
 from pathlib import Path
 import shutil
 import struct
-import subprocess
 import sys
 import time
 
 from bag_blocks import assert_prefetched_blocks_are_the_same, SPECS
 from builtin_interfaces.msg import Time
-from child_process import kill_writer
+from child_process import in_a_fresh_process, kill_writer
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from mcap.reader import make_reader
 from mcap.writer import CompressionType, IndexType, Writer
@@ -267,16 +266,8 @@ def test_prefetched_blocks_are_the_same_blocks(sample_bag, tmp_path, fork_server
 
 
 def test_forked_prefetched_blocks_are_the_same_blocks(sample_bag, tmp_path):
-    # what a command (one thread) gets: in a fresh process, not this one, whose ROS tests'
-    # objects a forked child would inherit (children forked so died in their GC)
-    script = ('import sys; from pathlib import Path; from wet_eha_thermal import processes; '
-              'import bag_blocks as t; '
-              'assert processes.child_context().get_start_method() == "fork", '
-              'processes.thread_count(); '
-              't.assert_prefetched_blocks_are_the_same(Path(sys.argv[1]), Path(sys.argv[2]))')
-    done = subprocess.run([sys.executable, '-c', script, str(sample_bag[0]), str(tmp_path)],
-                          cwd=Path(__file__).parent, capture_output=True, text=True, timeout=300)
-    assert done.returncode == 0, done.stdout + done.stderr
+    in_a_fresh_process('bag_blocks', 'assert_prefetched_blocks_are_the_same',
+                       str(sample_bag[0]), str(tmp_path), timeout_s=300.0)
 
 
 def test_stopping_early_ends_the_reading_process(sample_bag, fork_server):

@@ -16,10 +16,8 @@ held-out stage-4 winding.
 """
 
 import math
-from pathlib import Path
-import subprocess
-import sys
 
+from child_process import in_a_fresh_process
 import numpy as np
 import pytest
 from wet_eha_thermal import calibration as cb
@@ -179,14 +177,7 @@ def test_workers_from_the_fork_server_give_the_inline_numbers(monkeypatch):
 
 
 def test_forked_workers_give_the_inline_numbers():
-    # what a command (one thread) gets: in a fresh process, not this one, whose ROS tests'
-    # objects a forked worker would inherit (workers forked so died in their GC)
-    script = ('from wet_eha_thermal import processes; import test_calibration as t; '
-              'assert processes.child_context().get_start_method() == "fork", '
-              'processes.thread_count(); t.assert_workers_give_the_inline_numbers()')
-    done = subprocess.run([sys.executable, '-c', script], cwd=Path(__file__).parent,
-                          capture_output=True, text=True, timeout=600)
-    assert done.returncode == 0, done.stdout + done.stderr
+    in_a_fresh_process('test_calibration', 'assert_workers_give_the_inline_numbers')
 
 
 def test_screen_holds_weak_and_collinear_parameters():
