@@ -753,9 +753,12 @@ def test_whatif_is_answered_while_the_estimates_go_on(whatif_rig):
           f'{gaps.max() * 1e3:.0f} ms')
     # no stall (a what-if worked in the node would hold the estimates for its own time), and
     # the estimates kept up with the samples: on a busy machine the node and this probe, one
-    # executor, slow alike, so a rate in wall time would measure the machine, not the node
-    assert len(during) > 10 and gaps.max() < max(0.5, 0.25 * long['wall_s'])
-    assert lag_during < 1.0
+    # executor, slow alike, so a rate in wall time would measure the machine, not the node.
+    # The lag has the gaps' bound: a machine busy enough to slow the worker (68 s of wall for
+    # its 30 s at load 4.6) slowed the node too (1.007 s of lag), while a stall for the
+    # what-if makes the lag the worker's whole time
+    bound_s = max(0.5, 0.25 * long['wall_s'])
+    assert len(during) > 10 and gaps.max() < bound_s and lag_during < max(1.0, bound_s)
 
 
 def test_whatif_command_asks_the_running_estimator(whatif_rig, tmp_path, capsys):

@@ -82,7 +82,7 @@ LIMIT_TOPICS = (interface.CURRENT_LIMITS_TOPIC, interface.CURRENT_LIMIT_TOPIC,
 LAST_LIMITS_WAIT_S = 1.0
 #: A closing runner waits as long (s) at most for every output's last messages: a reader on
 #: a busy machine is repaired on the writer's heartbeat (Fast DDS: every 3 s); under live's
-#: 6 s from SIGINT to SIGTERM (live_children.SIGINT_WAIT_S). (The unequal counts of a live
+#: 15 s from SIGINT to SIGTERM (live_children.SIGINT_WAIT_S). (The unequal counts of a live
 #: recording once put on this wait were messages lost mid-run: see topics.OUTPUT_DEPTH)
 LAST_MESSAGES_WAIT_S = 4.0
 

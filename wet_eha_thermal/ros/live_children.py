@@ -22,8 +22,11 @@ from wet_eha_thermal import interface
 from wet_eha_thermal.interface import ESTIMATOR_NODE, NodeReport, RECORDER_NODE
 from wet_eha_thermal.live_view import address_text
 
-#: Shutdown timeouts (s) after SIGINT, then after SIGTERM.
-SIGINT_WAIT_S, SIGTERM_WAIT_S = 6.0, 3.0
+#: Shutdown timeouts (s) after SIGINT, then after SIGTERM. A clean stop closes the recording
+#: and lets the estimator's last messages reach their readers (estimator_runner's
+#: LAST_MESSAGES_WAIT_S); beside a busy machine (load 4.6 on 2 cores, where its start-up took
+#: 21 s against 2 s quiet) the estimator took more than 6 s, and was killed mid-teardown.
+SIGINT_WAIT_S, SIGTERM_WAIT_S = 15.0, 3.0
 #: Longest start-up (processes, model warm-up, discovery) before the rig's duty (s): the
 #: rig starts anyway after it, the run ends with an error a little later.
 START_TIMEOUT_S = 120.0
