@@ -16,6 +16,9 @@ held-out stage-4 winding.
 """
 
 import math
+import os
+import signal
+import time
 
 from child_process import in_a_fresh_process
 import numpy as np
@@ -149,11 +152,16 @@ def test_calibrated_yaml_loads_and_runs_in_the_estimator(run, tmp_path):
     assert (tmp_path / 'stage4.png').read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
 
 
+def short_log(cfg):
+    """Return 30 s of stage 2 on the nominal rig."""
+    rig = SimulatedRig(cfg, stage_duty(cfg, 2), rate_Hz=50.0, block_s=0.2, seed=2)
+    return cb.log_from_rig(rig, 30.0, cfg.calibration, name='short', thermocouple_rate_Hz=10.0)
+
+
 def assert_workers_give_the_inline_numbers():
     """Run two parameter sets on a short log inline and in two workers: the same numbers."""
     cfg = nominal_config()
-    rig = SimulatedRig(cfg, stage_duty(cfg, 2), rate_Hz=50.0, block_s=0.2, seed=2)
-    log = cb.log_from_rig(rig, 30.0, cfg.calibration, name='short', thermocouple_rate_Hz=10.0)
+    log = short_log(cfg)
     values = [cfg.motor.stator.frame_contact_gap_m, 10.0]
     sets = [values, [1.3 * values[0], 20.0]]
     runs = []
@@ -178,6 +186,32 @@ def test_workers_from_the_fork_server_give_the_inline_numbers(monkeypatch):
 
 def test_forked_workers_give_the_inline_numbers():
     in_a_fresh_process('test_calibration', 'assert_workers_give_the_inline_numbers')
+
+
+def test_a_set_the_model_fails_on_or_a_worker_that_dies_fails_the_run_and_says_so():
+    # killed by the kernel's out-of-memory killer or by hand: the run must stop with a message,
+    # not wait for ever for the task the worker held (as a multiprocessing Pool did). The one
+    # test of the evaluator's failures, so first a set the model fails on
+    cfg = nominal_config()
+    log = short_log(cfg)
+    values = [cfg.motor.stator.frame_contact_gap_m, 10.0]
+    evaluator = cb.Evaluator([log], [cb.run_config(cfg, log)], [GAP, SEAL], jobs=2)
+    try:
+        # a set the model fails on is named, and the workers live on
+        with pytest.raises(cb.CalibrationError, match=f'short: the model failed with {GAP} = -1'):
+            evaluator.run([values, [-1.0, 10.0]], [[0], [0]])
+        evaluator.run([values], [[0]])
+        # (the executor's private mapping is the one place that names its workers)
+        worker = next(iter(evaluator.pool._processes.values()))
+        os.kill(worker.pid, signal.SIGKILL)
+        worker.join()
+        while not evaluator.pool._broken:               # its manager thread has seen it
+            time.sleep(0.01)
+        with pytest.raises(cb.CalibrationError, match='worker process died'):
+            evaluator.run([values] * 4, [[0]] * 4)
+    finally:
+        evaluator.close()
+    assert not worker.is_alive()
 
 
 def test_screen_holds_weak_and_collinear_parameters():

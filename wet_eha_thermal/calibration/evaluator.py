@@ -10,6 +10,8 @@ parameter sets over logs inline, in worker processes or on a Dask client:
 the same numbers either way.
 """
 
+from concurrent.futures import as_completed, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, replace
 import math
 import time
@@ -231,6 +233,22 @@ def _evaluate(task: tuple) -> tuple:
     return evaluate_run(_WORKER['logs'][li], _WORKER['cfgs'][li], _WORKER['keys'], task)
 
 
+def _worker_died(exc: BrokenProcessPool) -> CalibrationError:
+    """Return the error of a run whose worker process died."""
+    return CalibrationError(f'a calibration worker process died ({exc}); it may have been '
+                            'killed or run out of memory: try fewer jobs (--jobs)')
+
+
+def _terminate_workers(pool: ProcessPoolExecutor) -> None:
+    """Kill a pool's worker processes: their running tasks would otherwise be waited for."""
+    if hasattr(pool, 'terminate_workers'):          # Python 3.14
+        pool.terminate_workers()
+        return
+    # before 3.14 the executor keeps them in a private mapping (None once shut down)
+    for process in list((getattr(pool, '_processes', None) or {}).values()):
+        process.terminate()
+
+
 class Evaluator:
     """
     Run parameter sets over logs: inline, in ``jobs`` worker processes, or on a Dask client.
@@ -239,7 +257,9 @@ class Evaluator:
     (forked workers inherit them; from the fork server, when the caller runs
     threads, they are pickled): each task then carries only its parameter
     values. With ``client`` (a ``distributed.Client``) they are scattered to
-    its workers.
+    its workers. A worker that dies (killed, or out of memory) fails the run
+    with a :class:`CalibrationError`: a pool that replaced it would wait for
+    ever for the task it held.
     """
 
     def __init__(self, logs: Sequence[LogData], cfgs: Sequence[Config], keys: Sequence[str],
@@ -255,8 +275,9 @@ class Evaluator:
             return
         _WORKER.update(logs=self.logs, cfgs=list(cfgs), keys=self.keys)
         if jobs > 1:
-            self.pool = child_context(preload=[__name__]).Pool(
-                jobs, initializer=_start_worker, initargs=(dict(_WORKER),))
+            self.pool = ProcessPoolExecutor(
+                jobs, mp_context=child_context(preload=[__name__]), initializer=_start_worker,
+                initargs=(dict(_WORKER),))
 
     def run(self, sets: Sequence[Sequence[float]], which: Sequence[Sequence[int]],
             extras: Optional[Sequence[dict]] = None) -> list:
@@ -274,13 +295,17 @@ class Evaluator:
         out: List[dict] = [{} for _ in sets]
         futures = []
         if self.client is not None:
-            from distributed import as_completed
+            from distributed import as_completed as dask_completed
             logs, cfgs = self.remote
             futures = [self.client.submit(evaluate_run, logs[task[1]], cfgs[task[1]], self.keys,
                                           task, pure=False) for task in tasks]
-            results = (f.result() for f in as_completed(futures))
+            results = (f.result() for f in dask_completed(futures))
         elif self.pool is not None:
-            results = self.pool.imap_unordered(_evaluate, tasks, chunksize=1)
+            try:
+                futures = [self.pool.submit(_evaluate, task) for task in tasks]
+            except BrokenProcessPool as exc:
+                raise _worker_died(exc) from None
+            results = (f.result() for f in as_completed(futures))
         else:
             results = map(_evaluate, tasks)
         try:
@@ -293,16 +318,22 @@ class Evaluator:
                 out[i][li] = (t, y)
                 self.cost_s[li] = seconds
                 self.runs += 1
+        except BrokenProcessPool as exc:
+            raise _worker_died(exc) from None
         finally:
-            if futures:       # after a failed run, the ones still queued would run for nothing
+            # after a failed run, the ones still queued would run for nothing
+            if self.client is not None and futures:
                 self.client.cancel(futures)
+            else:
+                for f in futures:
+                    f.cancel()
         return out
 
     def close(self) -> None:
-        """Stop the workers (a Dask client's are left to its owner)."""
+        """Stop the workers, at once even mid-task (a Dask client's are left to its owner)."""
         if self.pool is not None:
-            self.pool.terminate()
-            self.pool.join()
+            _terminate_workers(self.pool)
+            self.pool.shutdown(wait=True, cancel_futures=True)
             self.pool = None
         if self.client is not None:
             self.client.cancel([f for part in self.remote for f in part])
