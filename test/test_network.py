@@ -191,3 +191,29 @@ def test_algebraic_nodes_from_the_maps_nonzeros_agree_with_the_dense_maps_to_rou
     assert a.size > 300 and np.count_nonzero(out_x) < 0.2 * out_x.size
     assert np.all(np.abs(T_end[a] - dense) <= bound)
     assert np.array_equal(T_end[net.dynamic], x_new)
+
+
+def test_the_reductions_blocks_are_the_assembled_matrices_to_the_bit():
+    # the reduction sums only the blocks it reads (K's state rows, the band of its algebraic
+    # block, the algebraic solve's right-hand side), each entry in matrices()' order: the
+    # same sums, so the same bits as the dense K, G_b and E sliced, at any coefficients
+    cfg = load_config()
+    motor = WetMotor(cfg.motor, get_oil(cfg.fluid.grade))
+    motor.initialise(C_TO_K + 40.0)
+    u = MotorInputs(current_sq_mean_A2=225.0, speed_rad_s=800.0, oil_inlet_K=C_TO_K + 40.0,
+                    oil_flow_m3_s=1e-5, ambient_K=C_TO_K + 20.0)
+    motor.step(0.02, u)
+    net = motor.net
+    rng = np.random.default_rng(3)
+    g = net.conductance
+    net.set_conductances(slice(None), g * rng.uniform(0.5, 2.0, g.size))
+    net.set_advection_rates(slice(None), rng.uniform(0.0, 5.0, net.advection_rate.size))
+    m, (order, half, entries, places) = net.dynamic.size, net._band
+    K, Gb, E = net.matrices(reduced_order=True)
+    W = np.hstack([Gb, E])
+    band = np.zeros((3 * half + 1, net._a.size))
+    band[places] = K[entries]
+    K_dd, K_da, W_d, band_blocks, rhs = net._reduction_matrices()
+    for got, want in ((K_dd, K[:m, :m]), (K_da, K[:m, m:]), (W_d, W[:m]), (band_blocks, band),
+                      (rhs, np.hstack([K[m:, :m], W[m:]])[order])):
+        assert got.shape == want.shape and got.tobytes() == np.ascontiguousarray(want).tobytes()

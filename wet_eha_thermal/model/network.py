@@ -214,6 +214,7 @@ class ThermalNetwork:
         self._scatter = self._scatter_indices(np.arange(n))
         self._scatter_reduced = self._scatter_indices(position)
         self._band = self._algebraic_band()
+        self._blocks = self._reduction_blocks()
         # link ends in the vector [T; T_b], for heat flows
         flat = {nm: (i if k == 'n' else n + i) for nm, (k, i) in self._kind.items()}
         self._ends = np.array([[flat[a], flat[b]] for a, b in self._links],
@@ -381,6 +382,26 @@ class ThermalNetwork:
         k_idx = self._scatter_reduced[0]
         return _band(self.n, m, na, k_idx.dtype.str, k_idx.tobytes())
 
+    def _reduction_blocks(self) -> Optional[tuple]:
+        """
+        Return where each entry of K, G_b and E goes in the blocks that the reduction reads.
+
+        :meth:`_reduce` needs K's state block, its state-to-algebraic block,
+        the band of its algebraic block, and the right-hand side of the
+        algebraic solve (K's algebraic-to-state block beside W's algebraic
+        rows, in the band's order). Each is summed by ``np.bincount`` straight
+        from the coefficients, in their order, as :meth:`matrices` sums the
+        whole of K: the same entries added in the same order, so the same
+        values to the bit, without filling and reading a dense n x n matrix.
+        """
+        if not self._a.size:
+            return None
+        k_idx, gb_idx, src = self._scatter_reduced
+        order = self._band[0]
+        return _blocks(self.n, self._d.size, self.nb, self.ns, self._band[1],
+                       *(a.dtype.str for a in (k_idx, gb_idx, src, order)),
+                       *(a.tobytes() for a in (k_idx, gb_idx, src, order)))
+
     def algebraic_map(self) -> Tuple[np.ndarray, np.ndarray]:
         """Return the algebraic nodes and their temperatures' sensitivity to the states (K/K)."""
         a, out_x = self._reduce()[3:5]
@@ -397,41 +418,39 @@ class ThermalNetwork:
                           self.capacity.copy())
             self._reduced = memo[1]
             return self._reduced
-        K, Gb, E = self.matrices(reduced_order=True)
-        W = np.hstack([Gb, E])  # input map of w = [T_b; P]
         d, a = self._d, self._a
         m = d.size
         if a.size:
-            order, half, entries, places = self._band
+            half = self._band[1]
             # K is made of the conductances and advection rates: finite when they are
             if not (np.isfinite(self.conductance).all()
                     and np.isfinite(self.advection_rate).all()):
                 raise NetworkError('algebraic nodes cannot be eliminated: a coefficient is '
                                    'not finite')
-            band = np.zeros((3 * half + 1, a.size))
-            band[places] = K[entries]
+            K_dd, K_da, W_d, band, rhs = self._reduction_matrices()
             lu, piv, info = dgbtrf(band, half, half)
             pivots = lu[2 * half]                    # U's diagonal
             # the band holds every entry of K's algebraic block: its largest is the block's
             if info != 0 or np.any(np.abs(pivots) < 1e-14 * np.abs(band).max()):
                 raise NetworkError('algebraic nodes form a group with no path to a capacity '
                                    'or a boundary: their temperature is undefined')
-            rhs = np.hstack([K[m:, :m], W[m:]])[order]
             # the solve costs per column, and most of them are zero (sources heat states,
             # a state touches a few algebraic nodes): those solve to zero
             cols = np.flatnonzero(rhs.any(axis=0))
-            sol_band = np.zeros_like(rhs)
-            sol_band[:, cols], info = dgbtrs(lu, half, half, rhs[:, cols], piv)
+            solved, info = dgbtrs(lu, half, half, rhs[:, cols], piv)
             if info != 0:
                 raise NetworkError(f'algebraic nodes cannot be eliminated (gbtrs info {info})')
-            sol = np.empty_like(sol_band)
-            sol[order] = sol_band
+            # back in node order (the band's row i is node order[i])
+            sol = np.zeros_like(rhs)
+            sol[:, cols] = solved[self._blocks[5]]
             # T_a = out_x x + out_w w (in C order, as the step's kernel takes them)
             out_x = np.ascontiguousarray(-sol[:, :m])
             out_w = np.ascontiguousarray(sol[:, m:])
-            K_red = K[:m, :m] - K[:m, m:] @ sol[:, :m]
-            W_red = W[:m] - K[:m, m:] @ out_w
+            K_red = K_dd - K_da @ sol[:, :m]
+            W_red = W_d - K_da @ out_w
         else:
+            K, Gb, E = self.matrices(reduced_order=True)
+            W = np.hstack([Gb, E])  # input map of w = [T_b; P]
             out_x = np.zeros((0, m))
             out_w = np.zeros((0, W.shape[1]))
             K_red, W_red = K, W
@@ -444,6 +463,35 @@ class ThermalNetwork:
         # were most of the step's memory traffic
         self._reduced = memo[1] = (A, B, d, a, out_x, out_w, (_by_rows(out_x), _by_rows(out_w)))
         return self._reduced
+
+    def _reduction_matrices(self) -> tuple:
+        """
+        Return K's state block, its state-to-algebraic block, W's state rows, the band, the rhs.
+
+        As :meth:`matrices` (reduced order) would give them, sliced as
+        :meth:`_reduce` uses them: ``K[:m, :m]``, ``K[:m, m:]``, ``W[:m]``
+        with ``W = [G_b E]``, K's algebraic block in LAPACK's band storage,
+        and ``[K[m:, :m] W[m:]]`` with its rows in the band's order.
+        """
+        m, na, nw = self._d.size, self._a.size, self.nb + self.ns
+        half = self._band[1]
+        k_sel, k_bins, w_sel, w_bins, e_places = self._blocks[:5]
+        g, c = self.conductance, self.advection_rate
+        g_nn = g[self._nn[:, 0]]
+        g_nb = g[self._nbl[:, 0]]
+        c_n = c[self._adv_n[:, 0]]
+        c_b = c[self._adv_b[:, 0]]
+        k_val = np.concatenate([g_nn, g_nn, -g_nn, -g_nn, g_nb, c_n, -c_n, c_b])
+        w_val = np.concatenate([g_nb, c_b])
+        sizes = (m * m, m * na, (3 * half + 1) * na, na * (m + nw))
+        K_dd, K_da, band, rhs = (np.bincount(bins, weights=k_val[sel], minlength=size)
+                                 for sel, bins, size in zip(k_sel, k_bins, sizes))
+        W_d = np.bincount(w_bins[0], weights=w_val[w_sel[0]], minlength=m * nw)
+        rhs += np.bincount(w_bins[1], weights=w_val[w_sel[1]], minlength=na * (m + nw))
+        W_d[e_places[0]] = 1.0
+        rhs[e_places[1]] = 1.0
+        return (K_dd.reshape(m, m), K_da.reshape(m, na), W_d.reshape(m, nw),
+                band.reshape(3 * half + 1, na), rhs.reshape(na, m + nw))
 
     def _memo(self, coefficients: tuple) -> list:
         """
@@ -692,5 +740,47 @@ def _band(n: int, m: int, na: int, dtype: str, k_idx_bytes: bytes) -> tuple:
     # LAPACK's gbtrf storage of a band with kl = ku = half: A[r, c] at row 2 half + r - c
     out = order, half, (i + m, j + m), (2 * half + pi - pj, pj)
     for a in (order, *out[2], *out[3]):
+        a.flags.writeable = False           # shared by every network of this topology
+    return out
+
+
+@lru_cache(maxsize=64)
+def _blocks(n: int, m: int, nb: int, ns: int, half: int, k_dtype: str, gb_dtype: str,
+            src_dtype: str, order_dtype: str, k_idx_bytes: bytes, gb_idx_bytes: bytes,
+            src_bytes: bytes, order_bytes: bytes) -> tuple:
+    """
+    Return :meth:`ThermalNetwork._reduction_blocks` of the scatter indices (given as bytes).
+
+    For K's entries (in :meth:`ThermalNetwork.matrices`' order) and for G_b's:
+    which of them fall in each block (ascending, so that each block sums them
+    in their order) and their flat places in it; for E's ones, their flat
+    places in W's state rows and in the right-hand side; and each algebraic
+    node's row in the band's order.
+    """
+    k_idx = np.frombuffer(k_idx_bytes, dtype=k_dtype)
+    gb_idx = np.frombuffer(gb_idx_bytes, dtype=gb_dtype)
+    src = np.frombuffer(src_bytes, dtype=src_dtype)
+    order = np.frombuffer(order_bytes, dtype=order_dtype)
+    na, nw, nbs = n - m, nb + ns, max(nb, 1)
+    rank = np.empty(na, dtype=int)
+    rank[order] = np.arange(na)
+    i, j = np.divmod(k_idx, n)
+    blocks = ((i < m) & (j < m), (i < m) & (j >= m), (i >= m) & (j >= m), (i >= m) & (j < m))
+    k_sel = tuple(np.flatnonzero(b) for b in blocks)
+    dd, da, aa, ad = k_sel
+    k_bins = (i[dd] * m + j[dd], i[da] * na + j[da] - m,
+              (2 * half + rank[i[aa] - m] - rank[j[aa] - m]) * na + rank[j[aa] - m],
+              rank[i[ad] - m] * (m + nw) + j[ad])
+    # G_b's rows are n x max(nb, 1) in the scatter, its first nb columns in W
+    r, col = np.divmod(gb_idx, nbs)
+    w_sel = (np.flatnonzero(r < m), np.flatnonzero(r >= m))
+    w_bins = (r[w_sel[0]] * nw + col[w_sel[0]],
+              rank[r[w_sel[1]] - m] * (m + nw) + m + col[w_sel[1]])
+    k = np.arange(ns)
+    state = src < m
+    e_places = (src[state] * nw + nb + k[state],
+                rank[src[~state] - m] * (m + nw) + m + nb + k[~state])
+    out = (k_sel, k_bins, w_sel, w_bins, e_places, rank)
+    for a in (*k_sel, *k_bins, *w_sel, *w_bins, *e_places, rank):
         a.flags.writeable = False           # shared by every network of this topology
     return out

@@ -27,7 +27,7 @@ SHARED = ('cfg', 'quantities', 'motor.quantities', 'motor.loss_table',
           'motor._loss_constants') + tuple(
     f'motor.net.{name}' for name in (
         'node_names', '_links', '_link_g', '_kind', '_nn', '_nbl', '_adv_n', '_adv_b', '_src',
-        '_d', '_a', '_scatter', '_scatter_reduced', '_band', '_ends'))
+        '_d', '_a', '_scatter', '_scatter_reduced', '_band', '_blocks', '_ends'))
 
 
 class Snapshot(bytes):
