@@ -205,8 +205,9 @@ def test_a_set_the_model_fails_on_or_a_worker_that_dies_fails_the_run_and_says_s
         worker = next(iter(evaluator.pool._processes.values()))
         os.kill(worker.pid, signal.SIGKILL)
         worker.join()
-        while not evaluator.pool._broken:               # its manager thread has seen it
-            time.sleep(0.01)
+        end = time.monotonic() + 60.0                   # (a deadline, not a wait)
+        while not evaluator.pool._broken and time.monotonic() < end:
+            time.sleep(0.01)                            # its manager thread has seen it
         with pytest.raises(cb.CalibrationError, match='worker process died'):
             evaluator.run([values] * 4, [[0]] * 4)
     finally:
