@@ -352,14 +352,9 @@ class ThermalNetwork:
         self.freeze()
         n, nb = self.n, max(self.nb, 1)
         k_idx, gb_idx, src = self._scatter_reduced if reduced_order else self._scatter
-        g, c = self.conductance, self.advection_rate
-        g_nn = g[self._nn[:, 0]]
-        g_nb = g[self._nbl[:, 0]]
-        c_n = c[self._adv_n[:, 0]]
-        c_b = c[self._adv_b[:, 0]]
-        k_val = np.concatenate([g_nn, g_nn, -g_nn, -g_nn, g_nb, c_n, -c_n, c_b])
+        k_val, w_val = self._entry_values()
         K = np.bincount(k_idx, weights=k_val, minlength=n * n).reshape(n, n)
-        Gb = np.bincount(gb_idx, weights=np.concatenate([g_nb, c_b]),
+        Gb = np.bincount(gb_idx, weights=w_val,
                          minlength=n * nb).reshape(n, nb)[:, :self.nb]
         E = np.zeros((n, self.ns))
         E[src, np.arange(self.ns)] = 1.0
@@ -464,6 +459,16 @@ class ThermalNetwork:
         self._reduced = memo[1] = (A, B, d, a, out_x, out_w, (_by_rows(out_x), _by_rows(out_w)))
         return self._reduced
 
+    def _entry_values(self) -> Tuple[np.ndarray, np.ndarray]:
+        """Return the values of K's entries and of G_b's, in the scatter indices' order."""
+        g, c = self.conductance, self.advection_rate
+        g_nn = g[self._nn[:, 0]]
+        g_nb = g[self._nbl[:, 0]]
+        c_n = c[self._adv_n[:, 0]]
+        c_b = c[self._adv_b[:, 0]]
+        return (np.concatenate([g_nn, g_nn, -g_nn, -g_nn, g_nb, c_n, -c_n, c_b]),
+                np.concatenate([g_nb, c_b]))
+
     def _reduction_matrices(self) -> tuple:
         """
         Return K's state block, its state-to-algebraic block, W's state rows, the band, the rhs.
@@ -476,13 +481,7 @@ class ThermalNetwork:
         m, na, nw = self._d.size, self._a.size, self.nb + self.ns
         half = self._band[1]
         k_sel, k_bins, w_sel, w_bins, e_places = self._blocks[:5]
-        g, c = self.conductance, self.advection_rate
-        g_nn = g[self._nn[:, 0]]
-        g_nb = g[self._nbl[:, 0]]
-        c_n = c[self._adv_n[:, 0]]
-        c_b = c[self._adv_b[:, 0]]
-        k_val = np.concatenate([g_nn, g_nn, -g_nn, -g_nn, g_nb, c_n, -c_n, c_b])
-        w_val = np.concatenate([g_nb, c_b])
+        k_val, w_val = self._entry_values()
         sizes = (m * m, m * na, (3 * half + 1) * na, na * (m + nw))
         K_dd, K_da, band, rhs = (np.bincount(bins, weights=k_val[sel], minlength=size)
                                  for sel, bins, size in zip(k_sel, k_bins, sizes))
