@@ -168,17 +168,23 @@ def test_isolated_algebraic_group_is_reported():
         net.discretise(0.1)
 
 
-def test_algebraic_nodes_from_the_maps_nonzeros_agree_with_the_dense_maps_to_round_off():
-    # the step takes the algebraic nodes' map by its nonzeros (out_x is about 9 % full):
-    # the same sums in another order, so they agree within the round-off of a sum of n
-    # terms either way, 2 gamma_n sum |terms| (Higham, Accuracy and Stability, 3.1)
+def stepped_motor(steps: int):
+    """Return the reference motor after ``steps`` 20 ms steps from 40 degC, and its inputs."""
     cfg = load_config()
     motor = WetMotor(cfg.motor, get_oil(cfg.fluid.grade))
     motor.initialise(C_TO_K + 40.0)
     u = MotorInputs(current_sq_mean_A2=225.0, speed_rad_s=800.0, oil_inlet_K=C_TO_K + 40.0,
                     oil_flow_m3_s=1e-5, ambient_K=C_TO_K + 20.0)
-    for _ in range(50):                 # coefficients, losses and a state with gradients
+    for _ in range(steps):
         motor.step(0.02, u)
+    return motor, u
+
+
+def test_algebraic_nodes_from_the_maps_nonzeros_agree_with_the_dense_maps_to_round_off():
+    # the step takes the algebraic nodes' map by its nonzeros (out_x is about 9 % full):
+    # the same sums in another order, so they agree within the round-off of a sum of n
+    # terms either way, 2 gamma_n sum |terms| (Higham, Accuracy and Stability, 3.1)
+    motor, u = stepped_motor(50)        # coefficients, losses and a state with gradients
     net, Tb, P = motor.net, motor.boundaries(u), motor.power_W
     a, out_x = net.algebraic_map()
     out_w = net._reduce()[5]
@@ -197,12 +203,7 @@ def test_the_reductions_blocks_are_the_assembled_matrices_to_the_bit():
     # the reduction sums only the blocks it reads (K's state rows, the band of its algebraic
     # block, the algebraic solve's right-hand side), each entry in matrices()' order: the
     # same sums, so the same bits as the dense K, G_b and E sliced, at any coefficients
-    cfg = load_config()
-    motor = WetMotor(cfg.motor, get_oil(cfg.fluid.grade))
-    motor.initialise(C_TO_K + 40.0)
-    u = MotorInputs(current_sq_mean_A2=225.0, speed_rad_s=800.0, oil_inlet_K=C_TO_K + 40.0,
-                    oil_flow_m3_s=1e-5, ambient_K=C_TO_K + 20.0)
-    motor.step(0.02, u)
+    motor, _ = stepped_motor(1)
     net = motor.net
     rng = np.random.default_rng(3)
     g = net.conductance
