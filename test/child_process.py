@@ -86,19 +86,21 @@ def kill_writer(target, messages: int, pressure: bool = False, **options):
     return len(stamps), stamps[-1]
 
 
-def in_a_fresh_process(module: str, function: str, *args: str, timeout_s: float = 600.0):
+def in_a_fresh_process(module: str, function: str, *args: str, forks: bool = True,
+                       timeout_s: float = 600.0):
     """
     Call ``module.function(*args)`` (a test module's; string arguments) in a fresh interpreter.
 
     What a command (one thread) gets, where the package forks its children: not
     this test process, whose ROS tests' objects and DDS threads a forked child
     would inherit (children forked so died in their GC). Asserts that the child
-    forks and that the call returns; the child's output is the failure's message.
+    forks (unless ``forks`` is false) and that the call returns within
+    ``timeout_s``; the child's output is the failure's message.
     """
+    fork_check = ('assert processes.child_context().get_start_method() == "fork", '
+                  'processes.thread_count(); ') if forks else ''
     script = ('import sys; from wet_eha_thermal import processes; '
-              f'import {module} as t; '
-              'assert processes.child_context().get_start_method() == "fork", '
-              'processes.thread_count(); '
+              f'import {module} as t; {fork_check}'
               f't.{function}(*sys.argv[1:])')
     done = subprocess.run([sys.executable, '-c', script, *args], cwd=Path(__file__).parent,
                           capture_output=True, text=True, timeout=timeout_s)

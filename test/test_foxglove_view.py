@@ -14,8 +14,10 @@ from pathlib import Path
 import re
 import socket
 import struct
+import threading
 import time
 
+from child_process import in_a_fresh_process
 import numpy as np
 import pytest
 from websockets.sync.client import connect
@@ -357,15 +359,74 @@ def test_parameters_are_shown_and_the_safe_ones_settable(view):
             {'name': 'publish_rate_Hz', 'value': 1e6}]}))
         client.read(lambda: any(o.get('id') == 'r' for o in client.ops))
         assert view.take_requests() == {}
-        # the owner confirms a value: subscribed clients hear it
-        client.ws.send(json.dumps({'op': 'subscribeParameterUpdates',
-                                   'parameterNames': ['publish_rate_Hz']}))
-        # the subscription is in place once a confirmation reaches the client
-        client.read(lambda: (view.show_parameters({'publish_rate_Hz': 25.0})
-                             or any(o['op'] == 'parameterValues' and 'id' not in o
-                                    for o in client.ops)), timeout=TIMEOUT_S)
+        # the owner confirms a value: a status says it, and the next getParameters has it
+        view.show_parameters({'publish_rate_Hz': 25.0})
+        assert _parameters(client, 'h')['publish_rate_Hz'] == 25.0
+        client.read(lambda: _status(client, 'parameters now: publish_rate_Hz = 25.0'))
     finally:
         client.close()
+
+
+def _parameters(client, request_id):
+    """Ask for every parameter; return them as name -> value."""
+    client.ws.send(json.dumps({'op': 'getParameters', 'parameterNames': [], 'id': request_id}))
+    client.read(lambda: any(o.get('id') == request_id for o in client.ops))
+    answer = next(o for o in client.ops if o.get('id') == request_id)
+    return {p['name']: p['value'] for p in answer['parameters']}
+
+
+def _status(client, message):
+    return any(o['op'] == 'status' and o['message'] == message for o in client.ops)
+
+
+def test_values_shown_while_clients_subscribe_to_parameters_never_freeze_the_process():
+    # a deadlock holds the interpreter's lock for ever: only another process can fail the test
+    in_a_fresh_process('test_foxglove_view', 'show_values_while_a_client_churns', '3000',
+                       '300', forks=False, timeout_s=120.0)
+
+
+def show_values_while_a_client_churns(shows: str, churns: str) -> None:
+    """
+    Show ``shows`` values while a client subscribes and unsubscribes ``churns`` times or more.
+
+    foxglove-sdk 0.30's publish_parameter_values froze the process when a
+    client subscribed at that moment; the values are now shown another way.
+    Both sides go on until each has done its count, so they overlap however
+    the machine schedules them; the owner waits for the client to read (at
+    most 64 statuses behind: the server drops a client 256 behind).
+    """
+    shows, churns = int(shows), int(churns)
+    view = LiveView('127.0.0.1', 0, estimates=interface.ESTIMATES, limited=LIMITED,
+                    inputs=('current_A',), thermocouples=interface.THERMOCOUPLES,
+                    parameters={'publish_rate_Hz': 50.0},
+                    settable={'publish_rate_Hz': (1.0, 500.0)})
+    client = Client(view.port)
+    churned = [0]
+    done = threading.Event()
+
+    def churn():
+        while not done.is_set() or churned[0] < churns:
+            op = ('subscribeParameterUpdates', 'unsubscribeParameterUpdates')[churned[0] % 2]
+            client.ws.send(json.dumps({'op': op, 'parameterNames': ['publish_rate_Hz']}))
+            client.drain()
+            churned[0] += 1
+
+    thread = threading.Thread(target=churn, daemon=True)
+    thread.start()
+    k = 0
+    while k < shows or churned[0] < churns:
+        if k - len(client.ops) < 64:        # the client reads nothing but these statuses
+            view.show_parameters({'publish_rate_Hz': float(k)})
+            k += 1
+        else:
+            time.sleep(0.001)
+    done.set()
+    thread.join()
+    last = f'parameters now: publish_rate_Hz = {k - 1.0}'
+    client.read(lambda: _status(client, last))
+    assert _parameters(client, 'g')['publish_rate_Hz'] == k - 1.0
+    client.close()
+    view.close()
 
 
 def test_a_client_that_stops_reading_stalls_nothing(view, run):

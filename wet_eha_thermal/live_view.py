@@ -28,7 +28,8 @@ Parameters (Foxglove's Parameters panel): the owner shows any read-only
 values (thresholds, limits, settings); the names in ``settable`` may be set
 from Foxglove within their range. An accepted request is queued for the
 owner (:meth:`LiveView.take_requests`), which applies it on its own thread
-and confirms with :meth:`LiveView.show_parameters`.
+and confirms with :meth:`LiveView.show_parameters` (a status; clients read
+the values when they next ask for them).
 
 The Foxglove SDK (foxglove-sdk, which rosdep has no key for) is imported
 when a view starts, not with this module: the address helpers serve
@@ -259,12 +260,21 @@ class LiveView:
         return requests
 
     def show_parameters(self, values: Mapping[str, Any]) -> None:
-        """Show new parameter values (to clients subscribed to them too)."""
+        """
+        Show new parameter values: in the answers to getParameters, and at once as a status.
+
+        Foxglove's clients ask for every parameter each 15 s. The values are
+        not pushed (``publish_parameter_values``): foxglove-sdk 0.30 calls the
+        listener, which needs the interpreter's lock, while it holds its
+        parameter-subscription lock, and that call waits for this lock while
+        holding the interpreter's: a client subscribing to parameter updates
+        at that moment froze the whole process (test_foxglove_view.py).
+        """
         with self._lock:
             self._shown.update(values)
-        from foxglove import Parameter
-        self.server.publish_parameter_values(
-            [Parameter(k, value=_parameter_value(v)) for k, v in values.items()])
+        from foxglove.websocket import StatusLevel
+        changed = ', '.join(f'{k} = {_parameter_value(v)}' for k, v in values.items())
+        self.server.publish_status(f'parameters now: {changed}', StatusLevel.Info)
 
     def close(self) -> None:
         """Stop the worker and the server."""
