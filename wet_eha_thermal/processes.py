@@ -10,6 +10,7 @@ with no other thread: a child's arguments are then pickled instead of
 inherited, and its modules imported, unless the server preloaded them.
 """
 
+from concurrent.futures import ProcessPoolExecutor
 import multiprocessing
 from multiprocessing.context import BaseContext
 import os
@@ -52,3 +53,14 @@ def fork_server(preload: Iterable[str] = ()) -> BaseContext:
 def child_context(preload: Iterable[str] = ()) -> BaseContext:
     """Return the start method for a child process now: fork if safe, else the fork server."""
     return multiprocessing.get_context('fork') if can_fork() else fork_server(preload)
+
+
+def stop_pool(pool: ProcessPoolExecutor) -> None:
+    """Shut ``pool`` down now, its workers killed mid-task (a running task is not waited for)."""
+    if hasattr(pool, 'terminate_workers'):          # Python 3.14
+        pool.terminate_workers()
+    else:
+        # before 3.14 the executor keeps them in a private mapping (None once shut down)
+        for process in list((getattr(pool, '_processes', None) or {}).values()):
+            process.terminate()
+    pool.shutdown(wait=True, cancel_futures=True)

@@ -23,7 +23,7 @@ from .logs import CalibrationError, CHANNELS, LogData
 from ..config import Calibration, Config, with_values
 from ..estimator.session import EstimatorSession
 from ..interface import THERMOCOUPLES
-from ..processes import child_context
+from ..processes import child_context, stop_pool
 
 #: Length of the ambient segments (s): each gets the mean of its readings.
 AMBIENT_SEGMENT_S = 60.0
@@ -239,16 +239,6 @@ def _worker_died(exc: BrokenProcessPool) -> CalibrationError:
                             'killed or run out of memory: try fewer jobs (--jobs)')
 
 
-def _terminate_workers(pool: ProcessPoolExecutor) -> None:
-    """Kill a pool's worker processes: their running tasks would otherwise be waited for."""
-    if hasattr(pool, 'terminate_workers'):          # Python 3.14
-        pool.terminate_workers()
-        return
-    # before 3.14 the executor keeps them in a private mapping (None once shut down)
-    for process in list((getattr(pool, '_processes', None) or {}).values()):
-        process.terminate()
-
-
 class Evaluator:
     """
     Run parameter sets over logs: inline, in ``jobs`` worker processes, or on a Dask client.
@@ -332,8 +322,7 @@ class Evaluator:
     def close(self) -> None:
         """Stop the workers, at once even mid-task (a Dask client's are left to its owner)."""
         if self.pool is not None:
-            _terminate_workers(self.pool)
-            self.pool.shutdown(wait=True, cancel_futures=True)
+            stop_pool(self.pool)
             self.pool = None
         if self.client is not None:
             self.client.cancel([f for part in self.remote for f in part])

@@ -37,7 +37,7 @@ from .whatif import error_answer, id_of, parse_request, RequestError, what_if
 from ..config import Config
 from ..model.eha import EHAModel
 from ..model.warmup import compile_model
-from ..processes import fork_server
+from ..processes import fork_server, stop_pool
 
 #: How much nicer than its parent the worker runs: the estimator's steps come first.
 WORKER_NICE = 10
@@ -165,9 +165,5 @@ class WhatIfWorker:
         """Stop the worker, and a what-if it runs."""
         if self._pool is None:
             return
-        # the executor has no public way to stop a running call (before Python 3.14): end
-        # its process, then the executor, which finds it gone
-        for p in list(getattr(self._pool, '_processes', {}).values()):
-            p.terminate()
-        self._pool.shutdown(wait=True, cancel_futures=True)
+        stop_pool(self._pool)
         self._pool = None
