@@ -41,8 +41,9 @@ ROS domain (from the pid, or ``$WET_EHA_BENCH_DOMAIN_ID``):
 
 Figures, all subscribers measured in this one run:
 
-- CPU of the bare subscriber and of the estimator: utime + stime from
-  ``/proc/<pid>/stat`` over the measured ``--minutes`` (after
+- CPU of the bare subscriber and of the estimator with its children (the
+  what-if worker and its fork server): utime + stime of the process tree
+  from ``/proc/<pid>/stat`` over the measured ``--minutes`` (after
   ``--warmup-s``), in % of one core, and their ratio;
 - lost samples: per input, what the publisher sent minus what the estimator
   received (its diagnostics' ``received`` counter, read after the publisher
@@ -53,7 +54,10 @@ Figures, all subscribers measured in this one run:
 - end-to-end latency: for every estimate (stamp t1 = the end of its 20 ms
   step), the receive time here minus the send time of the first pressure
   sample stamped at or after t1 (the sample that closed the step); p50, p99
-  and max. It adds two DDS hops and this process's own scheduling.
+  and max. It adds two DDS hops and this process's own scheduling;
+- stalls: over the whole run, warm-up and the estimator's cold start
+  included, the runs of estimates more than ``STALL_MS`` late by that
+  measure, when (s from the first estimate) and how late at worst.
 
 Then, with ``--busy-live-s`` (default 60; 0 skips it), the busy-machine case:
 ``wet-eha-thermal live`` for that long while another process keeps one core
@@ -78,7 +82,7 @@ from typing import Optional
 
 from diagnostic_msgs.msg import DiagnosticArray
 import numpy as np
-from procfs import cpu_seconds
+from procfs import tree_cpu_seconds
 import rclpy
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
@@ -104,6 +108,8 @@ INPUT_STATUS = interface.status_name('input ', interface.ESTIMATOR_NODE)
 ESTIMATE_STATUS = interface.status_name('estimate', interface.ESTIMATOR_NODE)
 LATENCY_KEY = 'step latency p50/p99/max [ms]'
 VIEW_KEY = 'foxglove view'
+#: an estimate received more than this after its closing sample was sent is late (a stall)
+STALL_MS = 100.0
 
 
 def bench_config(pressure: str):
@@ -267,6 +273,7 @@ class Monitor:
         self.stamps = deque(maxlen=200000)     # pressure send times (ns), increasing
         self.pending = deque()                 # (estimate stamp ns, receive ns)
         self.latency_ms = []
+        self.latency_rx_s = []                 # when each was received (monotonic s)
         self.estimates = 0
         self.counters = {}
         self.latency_text = None
@@ -305,6 +312,7 @@ class Monitor:
                     break
                 closing = s
             self.latency_ms.append((rx - closing) * 1e-6)
+            self.latency_rx_s.append(time.monotonic())
 
     def on_diag(self, msg) -> None:
         self.diag_count += 1
@@ -371,12 +379,12 @@ def measure(args, executor, sub, pub, mon=None):
         raise SystemExit('the publisher did not start within 120 s')
     t_start = time.monotonic()
     spin_for(executor, args.warmup_s)
-    cpu0, w0 = cpu_seconds(sub.pid), time.monotonic()
+    cpu0, w0 = tree_cpu_seconds(sub.pid), time.monotonic()
     lat_from = len(mon.latency_ms) if mon else 0
     est0 = mon.estimates if mon else 0
     spin_for(executor, max(args.minutes * 60.0 - (time.monotonic() - t_start - args.warmup_s),
                            0.0))
-    cpu1, w1 = cpu_seconds(sub.pid), time.monotonic()
+    cpu1, w1 = tree_cpu_seconds(sub.pid), time.monotonic()
     if not spin_for(executor, 30.0, lambda: pub.read().count('\n') >= 2):
         raise SystemExit('the publisher did not report')
     out = {'cpu': 100.0 * (cpu1 - cpu0) / (w1 - w0), 'seconds': w1 - w0,
@@ -469,8 +477,8 @@ def print_estimator(fig, mon, inputs, what: str) -> None:
     """Print the figures of one estimator run."""
     sent = fig['report']['sent']
     print(f'{what}: CPU {fig["cpu"]:.1f} % of one core over {fig["seconds"]:.1f} s '
-          f'(utime+stime of /proc/<pid>/stat); {fig["estimates"]} estimates received, '
-          f'{fig["estimates"] / fig["seconds"]:.1f} per s')
+          f'(utime+stime of its process tree, /proc/<pid>/stat); {fig["estimates"]} '
+          f'estimates received, {fig["estimates"] / fig["seconds"]:.1f} per s')
     lost_total = 0
     for name in inputs:
         c = mon.counters.get(name, {})
@@ -492,6 +500,7 @@ def print_estimator(fig, mon, inputs, what: str) -> None:
         print(f'  end-to-end latency, closing sample sent -> its estimate received here: p50 '
               f'{p50:.2f} ms, p99 {p99:.2f} ms, max {lat.max():.2f} ms over {lat.size} '
               'estimates')
+    print_stalls(mon)
     r = fig['report']
     print(f'  publisher: CPU {r["cpu_percent"]:.1f} % of a core, tick interval p50/p99/max '
           f'{r["tick_p50_ms"]:.3f}/{r["tick_p99_ms"]:.3f}/{r["tick_max_ms"]:.1f} ms')
@@ -500,6 +509,36 @@ def print_estimator(fig, mon, inputs, what: str) -> None:
         print(f'  Foxglove client: {n} messages, {size / 1e6:.1f} MB in {seconds:.0f} s '
               f'({n / seconds:.0f} msg/s, {size / seconds / 1e3:.0f} kB/s); the view: '
               f'{mon.view_text}')
+
+
+def stalls(rx_s, latency_ms, late_ms: float = STALL_MS, join_s: float = 0.5):
+    """
+    Return the stalls: runs of estimates ``late_ms`` late, as (first, last receipt s, worst ms).
+
+    Late estimates received within ``join_s`` of each other are one stall.
+    """
+    out = []
+    for t, ms in zip(rx_s, latency_ms):
+        if ms <= late_ms:
+            continue
+        if out and t - out[-1][1] <= join_s:
+            out[-1] = (out[-1][0], t, max(out[-1][2], ms))
+        else:
+            out.append((t, t, ms))
+    return out
+
+
+def print_stalls(mon) -> None:
+    """Print where the estimates came late over the whole run, warm-up included."""
+    found = stalls(mon.latency_rx_s, mon.latency_ms)
+    if not mon.latency_rx_s:
+        return
+    t0 = mon.latency_rx_s[0]
+    where = ', '.join(f'{a - t0:.1f}-{b - t0:.1f} s (worst {ms:.0f} ms)'
+                      for a, b, ms in found[:6]) + (' ...' if len(found) > 6 else '')
+    print(f'  stalls, the whole run (estimates more than {STALL_MS:g} ms after their closing '
+          f'sample was sent; s from the first estimate): {len(found)}'
+          + (f': {where}' if found else ''))
 
 
 def busy_live(seconds: float, env) -> None:

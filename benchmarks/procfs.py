@@ -24,6 +24,26 @@ def cpu_seconds(pid: int, root: Path = PROC) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
+def tree_cpu_seconds(pid: int, root: Path = PROC) -> float:
+    """
+    Return the CPU time of ``pid`` and its descendants (s): utime + stime, cutime + cstime.
+
+    The live ones' own time, and what their children that ended and were
+    waited for used; a process that ends between two readings takes its
+    time with it until its parent waits for it.
+    """
+    ticks, todo = 0, [pid]
+    while todo:
+        p = todo.pop()
+        try:
+            fields = _stat_fields((root / str(p) / 'stat').read_text())
+        except OSError:                    # ended meanwhile
+            continue
+        ticks += sum(int(fields[k]) for k in (11, 12, 13, 14))
+        todo += children(p, root)
+    return ticks / os.sysconf('SC_CLK_TCK')
+
+
 def start_ticks(pid: int, root: Path = PROC) -> int:
     """Return the start of process ``pid`` (clock ticks after boot): with the pid, its identity."""
     return int(_stat_fields((root / str(pid) / 'stat').read_text())[19])

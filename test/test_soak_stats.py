@@ -131,13 +131,13 @@ def test_status_lines():
 
 
 def _fake_process(root: Path, pid: int, ppid: int, name: str, cmd: str, rss_kB: int,
-                  utime: int, stime: int, start: int) -> None:
+                  utime: int, stime: int, start: int, cutime: int = 0) -> None:
     d = root / str(pid)
     d.mkdir()
     # fields 3.. of proc(5): state ppid pgrp session tty tpgid flags minflt cminflt majflt
     # cmajflt utime stime cutime cstime priority nice threads itrealvalue starttime vsize
-    rest = ['S', ppid, pid, pid, 0, -1, 0, 0, 0, 0, 0, utime, stime, 0, 0, 20, 0, 1, 0, start,
-            1000]
+    rest = ['S', ppid, pid, pid, 0, -1, 0, 0, 0, 0, 0, utime, stime, cutime, 0, 20, 0, 1, 0,
+            start, 1000]
     (d / 'stat').write_text(f'{pid} ({name}) ' + ' '.join(map(str, rest)) + '\n')
     (d / 'status').write_text(f'Name:\t{name}\nVmPeak:\t  9 kB\nVmRSS:\t {rss_kB} kB\n')
     (d / 'cmdline').write_bytes(cmd.replace(' ', '\0').encode() + b'\0')
@@ -147,19 +147,23 @@ def test_proc_fields_of_a_fake_tree(tmp_path):
     tick = os.sysconf('SC_CLK_TCK')
     # a command name with spaces and parentheses, as a thread's name may be
     _fake_process(tmp_path, 10, 1, 'python3 (live) x', 'python -m wet_eha_thermal.cli live',
-                  1000, 3 * tick, tick, 500)
+                  1000, 3 * tick, tick, 500, cutime=2 * tick)
     _fake_process(tmp_path, 11, 10, 'python3', 'python -m wet_eha_thermal.ros.sim_rig_node '
                   '--ros-args', 2048, tick, 0, 600)
     _fake_process(tmp_path, 12, 10, 'python3', 'python -m wet_eha_thermal.ros.recorder_node',
                   10, 0, 0, 601)
     _fake_process(tmp_path, 13, 99, 'python3', 'python -m wet_eha_thermal.ros.estimator_node',
                   10, 0, 0, 602)        # another session's estimator: not live's child
+    _fake_process(tmp_path, 14, 11, 'python3', 'python -c fork server', 10, 5 * tick, 0, 603)
     (tmp_path / 'self').mkdir()
     # cpu user nice system idle iowait irq softirq steal guest guest_nice
     (tmp_path / 'stat').write_text(f'cpu  {50 * tick} {tick} {9 * tick} 7000 30 {tick} {tick} '
                                    f'{3 * tick} {20 * tick} 0\ncpu0 1 2 3 4 5 6 7 8 9 10\n')
     assert procfs.machine_cpu_seconds(tmp_path) == pytest.approx((62.0, 3.0))
     assert procfs.cpu_seconds(10, tmp_path) == pytest.approx(4.0)
+    # its own 4 s, its ended children's 2, its child's 1 and grandchild's 5; not 13's
+    assert procfs.tree_cpu_seconds(10, tmp_path) == pytest.approx(12.0)
+    assert procfs.tree_cpu_seconds(11, tmp_path) == pytest.approx(6.0)
     assert procfs.rss_bytes(11, tmp_path) == 2048 * 1024
     assert procfs.start_ticks(11, tmp_path) == 600
     assert sorted(procfs.children(10, tmp_path)) == [11, 12]
@@ -167,7 +171,7 @@ def test_proc_fields_of_a_fake_tree(tmp_path):
     assert procfs.children_by_command(10, names, tmp_path) == {'rig': 11, 'recorder': 12}
     assert procfs.same_process(11, 600, tmp_path)
     assert not procfs.same_process(11, 599, tmp_path)       # the pid was reused
-    assert not procfs.same_process(14, 600, tmp_path)       # ended
+    assert not procfs.same_process(15, 600, tmp_path)       # ended
 
 
 def test_cpu_time_of_this_process_is_what_python_counts():
