@@ -11,7 +11,13 @@ by :mod:`.loss_table`, the loss constants, the configuration and the thermal
 network's index arrays). :func:`save` pickles the model with those as
 references to the originals (0.73 MB): on 2026-11-28, on a loaded machine,
 a copy took 1.4 ms instead of 4-7 ms and a save 2.6 ms instead of 4-7 ms.
-A copy then steps bit for bit as a plain one: what it shares is only read.
+A copy then steps as a plain one (``pickle.dumps(model)``) in the limits,
+the forecast and the margin: the same bits (the golden replay did not move;
+what it shares is only read). Not everywhere: heated as a cold start heats
+them (:class:`~wet_eha_thermal.estimator.uncertainty.Heating`, 8 steps to
+600 s), five of the reference rig's 31 uncertainty copies came out up to
+4e-11 K from their plain pickles' (2026-11-29; the cause is not traced). A
+copy of a snapshot steps as another copy of it does, to the bit.
 
 A :class:`Snapshot` is bytes and is loaded only in the process that saved
 it; :func:`copy` also takes plain pickled bytes (``pickle.dumps(model)``).
