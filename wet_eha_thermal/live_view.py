@@ -264,11 +264,11 @@ class LiveView:
         Show new parameter values: in the answers to getParameters, and at once as a status.
 
         Foxglove's clients ask for every parameter each 15 s. The values are
-        not pushed (``publish_parameter_values``): foxglove-sdk 0.30 calls the
-        listener, which needs the interpreter's lock, while it holds its
-        parameter-subscription lock, and that call waits for this lock while
-        holding the interpreter's: a client subscribing to parameter updates
-        at that moment froze the whole process (test_foxglove_view.py).
+        not pushed: foxglove-sdk 0.30 holds its parameter-subscription lock
+        while it calls the listener, which needs the interpreter's lock, and
+        ``publish_parameter_values`` waits for the subscription lock holding
+        the interpreter's, so a client subscribing to parameter updates at
+        that moment froze the whole process (test_foxglove_view.py).
         """
         with self._lock:
             self._shown.update(values)
