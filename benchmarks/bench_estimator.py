@@ -273,7 +273,7 @@ class Monitor:
         self.stamps = deque(maxlen=200000)     # pressure send times (ns), increasing
         self.pending = deque()                 # (estimate stamp ns, receive ns)
         self.latency_ms = []
-        self.latency_rx_s = []                 # when each was received (monotonic s)
+        self.latency_rx_s = []                 # when each was received here (s)
         self.estimates = 0
         self.counters = {}
         self.latency_text = None
@@ -312,7 +312,7 @@ class Monitor:
                     break
                 closing = s
             self.latency_ms.append((rx - closing) * 1e-6)
-            self.latency_rx_s.append(time.monotonic())
+            self.latency_rx_s.append(rx * 1e-9)
 
     def on_diag(self, msg) -> None:
         self.diag_count += 1
@@ -530,9 +530,9 @@ def stalls(rx_s, latency_ms, late_ms: float = STALL_MS, join_s: float = 0.5):
 
 def print_stalls(mon) -> None:
     """Print where the estimates came late over the whole run, warm-up included."""
-    found = stalls(mon.latency_rx_s, mon.latency_ms)
     if not mon.latency_rx_s:
         return
+    found = stalls(mon.latency_rx_s, mon.latency_ms)
     t0 = mon.latency_rx_s[0]
     where = ', '.join(f'{a - t0:.1f}-{b - t0:.1f} s (worst {ms:.0f} ms)'
                       for a, b, ms in found[:6]) + (' ...' if len(found) > 6 else '')
